@@ -1,0 +1,131 @@
+// AOV channel sets: which channels of an image hold the colour, its variance, the half
+// buffers and the feature passes that the denoisers read.
+//
+// Every stage reads one merged ImageBuf. Channels of the main render keep their names;
+// channels of the other inputs are prefixed by what they are (see read_inputs in io.h):
+//   -i:as=variance  ->  "variance.<name>"     (per-pixel variance of the mean)
+//   -i:as=halfA     ->  "A.<name>"            (half buffer A: mean of half the samples)
+//   -i:as=halfB     ->  "B.<name>"
+// A preset says where each role lives in that merged buffer; `role=ch1,ch2,ch3` overrides
+// replace one role at a time.
+#pragma once
+
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <OpenImageIO/imagebuf.h>
+
+namespace mcdn {
+
+using OIIO::ImageBuf;
+using OIIO::ImageSpec;
+using OIIO::ROI;
+using OIIO::string_view;
+
+/// What a group of channels means to the denoisers.
+enum class Role {
+    Color, ColorVariance, ColorA, ColorB,
+    Albedo, AlbedoVariance, AlbedoA, AlbedoB,
+    Normal, NormalVariance, NormalA, NormalB,
+    Depth, DepthVariance, DepthA, DepthB,
+    Visibility, VisibilityVariance, VisibilityA, VisibilityB,
+    // Light components. Either the components themselves (generic preset: `diffuse.*`,
+    // `specular.*`) or Blender's factors: diffuse = DiffCol * (DiffDir + DiffInd).
+    Diffuse, Specular,
+    DiffuseColor, DiffuseDirect, DiffuseIndirect,
+    GlossyColor, GlossyDirect, GlossyIndirect,
+    Emission, Environment,
+    Count
+};
+
+constexpr int kRoleCount = int(Role::Count);
+
+/// The user-facing name of a role: "color", "color_variance", "albedo_a", ...
+const char* role_name(Role role);
+/// The inverse of role_name; nullopt for an unknown name.
+std::optional<Role> role_from_name(string_view name);
+/// Number of channels a role holds: 3 for colours and normals, 1 for depth and visibility.
+int role_channel_count(Role role);
+/// The four faces of one quantity: the mean, its variance, halves A and B.
+enum class Face { Mean, Variance, HalfA, HalfB };
+/// The role of one face of a base role (Albedo, Variance) -> AlbedoVariance.
+/// Only Color, Albedo, Normal, Depth and Visibility have faces.
+Role face_of(Role base, Face face);
+
+/// Where an input file's channels go in the merged buffer (io.h).
+enum class InputKind { Mean, Variance, HalfA, HalfB };
+/// "mean", "variance", "halfA", "halfB" (the -i:as= values).
+const char* input_kind_name(InputKind kind);
+std::optional<InputKind> input_kind_from_name(string_view name);
+/// "", "variance.", "A.", "B.": prefix given to that input's channel names.
+const char* input_kind_prefix(InputKind kind);
+
+/// What the user asked for: a preset plus per-role overrides.
+struct AovSpec {
+    /// cycles | tungsten | generic
+    std::string preset = "cycles";
+    /// Blender view layer for the cycles preset; empty = the first layer with a Combined pass.
+    std::string layer;
+    /// role name -> channel names, replacing the preset's choice for that role.
+    std::map<std::string, std::vector<std::string>> overrides;
+    /// Extra AOVs to denoise alongside the beauty: name -> channels (light groups, layers).
+    std::map<std::string, std::vector<std::string>> extras;
+
+    /// Parses one `role=ch1,ch2,...` (or `extra.NAME=ch1,...`, `layer=NAME`) token.
+    bool parse_override(string_view token, std::string& error);
+};
+
+/// The names of the presets, in the order --help lists them.
+const std::vector<std::string>& aov_presets();
+
+/// A resolved AOV set: for every role present, its channel indices in one merged buffer.
+class AovSet {
+public:
+    bool has(Role role) const { return !m_channels[int(role)].empty(); }
+    /// Channel indices of `role` in the buffer it was resolved against (empty if absent).
+    const std::vector<int>& channels(Role role) const { return m_channels[int(role)]; }
+    /// Channel names of `role`.
+    const std::vector<std::string>& names(Role role) const { return m_names[int(role)]; }
+    /// First channel index of a role (roles are contiguous or not; use channels() to be sure).
+    int first(Role role) const { return has(role) ? m_channels[int(role)][0] : -1; }
+
+    struct Extra {
+        std::string name;
+        std::vector<std::string> names;
+        std::vector<int> channels;
+    };
+    const std::vector<Extra>& extras() const { return m_extras; }
+    const std::string& preset() const { return m_preset; }
+
+    /// True when the light is split into diffuse and specular components (KPCN §4).
+    bool has_component_split() const;
+
+    /// Checks that each role in `required` is present. On failure `error` names the role,
+    /// the preset, the file the role would come from and the channels that are there.
+    bool require(const std::vector<Role>& required, const ImageSpec& merged,
+                 std::string& error) const;
+
+private:
+    friend bool resolve_aovs(AovSet&, const AovSpec&, const ImageSpec&, std::string&);
+    std::string m_preset;
+    std::vector<int> m_channels[kRoleCount];
+    std::vector<std::string> m_names[kRoleCount];
+    std::vector<Extra> m_extras;
+};
+
+/// Resolves `spec` against the channel names of a merged buffer. Roles the preset knows but
+/// the buffer lacks are simply absent (use AovSet::require); an override or extra naming a
+/// channel that is not there is an error.
+bool resolve_aovs(AovSet& set, const AovSpec& spec, const ImageSpec& merged,
+                  std::string& error);
+
+/// Names the input file a channel of the merged buffer came from, for error messages
+/// ("box_var.exr (-i:as=variance)"), from the "mcdn:inputs" attribute read_inputs sets.
+std::string channel_source(const ImageSpec& merged, string_view channel);
+
+/// One-line list of a buffer's channel names for error messages, shortened past `max`.
+std::string channel_list(const ImageSpec& spec, int max = 16);
+
+}  // namespace mcdn

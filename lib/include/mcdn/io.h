@@ -1,0 +1,59 @@
+// Reading renders into one merged buffer, checking them, and writing results safely.
+//
+// Ops never open files (STYLE.md): front ends call these, then hand ImageBufs to the ops.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <OpenImageIO/imagebuf.h>
+
+#include "mcdn/aov.h"
+
+namespace mcdn {
+
+/// One file given with `-i[:as=KIND] PATH`. For the tungsten preset PATH may be a
+/// directory of `color.pfm`, `colorA.pfm`, ... (read_tungsten_directory).
+struct InputFile {
+    std::string path;
+    InputKind kind = InputKind::Mean;
+};
+
+/// Reads every channel of every subimage (multi-part EXR) of `path` into a float buffer.
+/// Multi-part channels are prefixed with their part name unless they already carry it.
+/// Errors (unreadable, truncated, not an image) are set on `dst`, naming the file.
+bool read_image(ImageBuf& dst, const std::string& path);
+
+/// Reads a Tungsten-style directory (color, albedo, normal, depth, visibility; each as mean
+/// `X.pfm`, halves `XA.pfm`/`XB.pfm` and `XVariance.pfm`) into the generic layout:
+/// R,G,B / albedo.* / N.X,Y,Z / Z / visibility, with variance.*, A.*, B.* faces.
+bool read_tungsten_directory(ImageBuf& dst, const std::string& dir);
+
+/// Reads all inputs and merges them into one float buffer: channels of `InputKind::Mean`
+/// files keep their names, the others get the prefix of their kind (aov.h). Sizes and data
+/// windows must agree. Sets "mcdn:inputs" (which file gave which prefix) and
+/// "mcdn:output_channels" (the channels -o writes by default: those of the mean inputs).
+bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs);
+
+/// Checks the values an op will read: NaN, Inf, |v| > kHugeValue in colour, halves and
+/// features, negative variance. Feature variances may hold NaN (renderers leave pixels
+/// without a feature sample; Tungsten does): those are allowed and treated as unknown.
+/// The error names the file, the channel and the first bad pixel.
+constexpr float kHugeValue = 1e20f;  // squares of larger values overflow float
+bool validate_inputs(const ImageBuf& merged, const AovSet& aovs, std::string& error);
+
+struct WriteOptions {
+    /// half or float. Half keeps file sizes small; variances may underflow in half.
+    OIIO::TypeDesc datatype = OIIO::TypeDesc::FLOAT;
+    std::string compression = "zip";
+    /// Channels to write, by name; empty = "mcdn:output_channels" or else every channel.
+    std::vector<std::string> channels;
+};
+
+/// Writes `src` to `path` through a temporary file in the same directory, renamed into
+/// place only when complete: a failed write never leaves a partial `path`. Metadata of
+/// `src` is kept (mcdn:* bookkeeping attributes excepted). Errors go to `error`.
+bool write_image(const ImageBuf& src, const std::string& path, const WriteOptions& options,
+                 std::string& error);
+
+}  // namespace mcdn

@@ -1,0 +1,385 @@
+// AOV channel sets: role names, the presets' channel names, resolution against a merged
+// buffer and the error messages that tell a user what is missing.
+#include "mcdn/aov.h"
+
+#include <algorithm>
+
+#include <OpenImageIO/strutil.h>
+
+namespace mcdn {
+
+using OIIO::Strutil::join;
+using OIIO::Strutil::splits;
+
+namespace {
+
+constexpr const char* kRoleNames[kRoleCount] = {
+    "color", "color_variance", "color_a", "color_b",
+    "albedo", "albedo_variance", "albedo_a", "albedo_b",
+    "normal", "normal_variance", "normal_a", "normal_b",
+    "depth", "depth_variance", "depth_a", "depth_b",
+    "visibility", "visibility_variance", "visibility_a", "visibility_b",
+    "diffuse", "specular",
+    "diffuse_color", "diffuse_direct", "diffuse_indirect",
+    "glossy_color", "glossy_direct", "glossy_indirect",
+    "emission", "environment",
+};
+
+// Roles that come in four faces (mean, variance, A, B), laid out consecutively in Role.
+constexpr Role kFacedRoles[] = { Role::Color, Role::Albedo, Role::Normal, Role::Depth,
+                                 Role::Visibility };
+
+// The mean-face role a faced role belongs to, and which face it is.
+std::optional<std::pair<Role, Face>> split_face(Role role)
+{
+    for (Role base : kFacedRoles) {
+        int offset = int(role) - int(base);
+        if (offset >= 0 && offset < 4)
+            return std::make_pair(base, Face(offset));
+    }
+    return std::nullopt;
+}
+
+std::vector<std::string> with_suffixes(const std::string& stem, const char* suffixes)
+{
+    std::vector<std::string> names;
+    for (const char* s = suffixes; *s; ++s)
+        names.push_back(stem + "." + *s);
+    return names;
+}
+
+using Candidates = std::vector<std::vector<std::string>>;
+
+// Where a preset keeps the mean face of `role`: channel-name lists to try in order.
+// The other faces are the same names behind the input-kind prefix.
+Candidates preset_candidates(const std::string& preset, const std::string& layer, Role role)
+{
+    if (preset == "cycles") {
+        const std::string L = layer + ".";
+        switch (role) {
+        case Role::Color: return { with_suffixes(L + "Combined", "RGB") };
+        case Role::Albedo: return { with_suffixes(L + "Denoising Albedo", "RGB") };
+        case Role::Normal: return { with_suffixes(L + "Denoising Normal", "XYZ") };
+        case Role::Depth:
+            return { { L + "Denoising Depth.Z" }, { L + "Depth.Z" } };
+        case Role::DiffuseColor: return { with_suffixes(L + "DiffCol", "RGB") };
+        case Role::DiffuseDirect: return { with_suffixes(L + "DiffDir", "RGB") };
+        case Role::DiffuseIndirect: return { with_suffixes(L + "DiffInd", "RGB") };
+        case Role::GlossyColor: return { with_suffixes(L + "GlossCol", "RGB") };
+        case Role::GlossyDirect: return { with_suffixes(L + "GlossDir", "RGB") };
+        case Role::GlossyIndirect: return { with_suffixes(L + "GlossInd", "RGB") };
+        case Role::Emission: return { with_suffixes(L + "Emit", "RGB") };
+        case Role::Environment: return { with_suffixes(L + "Env", "RGB") };
+        default: return {};
+        }
+    }
+    // generic, and tungsten (read_tungsten_directory produces the generic layout)
+    switch (role) {
+    case Role::Color: return { { "R", "G", "B" } };
+    case Role::Albedo: return { with_suffixes("albedo", "RGB") };
+    case Role::Normal:
+        return { with_suffixes("N", "XYZ"), with_suffixes("normal", "XYZ"),
+                 with_suffixes("normal", "RGB") };
+    case Role::Depth: return { { "Z" }, { "depth.Z" }, { "depth" } };
+    case Role::Visibility: return { { "visibility" }, { "visibility.Y" } };
+    case Role::Diffuse: return { with_suffixes("diffuse", "RGB") };
+    case Role::Specular: return { with_suffixes("specular", "RGB") };
+    default: return {};
+    }
+}
+
+std::vector<std::string> prefixed(const char* prefix, const std::vector<std::string>& names)
+{
+    std::vector<std::string> out;
+    for (const auto& n : names)
+        out.push_back(prefix + n);
+    return out;
+}
+
+// Indices of all `names` in `spec`, or empty if any is missing.
+std::vector<int> find_channels(const ImageSpec& spec, const std::vector<std::string>& names)
+{
+    std::vector<int> indices;
+    for (const auto& n : names) {
+        int c = spec.channelindex(n);
+        if (c < 0)
+            return {};
+        indices.push_back(c);
+    }
+    return indices;
+}
+
+bool starts_with_any_prefix(const std::string& name)
+{
+    for (InputKind k : { InputKind::Variance, InputKind::HalfA, InputKind::HalfB })
+        if (OIIO::Strutil::starts_with(name, input_kind_prefix(k)))
+            return true;
+    return false;
+}
+
+// The Blender view layer: the first un-prefixed channel named "<layer>.Combined.R".
+std::string find_cycles_layer(const ImageSpec& spec)
+{
+    const std::string suffix = ".Combined.R";
+    for (const auto& name : spec.channelnames)
+        if (OIIO::Strutil::ends_with(name, suffix) && !starts_with_any_prefix(name))
+            return name.substr(0, name.size() - suffix.size());
+    return {};
+}
+
+}  // namespace
+
+const char* role_name(Role role) { return kRoleNames[int(role)]; }
+
+std::optional<Role> role_from_name(string_view name)
+{
+    for (int r = 0; r < kRoleCount; ++r)
+        if (name == kRoleNames[r])
+            return Role(r);
+    return std::nullopt;
+}
+
+int role_channel_count(Role role)
+{
+    auto faced = split_face(role);
+    if (faced && (faced->first == Role::Depth || faced->first == Role::Visibility))
+        return 1;
+    return 3;
+}
+
+Role face_of(Role base, Face face) { return Role(int(base) + int(face)); }
+
+const char* input_kind_name(InputKind kind)
+{
+    switch (kind) {
+    case InputKind::Mean: return "mean";
+    case InputKind::Variance: return "variance";
+    case InputKind::HalfA: return "halfA";
+    case InputKind::HalfB: return "halfB";
+    }
+    return "?";
+}
+
+std::optional<InputKind> input_kind_from_name(string_view name)
+{
+    for (InputKind k : { InputKind::Mean, InputKind::Variance, InputKind::HalfA,
+                         InputKind::HalfB })
+        if (name == input_kind_name(k))
+            return k;
+    return std::nullopt;
+}
+
+const char* input_kind_prefix(InputKind kind)
+{
+    switch (kind) {
+    case InputKind::Mean: return "";
+    case InputKind::Variance: return "variance.";
+    case InputKind::HalfA: return "A.";
+    case InputKind::HalfB: return "B.";
+    }
+    return "";
+}
+
+const std::vector<std::string>& aov_presets()
+{
+    static const std::vector<std::string> presets = { "cycles", "tungsten", "generic" };
+    return presets;
+}
+
+bool AovSpec::parse_override(string_view token, std::string& error)
+{
+    size_t eq = token.find('=');
+    if (eq == string_view::npos || eq == 0 || eq + 1 == token.size()) {
+        error = OIIO::Strutil::fmt::format(
+            "aov override '{}' is not of the form role=channel[,channel...]", token);
+        return false;
+    }
+    std::string key(token.substr(0, eq));
+    std::string value(token.substr(eq + 1));
+    if (key == "layer") {
+        layer = value;
+        return true;
+    }
+    if (key == "preset") {
+        preset = value;
+        return true;
+    }
+    std::vector<std::string> channels = splits(value, ",");
+    if (key == "extra" || OIIO::Strutil::starts_with(key, "extra.")) {
+        // extra.NAME=chans, or extra=chans named after the channels' common layer
+        std::string name = key.size() > 6 ? key.substr(6) : channels[0];
+        if (key.size() <= 6) {
+            size_t dot = name.rfind('.');
+            if (dot != std::string::npos)
+                name = name.substr(0, dot);
+        }
+        extras[name] = channels;
+        return true;
+    }
+    auto role = role_from_name(key);
+    if (!role) {
+        std::vector<std::string> names(std::begin(kRoleNames), std::end(kRoleNames));
+        error = OIIO::Strutil::fmt::format(
+            "unknown aov role '{}' (roles: {}, extra, extra.NAME, layer)", key,
+            join(names, ", "));
+        return false;
+    }
+    if (int(channels.size()) != role_channel_count(*role)) {
+        error = OIIO::Strutil::fmt::format("aov role '{}' takes {} channel(s), got '{}'", key,
+                                           role_channel_count(*role), value);
+        return false;
+    }
+    overrides[key] = channels;
+    return true;
+}
+
+bool resolve_aovs(AovSet& set, const AovSpec& spec, const ImageSpec& merged,
+                  std::string& error)
+{
+    const auto& presets = aov_presets();
+    if (std::find(presets.begin(), presets.end(), spec.preset) == presets.end()) {
+        error = OIIO::Strutil::fmt::format("unknown aov preset '{}' (presets: {})",
+                                           spec.preset, join(presets, ", "));
+        return false;
+    }
+    set = AovSet();
+    set.m_preset = spec.preset;
+    std::string layer = spec.layer;
+    if (spec.preset == "cycles" && layer.empty())
+        layer = find_cycles_layer(merged);
+
+    // Overrides first: they win, and a misspelt channel is an error rather than "absent".
+    std::vector<bool> overridden(kRoleCount, false);
+    for (const auto& [role_str, names] : spec.overrides) {
+        Role role = *role_from_name(role_str);
+        std::vector<int> indices = find_channels(merged, names);
+        if (indices.empty()) {
+            error = OIIO::Strutil::fmt::format(
+                "aov override {}={}: channel not found in {}; channels there: {}", role_str,
+                join(names, ","), channel_source(merged, names[0]), channel_list(merged));
+            return false;
+        }
+        set.m_channels[int(role)] = indices;
+        set.m_names[int(role)] = names;
+        overridden[int(role)] = true;
+    }
+
+    for (int r = 0; r < kRoleCount; ++r) {
+        if (overridden[r])
+            continue;
+        Role role = Role(r);
+        auto faced = split_face(role);
+        Role base = faced ? faced->first : role;
+        const char* prefix = faced ? input_kind_prefix(InputKind(int(faced->second))) : "";
+        Candidates candidates;
+        if (faced && faced->second != Face::Mean && overridden[int(base)])
+            candidates = { set.m_names[int(base)] };  // faces follow an overridden mean
+        else
+            candidates = preset_candidates(spec.preset, layer, base);
+        for (const auto& names : candidates) {
+            std::vector<std::string> full = prefixed(prefix, names);
+            std::vector<int> indices = find_channels(merged, full);
+            if (!indices.empty()) {
+                set.m_channels[r] = indices;
+                set.m_names[r] = full;
+                break;
+            }
+        }
+    }
+
+    for (const auto& [name, names] : spec.extras) {
+        std::vector<int> indices = find_channels(merged, names);
+        if (indices.empty()) {
+            error = OIIO::Strutil::fmt::format(
+                "extra aov '{}' ({}): channel not found in {}; channels there: {}", name,
+                join(names, ","), channel_source(merged, names[0]), channel_list(merged));
+            return false;
+        }
+        set.m_extras.push_back({ name, names, indices });
+    }
+    // Blender light groups ("<layer>.Combined_<group>.RGB") are denoised alongside.
+    if (spec.preset == "cycles" && !layer.empty()) {
+        const std::string stem = layer + ".Combined_";
+        for (const auto& ch : merged.channelnames) {
+            if (OIIO::Strutil::starts_with(ch, stem) && OIIO::Strutil::ends_with(ch, ".R")) {
+                std::string group = ch.substr(0, ch.size() - 2);
+                std::vector<std::string> names = with_suffixes(group, "RGB");
+                std::vector<int> indices = find_channels(merged, names);
+                if (!indices.empty() && !spec.extras.count(group))
+                    set.m_extras.push_back({ group, names, indices });
+            }
+        }
+    }
+    return true;
+}
+
+bool AovSet::has_component_split() const
+{
+    if (has(Role::Diffuse) && has(Role::Specular))
+        return true;
+    for (Role r : { Role::DiffuseColor, Role::DiffuseDirect, Role::DiffuseIndirect,
+                    Role::GlossyColor, Role::GlossyDirect, Role::GlossyIndirect })
+        if (!has(r))
+            return false;
+    return true;
+}
+
+bool AovSet::require(const std::vector<Role>& required, const ImageSpec& merged,
+                     std::string& error) const
+{
+    for (Role role : required) {
+        if (has(role))
+            continue;
+        auto faced = split_face(role);
+        Role base = faced ? faced->first : role;
+        const char* prefix = faced ? input_kind_prefix(InputKind(int(faced->second))) : "";
+        std::string layer = m_preset == "cycles" ? find_cycles_layer(merged) : "";
+        Candidates candidates = preset_candidates(m_preset, layer, base);
+        std::string wanted = candidates.empty()
+                                 ? std::string("(no default in this preset)")
+                                 : join(prefixed(prefix, candidates[0]), ",");
+        std::string source = candidates.empty() ? channel_source(merged, prefix)
+                                                : channel_source(merged, prefixed(prefix, candidates[0])[0]);
+        error = OIIO::Strutil::fmt::format(
+            "aov preset '{}': role '{}' not found, looked for {} in {}; channels there: {}; "
+            "name them with --aov {}=ch1,...",
+            m_preset, role_name(role), wanted, source, channel_list(merged),
+            role_name(role));
+        return false;
+    }
+    return true;
+}
+
+std::string channel_source(const ImageSpec& merged, string_view channel)
+{
+    // "mcdn:inputs" holds one "kind=path" line per input file.
+    std::string inputs = merged.get_string_attribute("mcdn:inputs");
+    InputKind kind = InputKind::Mean;
+    for (InputKind k : { InputKind::Variance, InputKind::HalfA, InputKind::HalfB })
+        if (OIIO::Strutil::starts_with(channel, input_kind_prefix(k)))
+            kind = k;
+    std::vector<std::string> files;
+    for (const auto& line : splits(inputs, "\n")) {
+        size_t eq = line.find('=');
+        if (eq != std::string::npos && line.substr(0, eq) == input_kind_name(kind))
+            files.push_back(line.substr(eq + 1));
+    }
+    if (files.empty())
+        return OIIO::Strutil::fmt::format("the inputs (none given with -i:as={})",
+                                          input_kind_name(kind));
+    return OIIO::Strutil::fmt::format("{} (-i:as={})", join(files, ", "),
+                                      input_kind_name(kind));
+}
+
+std::string channel_list(const ImageSpec& spec, int max)
+{
+    std::vector<std::string> names(spec.channelnames.begin(),
+                                   spec.channelnames.begin()
+                                       + std::min<size_t>(max, spec.channelnames.size()));
+    std::string list = join(names, ",");
+    if (int(spec.channelnames.size()) > max)
+        list += OIIO::Strutil::fmt::format(",... ({} more)", spec.channelnames.size() - max);
+    return list;
+}
+
+}  // namespace mcdn

@@ -1,0 +1,358 @@
+// Reading renders into one merged float buffer, checking their values, writing results
+// through a temporary file.
+#include "mcdn/io.h"
+
+#include <atomic>
+#include <cmath>
+#include <map>
+#include <memory>
+
+#include <unistd.h>
+
+#include <OpenImageIO/filesystem.h>
+#include <OpenImageIO/imagebufalgo.h>
+#include <OpenImageIO/imageio.h>
+#include <OpenImageIO/strutil.h>
+
+namespace mcdn {
+
+using OIIO::ImageInput;
+using OIIO::ImageOutput;
+using OIIO::TypeDesc;
+namespace Filesystem = OIIO::Filesystem;
+namespace Strutil    = OIIO::Strutil;
+using Strutil::fmt::format;
+
+namespace {
+
+// Copies every channel of `src` into `dst` starting at channel `first` (same ROI, float).
+void copy_channels(ImageBuf& dst, int first, const ImageBuf& src)
+{
+    const int nsrc = src.nchannels(), ndst = dst.nchannels();
+    const float* in = static_cast<const float*>(src.localpixels());
+    float* out = static_cast<float*>(dst.localpixels());
+    const size_t npixels = src.spec().image_pixels();
+    for (size_t p = 0; p < npixels; ++p)
+        for (int c = 0; c < nsrc; ++c)
+            out[p * ndst + first + c] = in[p * nsrc + c];
+}
+
+// Same pixel window, whatever the channel counts.
+bool same_window(const ROI& a, const ROI& b)
+{
+    return a.xbegin == b.xbegin && a.xend == b.xend && a.ybegin == b.ybegin && a.yend == b.yend;
+}
+
+std::string roi_text(const ROI& roi)
+{
+    return format("{}x{} at ({},{})", roi.width(), roi.height(), roi.xbegin, roi.ybegin);
+}
+
+}  // namespace
+
+bool read_image(ImageBuf& dst, const std::string& path)
+{
+    if (!Filesystem::exists(path)) {
+        dst.errorfmt("{}: no such file", path);
+        return false;
+    }
+    auto in = ImageInput::open(path);
+    if (!in) {
+        dst.errorfmt("{}: cannot read: {}", path, OIIO::geterror());
+        return false;
+    }
+    std::vector<ImageBuf> parts;
+    for (int s = 0; in->seek_subimage(s, 0); ++s) {
+        ImageSpec spec = in->spec(s, 0);
+        if (spec.deep) {
+            dst.errorfmt("{}: deep images are not supported (subimage {})", path, s);
+            return false;
+        }
+        ImageSpec float_spec = spec;
+        float_spec.set_format(TypeDesc::FLOAT);
+        float_spec.channelformats.clear();
+        ImageBuf part(float_spec);
+        if (!in->read_image(s, 0, 0, spec.nchannels, TypeDesc::FLOAT, part.localpixels())) {
+            dst.errorfmt("{}: cannot read pixels (truncated or corrupt?): {}", path,
+                         in->geterror());
+            return false;
+        }
+        parts.push_back(std::move(part));
+    }
+    if (parts.empty()) {
+        dst.errorfmt("{}: no image in file", path);
+        return false;
+    }
+    if (parts.size() == 1) {
+        dst = std::move(parts[0]);
+        return true;
+    }
+    // Multi-part EXR: one buffer, each part's channels behind its part name.
+    ImageSpec merged = parts[0].spec();
+    merged.nchannels = 0;
+    merged.channelnames.clear();
+    for (size_t s = 0; s < parts.size(); ++s) {
+        const ImageSpec& spec = parts[s].spec();
+        if (!same_window(spec.roi(), parts[0].spec().roi())) {
+            dst.errorfmt("{}: part {} has data window {}, part 0 has {}", path, s,
+                         roi_text(spec.roi()), roi_text(parts[0].spec().roi()));
+            return false;
+        }
+        std::string part_name = spec.get_string_attribute("name");
+        for (const auto& ch : spec.channelnames) {
+            bool named = part_name.empty() || Strutil::starts_with(ch, part_name + ".");
+            merged.channelnames.push_back(named ? ch : part_name + "." + ch);
+        }
+        merged.nchannels += spec.nchannels;
+    }
+    merged.alpha_channel = merged.z_channel = -1;
+    ImageBuf out(merged);
+    int first = 0;
+    for (const auto& part : parts) {
+        copy_channels(out, first, part);
+        first += part.nchannels();
+    }
+    dst = std::move(out);
+    return true;
+}
+
+bool read_tungsten_directory(ImageBuf& dst, const std::string& dir)
+{
+    // buffer file stem -> channel names in the generic layout
+    struct Buffer {
+        const char* stem;
+        std::vector<std::string> channels;
+    };
+    const Buffer buffers[] = {
+        { "color", { "R", "G", "B" } },
+        { "albedo", { "albedo.R", "albedo.G", "albedo.B" } },
+        { "normal", { "N.X", "N.Y", "N.Z" } },
+        { "depth", { "Z" } },
+        { "visibility", { "visibility" } },
+    };
+    const std::pair<const char*, InputKind> faces[] = {
+        { "", InputKind::Mean },
+        { "Variance", InputKind::Variance },
+        { "A", InputKind::HalfA },
+        { "B", InputKind::HalfB },
+    };
+
+    std::vector<ImageBuf> pieces;
+    std::vector<std::string> names;
+    for (const auto& buffer : buffers) {
+        for (const auto& [suffix, kind] : faces) {
+            std::string file = format("{}/{}{}.pfm", dir, buffer.stem, suffix);
+            if (!Filesystem::exists(file)) {
+                if (std::string(buffer.stem) == "color" && kind == InputKind::Mean) {
+                    dst.errorfmt("{}: not a Tungsten buffer directory (no color.pfm)", dir);
+                    return false;
+                }
+                continue;
+            }
+            ImageBuf piece;
+            if (!read_image(piece, file)) {
+                dst.errorfmt("{}", piece.geterror());
+                return false;
+            }
+            int n = int(buffer.channels.size());
+            if (piece.nchannels() < n) {
+                dst.errorfmt("{}: has {} channel(s), {} needs {}", file, piece.nchannels(),
+                             buffer.stem, n);
+                return false;
+            }
+            if (!pieces.empty() && !same_window(piece.roi(), pieces[0].roi())) {
+                dst.errorfmt("{}: size {} differs from color.pfm's {}", file,
+                             roi_text(piece.roi()), roi_text(pieces[0].roi()));
+                return false;
+            }
+            pieces.push_back(OIIO::ImageBufAlgo::channels(piece, n, {}));
+            for (const auto& ch : buffer.channels)
+                names.push_back(input_kind_prefix(kind) + ch);
+        }
+    }
+    ImageSpec spec(pieces[0].roi(), TypeDesc::FLOAT);
+    spec.nchannels = int(names.size());
+    spec.channelnames = names;
+    spec.alpha_channel = spec.z_channel = -1;
+    ImageBuf out(spec);
+    int first = 0;
+    for (const auto& piece : pieces) {
+        copy_channels(out, first, piece);
+        first += piece.nchannels();
+    }
+    dst = std::move(out);
+    return true;
+}
+
+bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs)
+{
+    if (inputs.empty()) {
+        dst.errorfmt("no input image: give one with -i FILE");
+        return false;
+    }
+    std::vector<ImageBuf> bufs;
+    std::vector<std::string> names, provenance, output_channels;
+    std::map<std::string, std::string> channel_file;
+    for (const auto& input : inputs) {
+        ImageBuf buf;
+        bool is_dir = Filesystem::is_directory(input.path);
+        if (is_dir && input.kind != InputKind::Mean) {
+            dst.errorfmt("{}: a Tungsten buffer directory holds every face itself; give it "
+                         "as a plain -i", input.path);
+            return false;
+        }
+        if (!(is_dir ? read_tungsten_directory(buf, input.path) : read_image(buf, input.path))) {
+            dst.errorfmt("{}", buf.geterror());
+            return false;
+        }
+        if (!bufs.empty() && !same_window(buf.roi(), bufs[0].roi())) {
+            dst.errorfmt("{}: data window {} differs from {}'s {}", input.path,
+                         roi_text(buf.roi()), inputs[0].path, roi_text(bufs[0].roi()));
+            return false;
+        }
+        for (const auto& ch : buf.spec().channelnames) {
+            std::string name = input_kind_prefix(input.kind) + ch;
+            if (channel_file.count(name)) {
+                dst.errorfmt("{}: channel '{}' is also in {}; give each input once, with "
+                             "-i:as=variance|halfA|halfB for the other faces",
+                             input.path, name, channel_file[name]);
+                return false;
+            }
+            channel_file[name] = input.path;
+            names.push_back(name);
+            if (input.kind == InputKind::Mean)
+                output_channels.push_back(name);
+        }
+        provenance.push_back(format("{}={}", input_kind_name(input.kind), input.path));
+        bufs.push_back(std::move(buf));
+    }
+
+    // The first mean input's metadata (colour space, camera, renderer) is the output's.
+    size_t meta_from = 0;
+    for (size_t i = 0; i < inputs.size(); ++i)
+        if (inputs[i].kind == InputKind::Mean) {
+            meta_from = i;
+            break;
+        }
+    ImageSpec spec = bufs[meta_from].spec();
+    spec.set_format(TypeDesc::FLOAT);
+    spec.channelformats.clear();
+    spec.nchannels = int(names.size());
+    spec.channelnames = names;
+    spec.alpha_channel = spec.z_channel = -1;
+    spec.attribute("mcdn:inputs", Strutil::join(provenance, "\n"));
+    spec.attribute("mcdn:output_channels", Strutil::join(output_channels, "\n"));
+    ImageBuf out(spec);
+    int first = 0;
+    for (const auto& buf : bufs) {
+        copy_channels(out, first, buf);
+        first += buf.nchannels();
+    }
+    dst = std::move(out);
+    return true;
+}
+
+bool validate_inputs(const ImageBuf& merged, const AovSet& aovs, std::string& error)
+{
+    const ImageSpec& spec = merged.spec();
+    const int nch = spec.nchannels;
+    const float* pixels = static_cast<const float*>(merged.localpixels());
+    if (!pixels || spec.format != TypeDesc::FLOAT) {
+        error = "validate_inputs: expects a local float buffer (use read_inputs)";
+        return false;
+    }
+    auto is_variance = [](Role r) {
+        return r == Role::ColorVariance || r == Role::AlbedoVariance
+               || r == Role::NormalVariance || r == Role::DepthVariance
+               || r == Role::VisibilityVariance;
+    };
+    auto nan_allowed = [&](Role r) { return is_variance(r) && r != Role::ColorVariance; };
+    const size_t npixels = spec.image_pixels();
+    for (int r = 0; r < kRoleCount; ++r) {
+        Role role = Role(r);
+        for (int c : aovs.channels(role)) {
+            for (size_t p = 0; p < npixels; ++p) {
+                float v = pixels[p * nch + c];
+                const char* problem = nullptr;
+                if (std::isnan(v) && !nan_allowed(role))
+                    problem = "NaN";
+                else if (std::isinf(v))
+                    problem = "Inf";
+                else if (std::fabs(v) > kHugeValue)
+                    problem = "a huge value (|v| > 1e20)";
+                else if (is_variance(role) && v < 0.0f)
+                    problem = "a negative variance";
+                if (!problem)
+                    continue;
+                int x = spec.x + int(p % spec.width), y = spec.y + int(p / spec.width);
+                error = format("{}: channel '{}' (role {}) has {} at pixel ({}, {}): "
+                               "fix the render or drop the pass",
+                               channel_source(spec, spec.channelnames[c]),
+                               spec.channelnames[c], role_name(role), problem, x, y);
+                return false;
+            }
+        }
+    }
+    return true;
+}
+
+bool write_image(const ImageBuf& src, const std::string& path, const WriteOptions& options,
+                 std::string& error)
+{
+    const ImageSpec& in_spec = src.spec();
+    std::vector<std::string> wanted = options.channels;
+    if (wanted.empty())
+        wanted = Strutil::splits(in_spec.get_string_attribute("mcdn:output_channels"), "\n");
+    if (wanted.empty())
+        wanted = in_spec.channelnames;
+    std::vector<int> order;
+    for (const auto& name : wanted) {
+        int c = in_spec.channelindex(name);
+        if (c < 0) {
+            error = format("{}: cannot write channel '{}': not in the image; channels there: {}",
+                           path, name, channel_list(in_spec));
+            return false;
+        }
+        order.push_back(c);
+    }
+    ImageBuf out = OIIO::ImageBufAlgo::channels(src, int(order.size()), order);
+    if (out.has_error()) {
+        error = format("{}: {}", path, out.geterror());
+        return false;
+    }
+    ImageSpec spec = out.spec();
+    for (const auto& name : { "mcdn:inputs", "mcdn:output_channels" })
+        spec.erase_attribute(name);
+    spec.set_format(options.datatype);
+    spec.channelformats.clear();
+    spec.attribute("compression", options.compression);
+    spec.alpha_channel = spec.channelindex("A");
+    spec.z_channel     = spec.channelindex("Z");
+
+    // Write beside the target, then rename: readers never see a half-written file.
+    std::string ext = Filesystem::extension(path);
+    static std::atomic<int> counter { 0 };
+    std::string tmp = format("{}.tmp{}-{}{}", path, ::getpid(), counter++, ext);
+    auto output = ImageOutput::create(path);
+    if (!output) {
+        error = format("{}: cannot write this format: {}", path, OIIO::geterror());
+        return false;
+    }
+    bool ok = output->open(tmp, spec)
+              && output->write_image(TypeDesc::FLOAT, out.localpixels());
+    ok = output->close() && ok;
+    std::string rename_error;
+    if (ok && !Filesystem::rename(tmp, path, rename_error)) {
+        error = format("{}: cannot rename temporary file into place: {}", path, rename_error);
+        Filesystem::remove(tmp);
+        return false;
+    }
+    if (!ok) {
+        error = format("{}: write failed: {}", path, output->geterror());
+        Filesystem::remove(tmp);
+        return false;
+    }
+    return true;
+}
+
+}  // namespace mcdn

@@ -1,0 +1,264 @@
+// Error metrics against a reference (definitions in metrics.h).
+//
+// Every metric is first a per-pixel map (mean over the chosen channels, in double); the
+// image value is the mean of that map, optionally trimmed. Rows are summed in order, so
+// the result does not depend on the thread count.
+#include "mcdn/metrics.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include <OpenImageIO/imagebufalgo.h>
+#include <OpenImageIO/parallel.h>
+#include <OpenImageIO/strutil.h>
+
+namespace mcdn {
+
+using OIIO::ImageSpec;
+using OIIO::TypeDesc;
+using OIIO::Strutil::fmt::format;
+
+namespace {
+
+// One channel of a buffer over `roi`, as a dense float plane.
+std::vector<float> plane(const ImageBuf& buf, const ROI& roi, int channel)
+{
+    std::vector<float> values(size_t(roi.width()) * roi.height());
+    ROI one = roi;
+    one.chbegin = channel;
+    one.chend = channel + 1;
+    buf.get_pixels(one, TypeDesc::FLOAT, values.data());
+    return values;
+}
+
+struct Planes {
+    int width = 0, height = 0;
+    std::vector<std::vector<float>> image, reference;  // one plane per chosen channel
+};
+
+// Checks sizes and channels, and pulls the chosen channels out as planes.
+bool gather(Planes& planes, const ImageBuf& image, const ImageBuf& reference,
+            const MetricsOptions& options, ROI roi, std::string& error)
+{
+    const ImageSpec &is = image.spec(), &rs = reference.spec();
+    if (is.width != rs.width || is.height != rs.height) {
+        error = format("metrics: image is {}x{} but the reference is {}x{}", is.width,
+                       is.height, rs.width, rs.height);
+        return false;
+    }
+    if (options.image_channels.size() != options.reference_channels.size()
+        || options.image_channels.empty()) {
+        error = "metrics: image and reference channel lists differ in length";
+        return false;
+    }
+    if (!roi.defined())
+        roi = image.roi();
+    roi = OIIO::roi_intersection(roi, image.roi());
+    if (roi.npixels() == 0) {
+        error = "metrics: empty region";
+        return false;
+    }
+    // The reference may have a different data-window origin: compare pixel for pixel.
+    ROI ref_roi = roi;
+    ref_roi.xbegin += rs.x - is.x;
+    ref_roi.xend += rs.x - is.x;
+    ref_roi.ybegin += rs.y - is.y;
+    ref_roi.yend += rs.y - is.y;
+    planes.width = roi.width();
+    planes.height = roi.height();
+    for (size_t i = 0; i < options.image_channels.size(); ++i) {
+        int ic = options.image_channels[i], rc = options.reference_channels[i];
+        if (ic < 0 || ic >= is.nchannels || rc < 0 || rc >= rs.nchannels) {
+            error = format("metrics: channel {} (image) or {} (reference) does not exist", ic, rc);
+            return false;
+        }
+        planes.image.push_back(plane(image, roi, ic));
+        planes.reference.push_back(plane(reference, ref_roi, rc));
+        for (const auto* p : { &planes.image.back(), &planes.reference.back() }) {
+            auto bad = std::find_if(p->begin(), p->end(), [](float v) { return !std::isfinite(v); });
+            if (bad != p->end()) {
+                size_t k = size_t(bad - p->begin());
+                const ImageSpec& s = p == &planes.image.back() ? is : rs;
+                int c = p == &planes.image.back() ? ic : rc;
+                error = format("metrics: {} channel '{}' is not finite at pixel ({}, {})",
+                               p == &planes.image.back() ? "image" : "reference",
+                               s.channel_name(c), roi.xbegin + int(k % roi.width()),
+                               roi.ybegin + int(k / roi.width()));
+                return false;
+            }
+        }
+    }
+    return true;
+}
+
+// Per-pixel error of one kind, mean over channels.
+std::vector<double> per_pixel(const Planes& planes, ErrorKind kind, const MetricsOptions& o)
+{
+    size_t n = size_t(planes.width) * planes.height;
+    size_t nc = planes.image.size();
+    std::vector<double> map(n, 0.0);
+    for (size_t c = 0; c < nc; ++c) {
+        const auto &x = planes.image[c], &r = planes.reference[c];
+        for (size_t p = 0; p < n; ++p) {
+            double d = double(x[p]) - double(r[p]);
+            double e = 0;
+            switch (kind) {
+            case ErrorKind::SquaredError: e = d * d; break;
+            case ErrorKind::AbsoluteError: e = std::fabs(d); break;
+            case ErrorKind::RelMSE: e = d * d / (double(r[p]) * r[p] + o.relmse_epsilon); break;
+            case ErrorKind::SMAPE:
+                e = std::fabs(d) / (std::fabs(double(x[p])) + std::fabs(double(r[p])) + o.smape_epsilon);
+                break;
+            }
+            map[p] += e / double(nc);
+        }
+    }
+    return map;
+}
+
+// Separable Gaussian blur (sigma 1.5, 11 taps) with clamp-to-edge borders.
+std::vector<double> gaussian_blur(const std::vector<double>& in, int w, int h)
+{
+    constexpr int radius = 5;
+    double taps[2 * radius + 1], total = 0;
+    for (int i = -radius; i <= radius; ++i)
+        total += taps[i + radius] = std::exp(-0.5 * i * i / (1.5 * 1.5));
+    for (double& t : taps)
+        t /= total;
+    std::vector<double> tmp(in.size()), out(in.size());
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            double s = 0;
+            for (int i = -radius; i <= radius; ++i)
+                s += taps[i + radius] * in[size_t(y) * w + std::clamp(x + i, 0, w - 1)];
+            tmp[size_t(y) * w + x] = s;
+        }
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            double s = 0;
+            for (int i = -radius; i <= radius; ++i)
+                s += taps[i + radius] * tmp[size_t(std::clamp(y + i, 0, h - 1)) * w + x];
+            out[size_t(y) * w + x] = s;
+        }
+    return out;
+}
+
+// Per-pixel SSIM (Wang et al. 2004), mean over channels, on values clamped to [0, 1].
+std::vector<double> ssim_map(const Planes& planes)
+{
+    const int w = planes.width, h = planes.height;
+    const size_t n = size_t(w) * h, nc = planes.image.size();
+    constexpr double C1 = 0.01 * 0.01, C2 = 0.03 * 0.03;
+    std::vector<double> map(n, 0.0);
+    for (size_t c = 0; c < nc; ++c) {
+        std::vector<double> x(n), y(n), xx(n), yy(n), xy(n);
+        for (size_t p = 0; p < n; ++p) {
+            x[p] = std::clamp(double(planes.image[c][p]), 0.0, 1.0);
+            y[p] = std::clamp(double(planes.reference[c][p]), 0.0, 1.0);
+            xx[p] = x[p] * x[p];
+            yy[p] = y[p] * y[p];
+            xy[p] = x[p] * y[p];
+        }
+        auto mx = gaussian_blur(x, w, h), my = gaussian_blur(y, w, h);
+        auto sxx = gaussian_blur(xx, w, h), syy = gaussian_blur(yy, w, h),
+             sxy = gaussian_blur(xy, w, h);
+        for (size_t p = 0; p < n; ++p) {
+            double vx = sxx[p] - mx[p] * mx[p], vy = syy[p] - my[p] * my[p];
+            double cov = sxy[p] - mx[p] * my[p];
+            double s = ((2 * mx[p] * my[p] + C1) * (2 * cov + C2))
+                       / ((mx[p] * mx[p] + my[p] * my[p] + C1) * (vx + vy + C2));
+            map[p] += s / double(nc);
+        }
+    }
+    return map;
+}
+
+// Mean of a per-pixel map; with trimming, the best and worst `fraction` are dropped.
+double mean(std::vector<double> map, bool trim, double fraction, long long* count)
+{
+    size_t drop = trim ? size_t(std::floor(double(map.size()) * fraction)) : 0;
+    if (drop > 0) {
+        std::sort(map.begin(), map.end());
+        map = std::vector<double>(map.begin() + drop, map.end() - drop);
+    }
+    if (count)
+        *count = (long long)map.size();
+    // Pairwise-free but ordered: std::accumulate in index order is deterministic.
+    return map.empty() ? 0.0 : std::accumulate(map.begin(), map.end(), 0.0) / double(map.size());
+}
+
+}  // namespace
+
+bool compute_metrics(Metrics& m, const ImageBuf& image, const ImageBuf& reference,
+                     const MetricsOptions& o, std::string& error, ROI roi, int nthreads)
+{
+    Planes planes;
+    if (!gather(planes, image, reference, o, roi, error))
+        return false;
+    m = Metrics();
+    m.mse = mean(per_pixel(planes, ErrorKind::SquaredError, o), o.trim, o.trim_fraction, &m.pixels);
+    m.rmse = std::sqrt(m.mse);
+    m.relmse = mean(per_pixel(planes, ErrorKind::RelMSE, o), o.trim, o.trim_fraction, nullptr);
+    m.smape = mean(per_pixel(planes, ErrorKind::SMAPE, o), o.trim, o.trim_fraction, nullptr);
+    m.psnr = m.mse > 0 ? std::min(999.0, 10.0 * std::log10(1.0 / m.mse)) : 999.0;
+    m.ssim = mean(ssim_map(planes), o.trim, o.trim_fraction, nullptr);
+    return true;
+}
+
+bool error_map(ImageBuf& dst, const ImageBuf& image, const ImageBuf& reference,
+               const MetricsOptions& options, ErrorKind kind, ROI roi, int nthreads)
+{
+    Planes planes;
+    std::string error;
+    if (!gather(planes, image, reference, options, roi, error)) {
+        dst.errorfmt("{}", error);
+        return false;
+    }
+    std::vector<double> map = per_pixel(planes, kind, options);
+    ROI where = roi.defined() ? OIIO::roi_intersection(roi, image.roi()) : image.roi();
+    ImageSpec spec(where.width(), where.height(), 1, TypeDesc::FLOAT);
+    spec.x = where.xbegin;
+    spec.y = where.ybegin;
+    spec.channelnames = { "error" };
+    dst.reset(spec);
+    std::vector<float> values(map.begin(), map.end());
+    dst.set_pixels(dst.roi(), TypeDesc::FLOAT, values.data());
+    return true;
+}
+
+bool heatmap(ImageBuf& dst, const ImageBuf& error, double log10_min, double log10_max,
+             ROI roi, int nthreads)
+{
+    if (!(log10_max > log10_min)) {
+        dst.errorfmt("heatmap: range [{}, {}] is empty", log10_min, log10_max);
+        return false;
+    }
+    // Map log10(error) to [0, 1]; color_map does the false colour.
+    ImageBuf scaled(error.spec());
+    const ROI where = roi.defined() ? roi : error.roi();
+    std::vector<float> values(size_t(where.width()) * where.height());
+    ROI one = where;
+    one.chbegin = 0;
+    one.chend = 1;
+    error.get_pixels(one, TypeDesc::FLOAT, values.data());
+    for (float& v : values) {
+        double l = std::log10(std::max(double(v), 1e-30));
+        v = float(std::clamp((l - log10_min) / (log10_max - log10_min), 0.0, 1.0));
+    }
+    scaled.set_pixels(one, TypeDesc::FLOAT, values.data());
+    return OIIO::ImageBufAlgo::color_map(dst, scaled, 0, "inferno", where, nthreads);
+}
+
+std::string format_metrics(const Metrics& m, bool json)
+{
+    if (json)
+        return format("{{\"mse\": {:.6g}, \"rmse\": {:.6g}, \"relmse\": {:.6g}, "
+                      "\"smape\": {:.6g}, \"psnr\": {:.6g}, \"ssim\": {:.6g}, \"pixels\": {}}}",
+                      m.mse, m.rmse, m.relmse, m.smape, m.psnr, m.ssim, m.pixels);
+    return format("MSE    {:.6g}\nRMSE   {:.6g}\nrelMSE {:.6g}\nSMAPE  {:.6g}\nPSNR   {:.4g} dB\n"
+                  "SSIM   {:.6g}\npixels {}\n",
+                  m.mse, m.rmse, m.relmse, m.smape, m.psnr, m.ssim, m.pixels);
+}
+
+}  // namespace mcdn

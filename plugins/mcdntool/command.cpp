@@ -1,0 +1,146 @@
+// The command table and the parsing of `--name:modifier=value` words.
+#include "command.h"
+
+#include <algorithm>
+
+#include <OpenImageIO/strutil.h>
+
+#include "session.h"
+
+namespace mcdntool {
+
+using OIIO::Strutil::fmt::format;
+
+std::string Command::modifier(const std::string& key, const std::string& fallback) const
+{
+    auto it = modifiers.find(key);
+    return it == modifiers.end() ? fallback : it->second;
+}
+
+const std::vector<CommandInfo>& command_table()
+{
+    static const std::vector<CommandInfo> table = [] {
+        std::vector<CommandInfo> t = {
+            { "-i", "FILE", { "as" },
+              "Add an input: the render (as=mean, the default), the per-pixel variance of its "
+              "mean (as=variance), or a half buffer (as=halfA, as=halfB). A directory is read "
+              "as a Tungsten buffer set (color.pfm, colorA.pfm, colorVariance.pfm, ...). "
+              "A bare FILE is the same as -i FILE.",
+              run_input },
+            { "--aov", "", { "preset", "layer" },
+              "Say which channels are what: preset=cycles|tungsten|generic (default cycles); "
+              "role=ch1,ch2,ch3 words after it override one role (color, color_variance, "
+              "color_a, albedo, normal, depth, ..., extra.NAME=...).",
+              run_aov },
+            { "--info", "", { "verbose" },
+              "Print the image size, channels and the resolved AOV roles.", run_info },
+            { "--metrics", "REF", { "format", "trim", "channels" },
+              "Print MSE, RMSE, relMSE, SMAPE, PSNR and SSIM of the colour against a reference "
+              "image (format=text|json, trim=1 drops the 0.01% best and worst pixels, "
+              "channels=a,b,c compares other channels).",
+              run_metrics },
+            { "--heatmap", "FILE", { "ref", "metric", "min", "max" },
+              "Write a false-colour per-pixel error PNG against the last --metrics reference "
+              "(or ref=FILE): metric=relmse|se|ae|smape, log10 range min=-4 max=0.",
+              run_heatmap },
+            { "--ch", "CHANNELS", {},
+              "Channels -o writes, comma-separated (default: the render's own channels).",
+              run_channels },
+            { "-o", "FILE", { "datatype", "compression" },
+              "Write the current image (datatype=half|float, default float; compression=zip). "
+              "Written to a temporary name and renamed: never a partial file.",
+              run_output },
+            { "--threads", "N", {}, "Worker threads (0 = all cores, the default).", nullptr,
+              true },
+            { "--frames", "SPEC", {},
+              "Frames for # / @ / %04d patterns, e.g. 1-10 or 1-100x5 (default: every frame "
+              "of the first input pattern that exists on disk).",
+              nullptr, true },
+        };
+        for (auto& stage : stage_commands())
+            t.push_back(stage);
+        return t;
+    }();
+    return table;
+}
+
+const CommandInfo* find_command(const std::string& name)
+{
+    for (const auto& c : command_table())
+        if (c.name == name)
+            return &c;
+    return nullptr;
+}
+
+Command split_command(const std::string& typed)
+{
+    Command command;
+    auto parts = OIIO::Strutil::splits(typed, ":");
+    command.name = parts.empty() ? typed : parts[0];
+    for (size_t i = 1; i < parts.size(); ++i) {
+        size_t eq = parts[i].find('=');
+        if (eq == std::string::npos)
+            command.modifiers[parts[i]] = "1";
+        else
+            command.modifiers[parts[i].substr(0, eq)] = parts[i].substr(eq + 1);
+    }
+    return command;
+}
+
+std::string closest(const std::string& word, const std::vector<std::string>& candidates)
+{
+    auto distance = [](const std::string& a, const std::string& b) {
+        std::vector<size_t> row(b.size() + 1);
+        for (size_t j = 0; j <= b.size(); ++j)
+            row[j] = j;
+        for (size_t i = 1; i <= a.size(); ++i) {
+            size_t diagonal = row[0];
+            row[0] = i;
+            for (size_t j = 1; j <= b.size(); ++j) {
+                size_t up = row[j];
+                row[j] = std::min({ row[j] + 1, row[j - 1] + 1,
+                                    diagonal + (a[i - 1] == b[j - 1] ? 0 : 1) });
+                diagonal = up;
+            }
+        }
+        return row[b.size()];
+    };
+    std::string best;
+    size_t best_distance = std::max<size_t>(3, word.size() / 2) + 1;
+    for (const auto& c : candidates) {
+        size_t d = distance(word, c);
+        if (d < best_distance) {
+            best_distance = d;
+            best = c;
+        }
+    }
+    return best;
+}
+
+bool check_command(const Command& command, std::string& error)
+{
+    const CommandInfo* info = find_command(command.name);
+    if (!info) {
+        std::vector<std::string> names;
+        for (const auto& c : command_table())
+            names.push_back(c.name);
+        std::string guess = closest(command.name, names);
+        error = format("unknown command '{}'{}; see mcdntool --help", command.name,
+                       guess.empty() ? std::string() : format(" (did you mean '{}'?)", guess));
+        return false;
+    }
+    for (const auto& [key, value] : command.modifiers) {
+        if (std::find(info->modifiers.begin(), info->modifiers.end(), key)
+            != info->modifiers.end())
+            continue;
+        std::string guess = closest(key, info->modifiers);
+        error = format("{}: unknown modifier ':{}'{} (it takes: {})", command.name, key,
+                       guess.empty() ? std::string() : format(" (did you mean ':{}'?)", guess),
+                       info->modifiers.empty() ? std::string("none")
+                                               : OIIO::Strutil::join(info->modifiers, ", "));
+        return false;
+    }
+    return true;
+}
+
+}  // namespace mcdntool

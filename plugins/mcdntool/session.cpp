@@ -1,0 +1,222 @@
+// The built-in commands of mcdntool: inputs, AOVs, info, metrics, heatmaps, output.
+#include "session.h"
+
+#include <iostream>
+
+#include <OpenImageIO/imagebufalgo.h>
+#include <OpenImageIO/strutil.h>
+
+#include "mcdn/metrics.h"
+
+namespace mcdntool {
+
+using mcdn::Role;
+using OIIO::ImageBuf;
+using OIIO::Strutil::fmt::format;
+namespace Strutil = OIIO::Strutil;
+
+bool Session::load(std::string& error)
+{
+    if (m_loaded)
+        return true;
+    ImageBuf merged;
+    if (!mcdn::read_inputs(merged, inputs)) {
+        error = merged.geterror();
+        return false;
+    }
+    if (!mcdn::resolve_aovs(m_aovs, aov_spec, merged.spec(), error))
+        return false;
+    if (!m_aovs.require({ Role::Color }, merged.spec(), error))
+        return false;
+    if (!mcdn::validate_inputs(merged, m_aovs, error))
+        return false;
+    m_image = std::move(merged);
+    m_loaded = true;
+    return true;
+}
+
+bool Session::replace_image(ImageBuf result, std::string& error)
+{
+    m_image = std::move(result);
+    return mcdn::resolve_aovs(m_aovs, aov_spec, m_image.spec(), error);
+}
+
+bool run_input(Session& s, const Command& c, std::string& error)
+{
+    auto kind = mcdn::input_kind_from_name(c.modifier("as", "mean"));
+    if (!kind) {
+        error = format("-i:as={} is not one of mean, variance, halfA, halfB", c.modifier("as"));
+        return false;
+    }
+    s.inputs.push_back({ c.args[0], *kind });
+    s.invalidate();
+    return true;
+}
+
+bool run_aov(Session& s, const Command& c, std::string& error)
+{
+    if (c.has("preset"))
+        s.aov_spec.preset = c.modifier("preset");
+    if (c.has("layer"))
+        s.aov_spec.layer = c.modifier("layer");
+    for (const auto& token : c.args)
+        if (!s.aov_spec.parse_override(token, error))
+            return false;
+    s.invalidate();
+    return true;
+}
+
+bool run_channels(Session& s, const Command& c, std::string& error)
+{
+    s.output_channels = Strutil::splits(c.args[0], ",");
+    return true;
+}
+
+bool run_info(Session& s, const Command& c, std::string& error)
+{
+    if (!s.load(error))
+        return false;
+    const auto& spec = s.image().spec();
+    std::cout << format("{}: {} x {}, {} channels from {} input(s), AOV preset '{}'\n",
+                        s.inputs[0].path, spec.width, spec.height, spec.nchannels,
+                        s.inputs.size(), s.aovs().preset());
+    for (int r = 0; r < mcdn::kRoleCount; ++r) {
+        Role role = Role(r);
+        if (s.aovs().has(role))
+            std::cout << format("  {:<20} {}\n", mcdn::role_name(role),
+                                Strutil::join(s.aovs().names(role), ", "));
+    }
+    for (const auto& extra : s.aovs().extras())
+        std::cout << format("  extra {:<14} {}\n", extra.name, Strutil::join(extra.names, ", "));
+    if (c.has("verbose"))
+        std::cout << "  channels: " << Strutil::join(spec.channelnames, ", ") << "\n";
+    return true;
+}
+
+namespace {
+
+// The reference's colour channels: the AOV preset's colour role if the reference has it,
+// else R,G,B, else its first three channels.
+std::vector<int> reference_color(const ImageBuf& reference, const mcdn::AovSpec& spec)
+{
+    mcdn::AovSet set;
+    std::string ignored;
+    if (mcdn::resolve_aovs(set, spec, reference.spec(), ignored) && set.has(Role::Color))
+        return set.channels(Role::Color);
+    const auto& rs = reference.spec();
+    if (rs.channelindex("R") >= 0 && rs.channelindex("G") >= 0 && rs.channelindex("B") >= 0)
+        return { rs.channelindex("R"), rs.channelindex("G"), rs.channelindex("B") };
+    return { 0, 1, 2 };
+}
+
+// Reads a reference and fills the channel lists a metric compares.
+bool prepare_comparison(Session& s, const std::string& ref_path, const std::string& channels,
+                        ImageBuf& reference, mcdn::MetricsOptions& options, std::string& error)
+{
+    if (!s.load(error))
+        return false;
+    if (!mcdn::read_image(reference, ref_path)) {
+        error = reference.geterror();
+        return false;
+    }
+    const auto& spec = s.image().spec();
+    if (channels.empty()) {
+        options.image_channels = s.aovs().channels(Role::Color);
+        options.reference_channels = reference_color(reference, s.aov_spec);
+    } else {
+        options.image_channels.clear();
+        options.reference_channels.clear();
+        for (const auto& name : Strutil::splits(channels, ",")) {
+            int ic = spec.channelindex(name), rc = reference.spec().channelindex(name);
+            if (ic < 0 || rc < 0) {
+                error = format("{}: channel '{}' is not in {}", ic < 0 ? s.inputs[0].path : ref_path,
+                               name, ic < 0 ? "the image" : "the reference");
+                return false;
+            }
+            options.image_channels.push_back(ic);
+            options.reference_channels.push_back(rc);
+        }
+    }
+    if (reference.spec().nchannels < 3 && channels.empty()) {
+        error = format("{}: reference has {} channel(s), needs RGB", ref_path,
+                       reference.spec().nchannels);
+        return false;
+    }
+    return true;
+}
+
+}  // namespace
+
+bool run_metrics(Session& s, const Command& c, std::string& error)
+{
+    ImageBuf reference;
+    mcdn::MetricsOptions options;
+    if (!prepare_comparison(s, c.args[0], c.modifier("channels"), reference, options, error))
+        return false;
+    options.trim = Strutil::stoi(c.modifier("trim", "0")) != 0;
+    std::string fmt = c.modifier("format", "text");
+    if (fmt != "text" && fmt != "json") {
+        error = format("--metrics:format={} is not text or json", fmt);
+        return false;
+    }
+    mcdn::Metrics m;
+    if (!mcdn::compute_metrics(m, s.image(), reference, options, error, {}, s.nthreads)) {
+        error = format("{}: {}", c.args[0], error);
+        return false;
+    }
+    std::cout << mcdn::format_metrics(m, fmt == "json") << (fmt == "json" ? "\n" : "")
+              << std::flush;
+    s.last_reference = c.args[0];
+    return true;
+}
+
+bool run_heatmap(Session& s, const Command& c, std::string& error)
+{
+    std::string ref_path = c.modifier("ref", s.last_reference);
+    if (ref_path.empty()) {
+        error = "--heatmap needs a reference: give --metrics REF before it, or --heatmap:ref=REF";
+        return false;
+    }
+    static const std::map<std::string, mcdn::ErrorKind> kinds = {
+        { "relmse", mcdn::ErrorKind::RelMSE }, { "se", mcdn::ErrorKind::SquaredError },
+        { "ae", mcdn::ErrorKind::AbsoluteError }, { "smape", mcdn::ErrorKind::SMAPE } };
+    auto kind = kinds.find(c.modifier("metric", "relmse"));
+    if (kind == kinds.end()) {
+        error = format("--heatmap:metric={} is not relmse, se, ae or smape", c.modifier("metric"));
+        return false;
+    }
+    ImageBuf reference, errors, picture;
+    mcdn::MetricsOptions options;
+    if (!prepare_comparison(s, ref_path, "", reference, options, error))
+        return false;
+    if (!mcdn::error_map(errors, s.image(), reference, options, kind->second, {}, s.nthreads)
+        || !mcdn::heatmap(picture, errors, Strutil::stod(c.modifier("min", "-4")),
+                          Strutil::stod(c.modifier("max", "0")), {}, s.nthreads)) {
+        error = format("{}: {}", c.args[0], errors.has_error() ? errors.geterror() : picture.geterror());
+        return false;
+    }
+    mcdn::WriteOptions wo;
+    wo.datatype = OIIO::TypeDesc::UINT8;
+    wo.channels = picture.spec().channelnames;
+    wo.compression = "";
+    return mcdn::write_image(picture, c.args[0], wo, error);
+}
+
+bool run_output(Session& s, const Command& c, std::string& error)
+{
+    if (!s.load(error))
+        return false;
+    mcdn::WriteOptions options;
+    std::string datatype = c.modifier("datatype", "float");
+    if (datatype == "half")
+        options.datatype = OIIO::TypeDesc::HALF;
+    else if (datatype != "float") {
+        error = format("-o:datatype={} is not half or float", datatype);
+        return false;
+    }
+    options.compression = c.modifier("compression", "zip");
+    options.channels = s.output_channels;
+    return mcdn::write_image(s.image(), c.args[0], options, error);
+}
+
+}  // namespace mcdntool

@@ -1,0 +1,79 @@
+// What every test folder shares: where the data is, building small buffers, running the CLI.
+#pragma once
+
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include <OpenImageIO/filesystem.h>
+#include <OpenImageIO/imagebuf.h>
+#include <OpenImageIO/strutil.h>
+
+namespace mcdn_test {
+
+inline std::string test_data(const std::string& rel) { return std::string(MCDN_TEST_DATA) + "/" + rel; }
+
+/// Path inside ../shared/data, or "" when that checkout is absent (a user's clone).
+inline std::string shared_data(const std::string& rel)
+{
+    std::string path = std::string(MCDN_SHARED_DATA) + "/" + rel;
+    return OIIO::Filesystem::exists(path) ? path : std::string();
+}
+
+#define MCDN_REQUIRE_SHARED(var, rel)                                                   \
+    std::string var = mcdn_test::shared_data(rel);                                     \
+    if (var.empty())                                                                   \
+        GTEST_SKIP() << "../shared/data/" << rel << " absent (user clone): skipped";
+
+/// A fresh empty directory for one test's outputs.
+inline std::string temp_dir(const std::string& name)
+{
+    std::string dir = OIIO::Filesystem::temp_directory_path() + "/mcdn_test_" + name;
+    OIIO::Filesystem::remove_all(dir);
+    OIIO::Filesystem::create_directory(dir);
+    return dir;
+}
+
+/// A float buffer with the given channel names, every value from `fill(x, y, c)`.
+template<class F>
+OIIO::ImageBuf make_image(int w, int h, const std::vector<std::string>& names, F fill)
+{
+    OIIO::ImageSpec spec(w, h, int(names.size()), OIIO::TypeDesc::FLOAT);
+    spec.channelnames = names;
+    spec.alpha_channel = spec.z_channel = -1;
+    OIIO::ImageBuf buf(spec);
+    float* p = static_cast<float*>(buf.localpixels());
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+            for (int c = 0; c < int(names.size()); ++c)
+                p[(size_t(y) * w + x) * names.size() + c] = fill(x, y, c);
+    return buf;
+}
+
+struct Run {
+    int exit_code;
+    std::string output;  // stdout and stderr together
+};
+
+/// Runs the built mcdntool with `args` (a shell-quoted string).
+inline Run run_mcdntool(const std::string& args)
+{
+    std::string cmd = std::string("'") + MCDNTOOL + "' " + args + " 2>&1";
+    Run run { -1, "" };
+    FILE* pipe = popen(cmd.c_str(), "r");
+    if (!pipe)
+        return run;
+    char line[4096];
+    while (fgets(line, sizeof line, pipe))
+        run.output += line;
+    int status = pclose(pipe);
+    run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return run;
+}
+
+inline std::string quote(const std::string& s) { return "'" + s + "'"; }
+
+}  // namespace mcdn_test
