@@ -1,0 +1,65 @@
+// Nonlinearly weighted first-order regression (NFOR; Bitterli et al. 2016, §5-6).
+//
+// The colour is fitted in every 19×19 window by a first-order model of the features,
+// design [1, dx, dy, features - centre], with NL-means weights from the colour (§5.2). Half A
+// is fitted with the features and weights of half B and vice versa; each window's fit is
+// applied to the whole window and the overlapping fits are averaged (collaborative filtering).
+// Two bandwidths are tried and chosen per pixel by the two-buffer MSE estimate (§5.3); a
+// second pass filters the average of the two halves (§5.4).
+#pragma once
+
+#include <array>
+#include <string>
+#include <vector>
+
+#include <OpenImageIO/imagebuf.h>
+
+#include "mcdn/aov.h"
+#include "mcdn/prefilter.h"
+
+namespace mcdn {
+
+struct NforOptions {
+    /// Which channels are what: colour with its variance and halves; the features.
+    AovSpec aovs;
+    /// Extra feature channels used as regression features (see PrefilterOptions).
+    std::vector<std::string> extra_features;
+
+    // Regression (§5.2): 19×19 window, 7×7 patch for the colour NL-means weights.
+    int window_radius = 9;
+    int patch_radius = 3;
+    /// Candidate NL-means bandwidths k (§5.3), chosen per pixel by the estimated MSE.
+    std::array<float, 2> candidate_k = { 0.5f, 1.0f };
+    /// Colour variance of a half buffer = this × variance of the mean.
+    float variance_scale = 2.0f;
+
+    // MSE and selection maps (§5.3): NL-means on the mean colour, 3×3 patch, 19×19 window.
+    int map_window_radius = 9;
+    int map_patch_radius = 1;
+    float map_k = 1.0f;
+
+    // Second pass (§5.4): regression of the averaged halves, 19×19 window, k = 1.
+    int second_window_radius = 9;
+    int second_patch_radius = 3;
+    float second_k = 1.0f;
+
+    /// Prefilter the features first (§5.1) unless src carries "mcdn:prefiltered" = 1
+    /// (mcdntool --prefilter --nfor ran it already).
+    bool prefilter_features = true;
+    PrefilterOptions prefilter;  // its aovs and extra_features are taken from these options
+
+    /// Add channels nfor.mse.R/G/B (estimated MSE of the chosen result, first pass) and
+    /// nfor.selection.R/G/B (0: k = candidate_k[0], 1: candidate_k[1]).
+    bool output_mse = false;
+    bool output_selection = false;
+};
+
+/// Denoises the colour. dst = src (every channel kept) with the colour role's channels
+/// replaced by the NFOR estimate, plus the optional nfor.* channels. Pixels outside `roi`
+/// keep src's values. Output is finite and identical for any thread count.
+bool nfor(ImageBuf& dst, const ImageBuf& src, const NforOptions& options = {}, ROI roi = {},
+          int nthreads = 0);
+ImageBuf nfor(const ImageBuf& src, const NforOptions& options = {}, ROI roi = {},
+              int nthreads = 0);
+
+}  // namespace mcdn

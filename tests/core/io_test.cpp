@@ -1,0 +1,229 @@
+// Reading, merging, validating and writing images.
+#include "mcdn/io.h"
+
+#include <fstream>
+
+#include <OpenImageIO/imageio.h>
+
+#include "mcdn_test.h"
+
+using namespace mcdn;
+using mcdn_test::make_image;
+
+namespace {
+
+std::string box(const std::string& name) { return mcdn_test::test_data("box16/" + name); }
+
+std::vector<std::string> files_in(const std::string& dir)
+{
+    std::vector<std::string> files;
+    OIIO::Filesystem::get_directory_entries(dir, files);
+    return files;
+}
+
+ImageBuf merged_box()
+{
+    ImageBuf merged;
+    EXPECT_TRUE(read_inputs(merged, { { box("box_0016spp.exr"), InputKind::Mean },
+                                      { box("box_0016spp_var.exr"), InputKind::Variance } }))
+        << merged.geterror();
+    return merged;
+}
+
+AovSet resolve(const ImageBuf& merged, const std::string& preset = "cycles")
+{
+    AovSpec spec;
+    spec.preset = preset;
+    AovSet set;
+    std::string error;
+    EXPECT_TRUE(resolve_aovs(set, spec, merged.spec(), error)) << error;
+    return set;
+}
+
+void set_value(ImageBuf& buf, int x, int y, int c, float v)
+{
+    static_cast<float*>(buf.localpixels())[(size_t(y) * buf.spec().width + x) * buf.nchannels() + c] = v;
+}
+
+}  // namespace
+
+TEST(Io, ReadInputsPrefixesEachFaceAndRecordsWhereChannelsCameFrom)
+{
+    ImageBuf merged = merged_box();
+    const ImageSpec& spec = merged.spec();
+    EXPECT_EQ(spec.nchannels, 78);
+    EXPECT_EQ(spec.channelnames[0], "ViewLayer.Combined.R");
+    EXPECT_EQ(spec.channelnames[39], "variance.ViewLayer.Combined.R");
+    EXPECT_EQ(spec.format, OIIO::TypeDesc::FLOAT);
+    EXPECT_NE(channel_source(spec, "variance.ViewLayer.Combined.R").find("box_0016spp_var.exr"),
+              std::string::npos);
+    EXPECT_NE(channel_source(spec, "ViewLayer.Combined.R").find("box_0016spp.exr (-i:as=mean)"),
+              std::string::npos);
+    // -o writes the render's own channels by default, not the variance
+    auto outputs = OIIO::Strutil::splits(spec.get_string_attribute("mcdn:output_channels"), "\n");
+    EXPECT_EQ(outputs.size(), 39u);
+    // pixel values survive the merge
+    ImageBuf var(box("box_0016spp_var.exr"));
+    float a[1];
+    var.getpixel(10, 20, a, 1);
+    float merged_px[78];
+    merged.getpixel(10, 20, merged_px, 78);
+    EXPECT_EQ(merged_px[39], a[0]);
+}
+
+TEST(Io, MultiPartExrChannelsArePrefixedByPartName)
+{
+    std::string dir = mcdn_test::temp_dir("multipart");
+    std::string path = dir + "/parts.exr";
+    ImageSpec beauty(8, 4, 3, OIIO::TypeDesc::FLOAT), albedo(8, 4, 3, OIIO::TypeDesc::FLOAT);
+    beauty.channelnames = { "R", "G", "B" };
+    beauty.attribute("name", "beauty");
+    albedo.channelnames = { "R", "G", "B" };
+    albedo.attribute("name", "albedo");
+    auto out = OIIO::ImageOutput::create(path);
+    ASSERT_TRUE(out && out->supports("multiimage"));
+    ImageSpec specs[] = { beauty, albedo };
+    ASSERT_TRUE(out->open(path, 2, specs));
+    std::vector<float> ones(8 * 4 * 3, 1.0f), twos(8 * 4 * 3, 2.0f);
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, ones.data()));
+    ASSERT_TRUE(out->open(path, albedo, OIIO::ImageOutput::AppendSubimage));
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, twos.data()));
+    ASSERT_TRUE(out->close());
+
+    ImageBuf buf;
+    ASSERT_TRUE(read_image(buf, path)) << buf.geterror();
+    EXPECT_EQ(buf.spec().channelnames,
+              (std::vector<std::string> { "beauty.R", "beauty.G", "beauty.B", "albedo.R",
+                                          "albedo.G", "albedo.B" }));
+    float px[6];
+    buf.getpixel(3, 2, px, 6);
+    EXPECT_EQ(px[0], 1.0f);
+    EXPECT_EQ(px[5], 2.0f);
+}
+
+TEST(Io, PfmReadsTopDown)
+{
+    ImageBuf color;
+    ASSERT_TRUE(read_image(color, mcdn_test::test_data("cornell20/color.pfm")));
+    EXPECT_EQ(color.spec().width, 64);
+    EXPECT_EQ(color.nchannels(), 3);
+}
+
+TEST(Io, MismatchedSizesNameTheFile)
+{
+    std::string dir = mcdn_test::temp_dir("mismatch");
+    ImageBuf small = make_image(10, 10, { "R", "G", "B" }, [](int, int, int) { return 0.5f; });
+    std::string error;
+    ASSERT_TRUE(write_image(small, dir + "/small.exr", WriteOptions(), error)) << error;
+    ImageBuf merged;
+    EXPECT_FALSE(read_inputs(merged, { { box("box_0016spp.exr"), InputKind::Mean },
+                                       { dir + "/small.exr", InputKind::Variance } }));
+    EXPECT_NE(merged.geterror().find("small.exr: data window 10x10"), std::string::npos)
+        << merged.geterror();
+}
+
+TEST(Io, SameChannelFromTwoFilesIsAnError)
+{
+    ImageBuf merged;
+    EXPECT_FALSE(read_inputs(merged, { { box("box_0016spp.exr"), InputKind::Mean },
+                                       { box("box_0016spp_A.exr"), InputKind::Mean } }));
+    EXPECT_NE(merged.geterror().find("is also in"), std::string::npos) << merged.geterror();
+}
+
+TEST(Io, TruncatedAndMissingFilesAreClearErrors)
+{
+    std::string dir = mcdn_test::temp_dir("truncated");
+    std::string path = dir + "/cut.exr";
+    {
+        std::ifstream in(box("box_0016spp.exr"), std::ios::binary);
+        std::string bytes((std::istreambuf_iterator<char>(in)), {});
+        std::ofstream(path, std::ios::binary).write(bytes.data(), bytes.size() / 2);
+    }
+    ImageBuf buf;
+    EXPECT_FALSE(read_image(buf, path));
+    EXPECT_NE(buf.geterror().find("cut.exr"), std::string::npos) << buf.geterror();
+    ImageBuf missing;
+    EXPECT_FALSE(read_image(missing, dir + "/nope.exr"));
+    EXPECT_NE(missing.geterror().find("nope.exr: no such file"), std::string::npos);
+    ImageBuf notdir;
+    EXPECT_FALSE(read_inputs(notdir, { { dir, InputKind::Mean } }));
+    EXPECT_NE(notdir.geterror().find("no color.pfm"), std::string::npos) << notdir.geterror();
+}
+
+TEST(Io, ValidateRejectsNonFiniteColourAndNegativeVariance)
+{
+    ImageBuf merged = merged_box();
+    AovSet set = resolve(merged);
+    std::string error;
+    ASSERT_TRUE(validate_inputs(merged, set, error)) << error;
+
+    ImageBuf nan = merged.copy(OIIO::TypeDesc::FLOAT);
+    set_value(nan, 5, 7, set.channels(Role::Color)[1], std::nanf(""));
+    EXPECT_FALSE(validate_inputs(nan, set, error));
+    EXPECT_NE(error.find("channel 'ViewLayer.Combined.G'"), std::string::npos) << error;
+    EXPECT_NE(error.find("NaN at pixel (5, 7)"), std::string::npos) << error;
+    EXPECT_NE(error.find("box_0016spp.exr"), std::string::npos) << error;
+
+    ImageBuf inf = merged.copy(OIIO::TypeDesc::FLOAT);
+    set_value(inf, 0, 0, set.channels(Role::Normal)[0], INFINITY);
+    EXPECT_FALSE(validate_inputs(inf, set, error));
+    EXPECT_NE(error.find("Inf"), std::string::npos) << error;
+
+    ImageBuf huge = merged.copy(OIIO::TypeDesc::FLOAT);
+    set_value(huge, 1, 1, set.channels(Role::Color)[0], 1e30f);
+    EXPECT_FALSE(validate_inputs(huge, set, error));
+    EXPECT_NE(error.find("huge"), std::string::npos) << error;
+
+    ImageBuf negative = merged.copy(OIIO::TypeDesc::FLOAT);
+    set_value(negative, 2, 3, set.channels(Role::ColorVariance)[2], -1.0f);
+    EXPECT_FALSE(validate_inputs(negative, set, error));
+    EXPECT_NE(error.find("negative variance"), std::string::npos) << error;
+    EXPECT_NE(error.find("box_0016spp_var.exr"), std::string::npos) << error;
+
+    // A render's NaN feature variance (pixels without a feature sample) is accepted.
+    ImageBuf nan_feature_var = merged.copy(OIIO::TypeDesc::FLOAT);
+    set_value(nan_feature_var, 2, 3, set.channels(Role::AlbedoVariance)[0], std::nanf(""));
+    EXPECT_TRUE(validate_inputs(nan_feature_var, set, error)) << error;
+}
+
+TEST(Io, TungstenFixtureWithNaNFeatureVarianceValidates)
+{
+    ImageBuf merged;
+    ASSERT_TRUE(read_inputs(merged, { { mcdn_test::test_data("cornell20"), InputKind::Mean } }));
+    AovSet set = resolve(merged, "tungsten");
+    std::string error;
+    EXPECT_TRUE(validate_inputs(merged, set, error)) << error;
+}
+
+TEST(Io, WriteKeepsChannelsAndMetadataAndLeavesNoTemporaryFile)
+{
+    ImageBuf merged = merged_box();
+    std::string dir = mcdn_test::temp_dir("write");
+    std::string path = dir + "/out.exr";
+    std::string error;
+    WriteOptions options;
+    options.datatype = OIIO::TypeDesc::HALF;
+    ASSERT_TRUE(write_image(merged, path, options, error)) << error;
+    EXPECT_EQ(files_in(dir).size(), 1u);
+    auto in = OIIO::ImageInput::open(path);
+    ASSERT_TRUE(in);
+    const ImageSpec& spec = in->spec();
+    EXPECT_EQ(spec.nchannels, 39);  // the render's channels, not the variance
+    EXPECT_EQ(spec.format, OIIO::TypeDesc::HALF);
+    EXPECT_EQ(spec.get_string_attribute("compression"), "zip");
+    EXPECT_EQ(spec.get_string_attribute("combine:K"), "8");  // the render's metadata
+    EXPECT_EQ(spec.get_string_attribute("mcdn:inputs"), "");  // bookkeeping dropped
+}
+
+TEST(Io, FailedWriteLeavesNothingBehind)
+{
+    ImageBuf merged = merged_box();
+    std::string dir = mcdn_test::temp_dir("failwrite");
+    std::string error;
+    WriteOptions options;
+    options.channels = { "ViewLayer.Combined.R", "no.such.channel" };
+    EXPECT_FALSE(write_image(merged, dir + "/out.exr", options, error));
+    EXPECT_NE(error.find("no.such.channel"), std::string::npos) << error;
+    EXPECT_FALSE(write_image(merged, dir + "/missing_dir/out.exr", WriteOptions(), error));
+    EXPECT_TRUE(files_in(dir).empty());
+}
