@@ -52,6 +52,8 @@ const std::vector<CommandInfo>& command_table()
               run_output },
             { "--threads", "N", {}, "Worker threads (0 = all cores, the default).", nullptr,
               true },
+            { "-v", "", {}, "Print a line per stage with its run time (the default when "
+              "stderr is a terminal).", nullptr, true },
             { "--frames", "SPEC", {},
               "Frames for # / @ / %04d patterns, e.g. 1-10 or 1-100x5 (default: every frame "
               "of the first input pattern that exists on disk).",

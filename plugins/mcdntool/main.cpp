@@ -8,6 +8,8 @@
 #include <iostream>
 #include <regex>
 
+#include <unistd.h>
+
 #include <OpenImageIO/argparse.h>
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/strutil.h>
@@ -109,11 +111,12 @@ bool find_frames(const std::vector<Command>& commands, const std::string& frames
 }
 
 // Runs the command line on one frame (frame < 0: no sequence).
-bool run_frame(const std::vector<Command>& commands, int frame, int nthreads,
+bool run_frame(const std::vector<Command>& commands, int frame, int nthreads, bool verbose,
                std::string& error)
 {
     Session session;
     session.nthreads = nthreads;
+    session.verbose = verbose;
     for (Command c : commands) {
         if (frame >= 0)
             for (auto& arg : c.args) {
@@ -125,7 +128,9 @@ bool run_frame(const std::vector<Command>& commands, int frame, int nthreads,
         if (info->run && !info->run(session, c, error))
             return false;
     }
-    return true;
+    // Denoisers queued after the last command that needed pixels still run: their result
+    // is what a following -o would have written, and errors must not pass silently.
+    return session.load(error);
 }
 
 }  // namespace
@@ -141,6 +146,7 @@ int main(int argc, const char** argv)
 
     std::vector<Command> commands;
     int nthreads = 0;
+    bool verbose = isatty(STDERR_FILENO);  // progress lines on a terminal, quiet in pipelines
     std::string frames_option;
     OIIO::ArgParse ap;
     ap.intro("mcdntool -- denoise Monte Carlo renders (mcdenoise)")
@@ -164,6 +170,8 @@ int main(int argc, const char** argv)
                 c.args.push_back(a[k]);
             if (name == "--threads")
                 nthreads = Strutil::stoi(c.args[0]);
+            else if (name == "-v")
+                verbose = true;
             else if (name == "--frames")
                 frames_option = c.args[0];
             else
@@ -179,7 +187,10 @@ int main(int argc, const char** argv)
         else
             commands.push_back(Command { "-i", {}, { word } });
     });
-    if (argc <= 1) {
+    bool help = argc <= 1;
+    for (int i = 1; i < argc; ++i)
+        help |= std::string(argv[i]) == "--help" || std::string(argv[i]) == "-h";
+    if (help) {
         ap.print_help();
         return 0;
     }
@@ -197,7 +208,7 @@ int main(int argc, const char** argv)
         frames.push_back(-1);  // not a sequence: one run
     for (size_t f = 0; f < frames.size(); ++f) {
         OIIO::Timer timer;
-        if (!run_frame(commands, frames[f], nthreads, error)) {
+        if (!run_frame(commands, frames[f], nthreads, verbose, error)) {
             std::cerr << "mcdntool: error: "
                       << (frames[f] >= 0 ? format("frame {}: ", frames[f]) : std::string())
                       << error << "\n";

@@ -5,6 +5,7 @@
 
 #include <OpenImageIO/imagebufalgo.h>
 #include <OpenImageIO/strutil.h>
+#include <OpenImageIO/timer.h>
 
 #include "mcdn/metrics.h"
 
@@ -16,6 +17,75 @@ using OIIO::Strutil::fmt::format;
 namespace Strutil = OIIO::Strutil;
 
 bool Session::load(std::string& error)
+{
+    if (!load_inputs(error))
+        return false;
+    std::vector<Queued> queue;
+    std::swap(queue, m_queue);
+    for (const auto& stage : queue) {
+        if (m_applied.empty())
+            m_chain_input = m_image;
+        if (!apply(stage.name, stage.op, error))
+            return false;
+        m_applied.push_back(stage);  // after apply(), which starts a new chain
+    }
+    return true;
+}
+
+bool Session::take_denoiser_chain(mcdn::Denoiser& chain, ImageBuf& chain_input,
+                                  std::string& error)
+{
+    if (!load_inputs(error))
+        return false;
+    std::vector<Queued> stages = m_applied;
+    stages.insert(stages.end(), m_queue.begin(), m_queue.end());
+    if (stages.empty()) {
+        error = "--sure needs a denoiser before it to estimate the error of (e.g. --nfor --sure)";
+        return false;
+    }
+    chain_input = m_applied.empty() ? m_image : m_chain_input;
+    m_queue.clear();
+    int threads = nthreads;
+    chain = [stages, threads](ImageBuf& dst, const ImageBuf& src) {
+        ImageBuf current = src;
+        for (const auto& stage : stages) {
+            ImageBuf next;
+            if (!stage.op(next, current, threads)) {
+                dst.errorfmt("{}: {}", stage.name, next.geterror());
+                return false;
+            }
+            current = std::move(next);
+        }
+        dst = std::move(current);
+        return true;
+    };
+    return true;
+}
+
+bool Session::apply(const std::string& name, const StageOp& op, std::string& error)
+{
+    if (!load(error))
+        return false;
+    return apply_to(name, m_image, op, error);
+}
+
+bool Session::apply_to(const std::string& name, const ImageBuf& input, const StageOp& op,
+                       std::string& error)
+{
+    OIIO::Timer timer;
+    ImageBuf result;
+    if (!op(result, input, nthreads)) {
+        error = result.geterror();
+        return false;
+    }
+    if (verbose)
+        std::cerr << format("mcdntool: {} {}x{} done in {:.2f} s\n", name, result.spec().width,
+                            result.spec().height, timer());
+    m_applied.clear();  // the current image is no longer what the chain made from its input
+    return replace_image(std::move(result), error);
+}
+
+bool Session::load_inputs(std::string& error)
 {
     if (m_loaded)
         return true;

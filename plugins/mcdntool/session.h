@@ -2,6 +2,7 @@
 // (the merged buffer, read lazily at the first command that needs pixels).
 #pragma once
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -9,23 +10,41 @@
 
 #include "mcdn/aov.h"
 #include "mcdn/io.h"
+#include "mcdn/sure.h"
 
 #include "command.h"
 
 namespace mcdntool {
 
+/// One stage of the library in op shape: dst = stage(src).
+using StageOp = std::function<bool(OIIO::ImageBuf& dst, const OIIO::ImageBuf& src, int nthreads)>;
+
 class Session {
 public:
     int nthreads = 0;
-    bool verbose = false;
+    bool verbose = false;  // a line per stage with its time (-v, or stderr is a terminal)
 
     std::vector<mcdn::InputFile> inputs;
     mcdn::AovSpec aov_spec;
     std::vector<std::string> output_channels;  // --ch
     std::string last_reference;                // --metrics REF, for --heatmap
 
-    /// Reads and checks the inputs if not done yet; resolves the AOV set.
+    /// Reads and checks the inputs if not done yet, then runs any queued denoisers:
+    /// afterwards image() is the current result.
     bool load(std::string& error);
+
+    /// Queues a denoiser (--prefilter, --nfor) to run at the next load().
+    void queue(const std::string& name, StageOp op) { m_queue.push_back({ name, std::move(op) }); }
+    /// The denoisers run (or queued) since the inputs were read, as one Denoiser for SURE,
+    /// and the image they started from; an error if there is none. Denoisers that already
+    /// ran (an --info or --metrics came between) run again inside SURE.
+    bool take_denoiser_chain(mcdn::Denoiser& chain, OIIO::ImageBuf& chain_input,
+                             std::string& error);
+    /// Loads, then replaces the current image by op(current image).
+    bool apply(const std::string& name, const StageOp& op, std::string& error);
+    /// Loads, then replaces the current image by op(input), timing it like apply().
+    bool apply_to(const std::string& name, const OIIO::ImageBuf& input, const StageOp& op,
+                  std::string& error);
     /// Marks the current image stale (a new -i or --aov arrived).
     void invalidate() { m_loaded = false; }
 
@@ -35,7 +54,15 @@ public:
     bool replace_image(OIIO::ImageBuf result, std::string& error);
 
 private:
+    struct Queued {
+        std::string name;
+        StageOp op;
+    };
+    bool load_inputs(std::string& error);
     bool m_loaded = false;
+    std::vector<Queued> m_queue;    // denoisers waiting for the next load()
+    std::vector<Queued> m_applied;  // denoisers that made the current image from m_chain_input
+    OIIO::ImageBuf m_chain_input;
     OIIO::ImageBuf m_image;
     mcdn::AovSet m_aovs;
 };

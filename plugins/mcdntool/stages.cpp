@@ -1,12 +1,160 @@
 // The denoising stages as mcdntool commands: each maps its modifiers onto the stage's
-// Options and runs the library op on the current image.
+// Options. Denoisers (--prefilter, --nfor) queue up; the next command that needs pixels runs
+// them, and --sure takes the queued chain as the denoiser whose error it estimates.
+#include <OpenImageIO/strutil.h>
+
+#include "mcdn/mix.h"
+#include "mcdn/nfor.h"
+#include "mcdn/prefilter.h"
+#include "mcdn/sure.h"
+
 #include "session.h"
 
 namespace mcdntool {
 
+using OIIO::ImageBuf;
+using OIIO::Strutil::fmt::format;
+namespace Strutil = OIIO::Strutil;
+
+namespace {
+
+// A window or patch given as its width (odd, like the papers: 19x19) -> radius.
+bool width_to_radius(const Command& c, const std::string& key, int& radius, std::string& error)
+{
+    if (!c.has(key))
+        return true;
+    int width = Strutil::stoi(c.modifier(key));
+    if (width < 1 || width % 2 == 0 || width > 101) {
+        error = format("{}:{}={} must be an odd width between 1 and 101", c.name, key, c.modifier(key));
+        return false;
+    }
+    radius = (width - 1) / 2;
+    return true;
+}
+
+bool read_float(const Command& c, const std::string& key, float& value, std::string& error)
+{
+    if (!c.has(key))
+        return true;
+    if (!Strutil::string_is<float>(c.modifier(key))) {
+        error = format("{}:{}={} is not a number", c.name, key, c.modifier(key));
+        return false;
+    }
+    value = Strutil::stof(c.modifier(key));
+    return true;
+}
+
+std::vector<std::string> features_of(const Command& c)
+{
+    return c.has("features") ? Strutil::splits(c.modifier("features"), ",")
+                             : std::vector<std::string>();
+}
+
+bool queue_prefilter(Session& s, const Command& c, std::string& error)
+{
+    mcdn::PrefilterOptions o;
+    o.aovs = s.aov_spec;
+    o.extra_features = features_of(c);
+    if (!width_to_radius(c, "window", o.window_radius, error)
+        || !width_to_radius(c, "patch", o.patch_radius, error) || !read_float(c, "k", o.k, error))
+        return false;
+    s.queue("prefilter", [o](ImageBuf& dst, const ImageBuf& src, int nthreads) {
+        return mcdn::prefilter(dst, src, o, {}, nthreads);
+    });
+    return true;
+}
+
+bool queue_nfor(Session& s, const Command& c, std::string& error)
+{
+    mcdn::NforOptions o;
+    o.aovs = s.aov_spec;
+    o.extra_features = features_of(c);
+    o.output_mse = c.modifier("mse", "0") == "1";
+    o.output_selection = c.modifier("selection", "0") == "1";
+    if (!width_to_radius(c, "window", o.window_radius, error)
+        || !width_to_radius(c, "patch", o.patch_radius, error))
+        return false;
+    if (c.has("k")) {
+        auto ks = Strutil::splits(c.modifier("k"), ",");
+        if (ks.size() != 2 || !Strutil::string_is<float>(ks[0]) || !Strutil::string_is<float>(ks[1])) {
+            error = format("--nfor:k={} must be two bandwidths, e.g. k=0.5,1.0", c.modifier("k"));
+            return false;
+        }
+        o.candidate_k = { Strutil::stof(ks[0]), Strutil::stof(ks[1]) };
+    }
+    o.second_window_radius = o.window_radius;
+    o.prefilter.aovs = o.aovs;
+    s.queue("nfor", [o](ImageBuf& dst, const ImageBuf& src, int nthreads) {
+        return mcdn::nfor(dst, src, o, {}, nthreads);
+    });
+    return true;
+}
+
+bool run_sure(Session& s, const Command& c, std::string& error)
+{
+    mcdn::SureOptions o;
+    o.aovs = s.aov_spec;
+    if (c.has("probes"))
+        o.probes = Strutil::stoi(c.modifier("probes"));
+    if (!read_float(c, "eps", o.epsilon_relative, error))
+        return false;
+    if (c.has("seed"))
+        o.seed = std::stoull(c.modifier("seed"));
+    mcdn::Denoiser denoiser;
+    ImageBuf render;
+    if (!s.take_denoiser_chain(denoiser, render, error))
+        return false;
+    return s.apply_to("sure", render, [&](ImageBuf& dst, const ImageBuf& src, int nthreads) {
+        return mcdn::sure(dst, src, denoiser, o, {}, nthreads);
+    }, error);
+}
+
+bool run_mix(Session& s, const Command& c, std::string& error)
+{
+    mcdn::MixOptions o;
+    o.aovs = s.aov_spec;
+    std::string model = c.modifier("model", "analytic");
+    if (model == "net")
+        o.model = mcdn::MixOptions::Model::Net;
+    else if (model != "analytic") {
+        error = format("--mix:model={} is not net or analytic", model);
+        return false;
+    }
+    o.weights = c.modifier("weights");
+    o.t_test = c.modifier("ttest", "1") != "0";
+    o.output_alpha = c.modifier("alpha", "0") == "1";
+    return s.apply("mix", [&](ImageBuf& dst, const ImageBuf& src, int nthreads) {
+        return mcdn::mix(dst, src, o, {}, nthreads);
+    }, error);
+}
+
+}  // namespace
+
 std::vector<CommandInfo> stage_commands()
 {
-    return {};
+    return {
+        { "--prefilter", "", { "window", "patch", "k", "features" },
+          "NFOR feature prefilter (§5.1): NL-means cross-filtering of albedo, normal, depth "
+          "and visibility with their half buffers. window=11 patch=7 k=0.5; features=a,b "
+          "adds extra feature channels.",
+          queue_prefilter },
+        { "--nfor", "", { "window", "patch", "k", "mse", "selection", "features" },
+          "NFOR denoiser (§5.2-5.4): first-order regression on the features, collaborative, "
+          "bandwidth chosen per pixel. window=19 patch=7 k=0.5,1.0; mse=1 and selection=1 "
+          "add nfor.mse.* and nfor.selection.* channels. Prefilters the features itself "
+          "unless --prefilter ran.",
+          queue_nfor },
+        { "--sure", "", { "probes", "eps", "seed" },
+          "Monte-Carlo SURE of the denoisers before it (PD §3.2): adds sure.*, "
+          "sure.divergence.*, sure.residual.* and noisy.* channels. probes=1 (K; costs K+1 "
+          "denoiser runs), eps=1e-3 (relative probe step).",
+          run_sure },
+        { "--mix", "", { "model", "weights", "ttest", "alpha" },
+          "Progressive mix of the render and the denoised image (PD §4), after --sure: "
+          "model=analytic|net, ttest=1 bounds alpha by the t-test (eq. 18), alpha=1 adds "
+          "mix.alpha.* channels.",
+          run_mix },
+    };
 }
 
 }  // namespace mcdntool

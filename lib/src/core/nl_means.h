@@ -34,13 +34,14 @@ constexpr int kTileSize = 32;
 
 /// Scratch space for patch_distance on one tile.
 struct DistanceScratch {
-    std::vector<float> buffer, column_sum, row;
+    std::vector<float> buffer, column_sum, row, inv_count_x;
     void reserve(int tile_size, int patch_radius)
     {
         size_t side = size_t(tile_size + 2 * patch_radius);
         buffer.resize(side * side);
         column_sum.resize(side);
         row.resize(tile_size);
+        inv_count_x.resize(tile_size);
     }
 };
 
@@ -89,7 +90,12 @@ MCDN_INLINE void patch_distance(float* out, int stride, const float* guide, cons
 
     float* colsum = scratch.column_sum.data();
     float* row = scratch.row.data();
+    float* inv_cx = scratch.inv_count_x.data();
     const int nx = vx1 - vx0;
+    for (int i = 0; i < nx; ++i) {
+        int x = vx0 + i;
+        inv_cx[i] = 1.0f / float(std::min(x + F + 1, qx1) - std::max(x - F, qx0));
+    }
     for (int y = vy0; y < vy1; ++y) {
         // Vertical box sum of the 2F+1 rows around y, for every column of the buffer.
         const float* b = buf + size_t(y - F - by0) * bw;
@@ -107,14 +113,14 @@ MCDN_INLINE void patch_distance(float* out, int stride, const float* guide, cons
         for (int j = 1; j <= 2 * F; ++j)
             for (int i = 0; i < nx; ++i)
                 row[i] += c[i + j];
-        const int cy = std::min(y + F + 1, qy1) - std::max(y - F, qy0);
+        const float inv_cy = 1.0f / float(std::min(y + F + 1, qy1) - std::max(y - F, qy0));
         float* o = out + size_t(y - tile.y0) * stride + (vx0 - tile.x0);
-        for (int i = 0; i < nx; ++i) {
-            int x = vx0 + i;
-            int cx = std::min(x + F + 1, qx1) - std::max(x - F, qx0);
-            float d = row[i] / float(cx * cy);
-            o[i] = take_max ? std::max(o[i], d) : d;
-        }
+        if (take_max)
+            for (int i = 0; i < nx; ++i)
+                o[i] = std::max(o[i], row[i] * inv_cx[i] * inv_cy);
+        else
+            for (int i = 0; i < nx; ++i)
+                o[i] = row[i] * inv_cx[i] * inv_cy;
     }
 }
 

@@ -16,6 +16,8 @@
 #endif
 #define MCDN_INLINE inline __attribute__((always_inline))
 
+#pragma GCC diagnostic ignored "-Wpsabi"  // vfloat16 only crosses always-inline calls
+
 namespace mcdn {
 
 enum class Isa { Baseline, Avx2, Avx512 };
@@ -44,6 +46,37 @@ MCDN_INLINE float exp_neg(float d)
     float scale;
     std::memcpy(&scale, &bits, sizeof scale);
     return d < 80.0f ? p * scale : 0.0f;
+}
+
+/// 16 float lanes (GCC vector extension): one zmm under AVX-512, two ymm under AVX2, four
+/// xmm in the baseline build. Unaligned, may alias float data.
+typedef float vfloat16 __attribute__((vector_size(64), aligned(4), may_alias));
+typedef int32_t vint16 __attribute__((vector_size(64), aligned(4), may_alias));
+constexpr int kLanes = 16;
+
+MCDN_INLINE vfloat16 load16(const float* p) { return *reinterpret_cast<const vfloat16*>(p); }
+MCDN_INLINE void store16(float* p, vfloat16 v) { *reinterpret_cast<vfloat16*>(p) = v; }
+MCDN_INLINE vfloat16 splat16(float v) { return vfloat16 {} + v; }
+
+/// exp_neg on 16 lanes.
+MCDN_INLINE vfloat16 exp_neg16(vfloat16 d)
+{
+    const vfloat16 zero = {};
+    vfloat16 x = d < 87.0f ? -d : zero - 87.0f;
+    vfloat16 t = x * 1.44269504088896341f;
+    vint16 n = __builtin_convertvector(t - 0.5f, vint16);
+    vfloat16 fn = __builtin_convertvector(n, vfloat16);
+    vfloat16 r = x - fn * 0.693145751953125f - fn * 1.42860682030941723e-6f;
+    vfloat16 p = zero + 1.0f / 720.0f;
+    p = p * r + 1.0f / 120.0f;
+    p = p * r + 1.0f / 24.0f;
+    p = p * r + 1.0f / 6.0f;
+    p = p * r + 0.5f;
+    p = p * r + 1.0f;
+    p = p * r + 1.0f;
+    vint16 bits = (n + 127) << 23;
+    vfloat16 scale = reinterpret_cast<vfloat16&>(bits);
+    return d < 80.0f ? p * scale : zero;
 }
 
 }  // namespace mcdn

@@ -1,0 +1,57 @@
+// Progressive denoising: mix the render x and the denoised y per pixel,
+//   z = x + alpha' (y - x),
+// with alpha from a model and bounded by a t-test so that z converges to the render as the
+// sample count grows (Firmino et al. 2022, §4).
+//
+// Reads what mcdn::sure writes: the colour role holds y, noisy.* holds x, and sure.*,
+// sure.divergence.*, sure.residual.* hold SURE, sigma^2 f'(x) and ||y - x||^2; the colour
+// variance role holds Var[x].
+#pragma once
+
+#include <string>
+
+#include <OpenImageIO/imagebuf.h>
+
+#include "mcdn/aov.h"
+
+namespace mcdn {
+
+struct MixOptions {
+    AovSpec aovs;
+
+    enum class Model {
+        /// §4.3: the mixing network h_NN (5x5 conv to 48, two 3x3/48 residual blocks,
+        /// 3x3 conv to 3 outputs per channel, f_act). Needs `weights`.
+        Net,
+        /// Eq. 9 with its noisy terms averaged over a (2r+1)^2 box:
+        /// alpha = (<sigma^2> - <sigma^2 f'(x)>) / <||y - x||^2>, clipped to [0, 1].
+        Analytic,
+    };
+    Model model = Model::Analytic;
+    /// Weights file of the mixing network (Model::Net).
+    std::string weights;
+    /// Neighbourhood radius of the analytic model's averages (21x21): at 11x11 the relative
+    /// noise of <||y - x||^2> (~13%) pulls alpha below 1 on smooth regions and costs ~15%
+    /// MSE against the denoiser alone; 21x21 halves that (tests/mix).
+    int analytic_radius = 10;
+
+    // The t-test bound, eq. 12-18.
+    bool t_test = true;
+    int t_radius = 5;             // 11x11 neighbourhood N_p
+    float t_shift = 4.2f;         // c
+    float t_strength = 2.0f;      // a
+    float t_sigma_scale = 100.0f; // sigma_s = min(sqrt(Var[x-bar]), 1) * 100
+    float t_epsilon = 1e-6f;      // eq. 17
+
+    /// Add mix.alpha.R/G/B (alpha', the final per-pixel mix).
+    bool output_alpha = false;
+};
+
+/// dst = src with the colour role replaced by z (and mix.alpha.* if asked for). Pixels
+/// outside `roi` keep src's colour. Finite, identical for any thread count.
+bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options = {}, ROI roi = {},
+         int nthreads = 0);
+ImageBuf mix(const ImageBuf& src, const MixOptions& options = {}, ROI roi = {},
+             int nthreads = 0);
+
+}  // namespace mcdn

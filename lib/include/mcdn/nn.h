@@ -1,0 +1,213 @@
+// Neural-network inference for the learned stages (KPCN, Bako et al. 2017; the mixing network
+// of progressive denoising, Firmino et al. 2022 §4.3), in the shape of Open Image Denoise:
+// a network is a short list of ops built in C++, its parameters come by name from a weights
+// file written by training/ (PyTorch), and it runs on oneDNN convolutions.
+//
+//   Weights weights;  std::string error;
+//   if (!read_weights("mix.mcdnw", weights, error)) ...           // one-line error
+//   Net net("mix");
+//   Value x = net.input("features", 14);
+//   x = net.conv(x, "conv1", 48, 5);                              // conv1.weight [48,14,5,5]
+//   Value r = net.conv(x, "res1.conv1", 48, 3);
+//   r = net.conv(r, "res1.conv2", 48, 3, Activation::none);
+//   x = net.add(x, r, Activation::relu);                          // residual block
+//   net.output("alpha", net.conv(x, "out", 9, 3, Activation::none));
+//   if (!net.load(weights, error)) ...                            // names and shapes checked
+//   net.run({features}, outputs, error);                          // or run_tiled(...)
+//
+// Tensors are float32, batch 1, NHWC (channels fastest): oneDNN's convolutions run on it
+// without reorders, and our own ops (pool, upsample, concat, kernels) read contiguous pixels.
+//
+// Weights file (".mcdnw"), every integer little-endian uint32, every float little-endian
+// IEEE float32:
+//   magic      8 bytes  "MCDNNWTS"
+//   version    uint32   weights_format_version (1)
+//   metadata   uint32 byte count, then that many bytes of UTF-8 JSON (free-form: network
+//              name, architecture hyper-parameters, training information)
+//   count      uint32   number of tensors, then for each tensor:
+//     name     uint32 byte count, then the UTF-8 name ("enc1.weight", PyTorch's state_dict key)
+//     rank     uint32, then rank × uint32 dims, outermost first
+//     data     product(dims) × float32, row-major (last dim fastest)
+//   nothing after the last tensor.
+// Convolution weights are stored in PyTorch's order, OIHW: [out_channels, in_channels,
+// kernel_h, kernel_w]; biases are [out_channels]. training/common/weights.py writes and
+// reads the format.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace mcdn {
+namespace nn {
+
+/// A float32 image, batch 1, NHWC: element (y, x, c) is data[(y * width + x) * channels + c].
+struct Tensor {
+    int height = 0, width = 0, channels = 0;
+    std::vector<float> data;
+
+    Tensor() = default;
+    Tensor(int height, int width, int channels, float fill = 0.0f);
+    size_t size() const { return size_t(height) * width * channels; }
+    float* pixel(int y, int x) { return data.data() + (size_t(y) * width + x) * channels; }
+    const float* pixel(int y, int x) const
+    {
+        return data.data() + (size_t(y) * width + x) * channels;
+    }
+    float& at(int y, int x, int c) { return pixel(y, x)[c]; }
+    float at(int y, int x, int c) const { return pixel(y, x)[c]; }
+};
+
+// ---------------------------------------------------------------------------------------
+// Weights files
+
+constexpr uint32_t weights_format_version = 1;
+
+/// One named parameter tensor of a weights file, dims outermost first.
+struct NamedTensor {
+    std::string name;
+    std::vector<int> shape;
+    std::vector<float> values;
+};
+
+/// The contents of a weights file. `path` is where it was read from (used in messages).
+struct Weights {
+    std::string path;
+    uint32_t version = weights_format_version;
+    std::string metadata;  // JSON, free-form
+    std::vector<NamedTensor> tensors;
+
+    /// The tensor called `name`, or nullptr.
+    const NamedTensor* find(const std::string& name) const;
+};
+
+/// Reads a weights file. On failure returns false and sets `error` to one line naming the
+/// file and what is wrong (wrong magic, unsupported version, truncated at tensor 'x').
+bool read_weights(const std::string& path, Weights& weights, std::string& error);
+/// Writes `weights` in format version weights_format_version.
+bool write_weights(const std::string& path, const Weights& weights, std::string& error);
+/// A listing for humans: version, metadata and one line per tensor with its shape.
+std::string describe(const Weights& weights);
+/// "[48,48,3,3]"
+std::string shape_string(const std::vector<int>& shape);
+
+// ---------------------------------------------------------------------------------------
+// Networks
+
+enum class Activation { none, relu };
+/// Which implementation runs the ops: oneDNN convolutions and threaded ops, or the plain
+/// loops of lib/src/nn/reference.cpp that the tests check the first against.
+enum class Backend { onednn, reference };
+
+/// A value in a network under construction (the output of one op).
+struct Value {
+    int id = -1;
+};
+
+struct NetState;  // oneDNN primitives and reordered weights (lib/src/nn/onednn_conv.h)
+
+/// A network: a list of ops in execution order, each reading earlier values. Build it with
+/// the methods below, load() its parameters, then run() or run_tiled(). A mistake while
+/// building (channel counts of add, an op on values of different scales) is remembered and
+/// reported by load() and run(). Not thread-safe: run one image at a time per Net.
+class Net {
+public:
+    enum class Op { input, conv, add, max_pool2, upsample2, concat, slice, apply_kernel };
+    struct Node {
+        Op op;
+        std::string name;         // input/output name, or the parameter prefix of a conv
+        std::vector<int> inputs;  // ids of the values read
+        int channels = 0;         // channels of the result
+        int kernel = 0;           // conv / apply_kernel size k (k × k)
+        int first_channel = 0;    // slice
+        Activation activation = Activation::none;
+        int scale = 1;            // the result's pixel size in input pixels (1, 2, 4, ...)
+        double radius = 0;        // receptive-field radius in input pixels (halo of tiling)
+    };
+
+    explicit Net(std::string name = "net");
+    ~Net();
+    Net(Net&&) noexcept;
+    Net& operator=(Net&&) noexcept;
+
+    /// A network input with `channels` channels; run() takes inputs in declaration order.
+    Value input(const std::string& name, int channels);
+    /// k×k convolution, stride 1, same (zero) padding, with bias and fused activation.
+    /// Parameters: `<param>.weight` [out_channels, in_channels, k, k] and `<param>.bias`.
+    Value conv(Value x, const std::string& param, int out_channels, int kernel,
+               Activation activation = Activation::relu);
+    /// a + b (residual connection), then the activation.
+    Value add(Value a, Value b, Activation activation = Activation::none);
+    /// 2×2 max pooling, stride 2 (the input's size must be even: see alignment()).
+    Value max_pool2(Value x);
+    /// 2× nearest-neighbour upsampling: out(y, x) = in(y / 2, x / 2).
+    Value upsample2(Value x);
+    /// Channels of `values` one after the other (torch.cat(dim=1)).
+    Value concat(const std::vector<Value>& values);
+    /// Channels [first, first + count) of x.
+    Value slice(Value x, int first, int count);
+    /// Kernel prediction (KPCN eq. 9): out(p) = Σ_q softmax(logits(p))_q image(p + q), over
+    /// the k×k neighbourhood, the same weights for every channel of `image`. Logits channel
+    /// t = dy·k + dx is the tap at offset (dy − k/2, dx − k/2); pixels outside the image are
+    /// clamped to the edge (PyTorch: F.pad(mode="replicate") then F.unfold).
+    Value apply_kernel(Value logits, Value image, int kernel);
+    /// Marks x as an output; run() returns outputs in declaration order.
+    void output(const std::string& name, Value x);
+
+    const std::string& name() const { return name_; }
+    const std::vector<Node>& nodes() const { return nodes_; }
+    int channels(Value x) const;
+    /// Input sizes must be multiples of this (2^number of nested poolings).
+    int alignment() const;
+    /// Receptive-field radius of the outputs in input pixels, rounded up (tiling halo).
+    int receptive_radius() const;
+    /// The first mistake made while building, or "".
+    const std::string& build_error() const { return build_error_; }
+    /// Every parameter the network expects with its shape, "conv1.weight [48,14,5,5]" lines.
+    std::string expected_parameters() const;
+
+    /// Takes every conv's parameters from `weights`, checking names and shapes; a tensor of
+    /// the file that no op uses is an error too (like torch's strict load_state_dict).
+    bool load(const Weights& weights, std::string& error);
+    bool loaded() const { return loaded_; }
+
+    /// Runs on whole tensors, one per input(), all of one size (a multiple of alignment()).
+    bool run(const std::vector<Tensor>& inputs, std::vector<Tensor>& outputs,
+             std::string& error, Backend backend = Backend::onednn);
+
+private:
+    Value add_node(Node node);
+    bool check(Value x, const char* op);
+    void fail(const std::string& message);
+
+    std::string name_;
+    std::vector<Node> nodes_;
+    std::vector<int> input_ids_;
+    std::vector<int> output_ids_;
+    std::vector<std::string> output_names_;
+    std::string build_error_;
+    bool loaded_ = false;
+    // Parameters per node (empty for parameter-free ops), OIHW weights then bias.
+    std::vector<std::vector<float>> weights_, biases_;
+    std::unique_ptr<NetState> state_;
+
+    friend struct NetRunner;
+};
+
+struct TileOptions {
+    /// Output tile side in pixels (rounded up to alignment()); memory grows with
+    /// (tile_size + 2 × halo)² × widest layer.
+    int tile_size = 256;
+    Backend backend = Backend::onednn;
+};
+
+/// Runs `net` over whole images tile by tile; each tile is computed with a halo of
+/// receptive_radius() pixels (rounded to alignment()) so the result equals an untiled run.
+/// Any image size is accepted: the image is extended to a multiple of alignment() by
+/// repeating its last row and column, and the outputs are cropped back.
+bool run_tiled(Net& net, const std::vector<Tensor>& inputs, std::vector<Tensor>& outputs,
+               std::string& error, const TileOptions& options = {});
+
+}  // namespace nn
+}  // namespace mcdn

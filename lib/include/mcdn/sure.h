@@ -1,0 +1,56 @@
+// Monte-Carlo SURE: a per-pixel estimate of any denoiser's squared error, without a
+// reference (Firmino et al. 2022, "Progressive Denoising", §2.3 eq. 1 and §3.2 eq. 2).
+//
+//   SURE = ||y - x||^2 + 2 tr(J_F(x) Sigma) - tr(Sigma)          per pixel and channel
+//   tr(J_F Sigma) ~ 1/(eps K) sum_k b_k^T (F(x + eps b_k) - F(x)),  b_k ~ N(0, Sigma)
+//
+// x is the render, y = F(x) the denoised image, Sigma the per-pixel variance of the mean.
+// Each probe moves the render and both half buffers by the same eps b, so x = (A + B) / 2
+// stays consistent for denoisers that read the halves (NFOR). Cost: K + 1 denoiser runs.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+
+#include <OpenImageIO/imagebuf.h>
+
+#include "mcdn/aov.h"
+
+namespace mcdn {
+
+/// A denoiser as SURE sees it: dst = src with the colour role replaced by the estimate
+/// (every op of this library, and any chain of them, has this shape).
+using Denoiser = std::function<bool(ImageBuf& dst, const ImageBuf& src)>;
+
+struct SureOptions {
+    AovSpec aovs;
+    /// K, the number of Monte Carlo probes (PD §3.2 uses 1 or 4).
+    int probes = 1;
+    /// The probe step: eps is chosen so that the RMS of eps*b is this fraction of the mean
+    /// |x| of the image. Scale-free (a 100x brighter render gets the same relative step);
+    /// 1e-3 sits between float round-off in the denoiser (~1e-6 relative) and the
+    /// nonlinearity of NL-means weights (tested in tests/sure).
+    float epsilon_relative = 1e-3f;
+    /// Seed of the probes' counter-based Gaussian generator (same result for any threads).
+    uint64_t seed = 0x5EED5EEDull;
+};
+
+/// Channel names the op writes (besides replacing the colour role by y = F(x)).
+namespace sure_channels {
+constexpr const char* kNoisy[3] = { "noisy.R", "noisy.G", "noisy.B" };  // x, for --mix
+constexpr const char* kSure[3] = { "sure.R", "sure.G", "sure.B" };
+constexpr const char* kDivergence[3] = { "sure.divergence.R", "sure.divergence.G",
+                                         "sure.divergence.B" };  // sigma^2 f'(x)
+constexpr const char* kResidual[3] = { "sure.residual.R", "sure.residual.G",
+                                       "sure.residual.B" };      // ||y - x||^2
+}  // namespace sure_channels
+
+/// Runs `denoiser` K + 1 times. dst = the denoised image (colour = y, every other channel
+/// of src kept) plus noisy.*, sure.*, sure.divergence.*, sure.residual.* (written inside
+/// `roi`, zero outside). Needs the colour and its variance; half buffers are optional.
+bool sure(ImageBuf& dst, const ImageBuf& src, const Denoiser& denoiser,
+          const SureOptions& options = {}, ROI roi = {}, int nthreads = 0);
+ImageBuf sure(const ImageBuf& src, const Denoiser& denoiser, const SureOptions& options = {},
+              ROI roi = {}, int nthreads = 0);
+
+}  // namespace mcdn

@@ -1,0 +1,120 @@
+// NL-means filter over tiles: for each offset of the search window, the patch distances of
+// the whole tile (patch_distance), their weights, and the weighted sum of the shifted image.
+#include "core/nl_means.h"
+
+#include <tbb/enumerable_thread_specific.h>
+
+namespace mcdn {
+namespace {
+
+struct FilterJob {
+    const std::vector<const Plane*>& image;
+    const std::vector<const Plane*>& guide;
+    const std::vector<const Plane*>& variance;
+    const NlMeansParams& params;
+    std::vector<Plane>& out;
+};
+
+struct FilterScratch {
+    nlm::DistanceScratch distance;
+    std::vector<float> weight, sum, weight_sum;  // tile-sized; sum per image channel
+};
+
+MCDN_INLINE void filter_tile_impl(const FilterJob& job, Rect tile, FilterScratch& s)
+{
+    const int T = nlm::kTileSize;
+    const int F = job.params.patch_radius, R = job.params.window_radius;
+    const int width = job.guide[0]->width, height = job.guide[0]->height;
+    const int nimage = int(job.image.size()), nguide = int(job.guide.size());
+    const int tw = tile.width(), th = tile.height();
+    s.distance.reserve(T, F);
+    s.weight.resize(size_t(T) * T);
+    s.sum.assign(size_t(T) * T * nimage, 0.0f);
+    s.weight_sum.assign(size_t(T) * T * nimage, 0.0f);
+    const float inf = std::numeric_limits<float>::infinity();
+
+    for (int dy = -R; dy <= R; ++dy) {
+        for (int dx = -R; dx <= R; ++dx) {
+            const int vx0 = std::max(tile.x0, -dx), vx1 = std::min(tile.x1, width - dx);
+            const int vy0 = std::max(tile.y0, -dy), vy1 = std::min(tile.y1, height - dy);
+            if (vx0 >= vx1 || vy0 >= vy1)
+                continue;
+            for (int g = 0; g < nguide; ++g) {
+                float* w = s.weight.data();
+                std::fill(w, w + size_t(T) * T, inf);
+                nlm::patch_distance(w, T, job.guide[g]->data(), job.variance[g]->data(), width,
+                                    height, tile, dx, dy, F, job.params.k,
+                                    job.params.variance_scale, false, s.distance);
+                const vfloat16 zero = {};
+                for (int i = 0; i < T * T; i += kLanes) {
+                    vfloat16 d = load16(w + i);
+                    store16(w + i, d < inf ? exp_neg16(d > zero ? d : zero) : zero);
+                }
+                if (dx == 0 && dy == 0)
+                    for (int y = 0; y < th; ++y)
+                        for (int x = 0; x < tw; ++x)
+                            w[y * T + x] = std::max(w[y * T + x], nlm::kMinCenterWeight);
+                for (int c = g; c < nimage; c += nguide) {
+                    float* sum = s.sum.data() + size_t(c) * T * T;
+                    float* wsum = s.weight_sum.data() + size_t(c) * T * T;
+                    for (int y = vy0; y < vy1; ++y) {
+                        const float* wr = w + size_t(y - tile.y0) * T;
+                        const float* src = job.image[c]->row(y + dy) + dx;
+                        float* sr = sum + size_t(y - tile.y0) * T;
+                        float* wsr = wsum + size_t(y - tile.y0) * T;
+                        for (int x = vx0; x < vx1; ++x) {
+                            int i = x - tile.x0;
+                            sr[i] += wr[i] * src[x];
+                            wsr[i] += wr[i];
+                        }
+                    }
+                }
+            }
+        }
+    }
+    for (int c = 0; c < nimage; ++c)
+        for (int y = 0; y < th; ++y) {
+            const float* sr = s.sum.data() + size_t(c) * T * T + size_t(y) * T;
+            const float* wsr = s.weight_sum.data() + size_t(c) * T * T + size_t(y) * T;
+            float* o = job.out[c].row(tile.y0 + y) + tile.x0;
+            for (int x = 0; x < tw; ++x)
+                o[x] = sr[x] / wsr[x];
+        }
+}
+
+#if MCDN_X86_DISPATCH
+MCDN_TARGET_AVX512 void filter_tile_avx512(const FilterJob& j, Rect t, FilterScratch& s) { filter_tile_impl(j, t, s); }
+MCDN_TARGET_AVX2 void filter_tile_avx2(const FilterJob& j, Rect t, FilterScratch& s) { filter_tile_impl(j, t, s); }
+#endif
+void filter_tile_baseline(const FilterJob& j, Rect t, FilterScratch& s) { filter_tile_impl(j, t, s); }
+
+}  // namespace
+
+std::vector<Plane> nl_means(const std::vector<const Plane*>& image,
+                            const std::vector<const Plane*>& guide,
+                            const std::vector<const Plane*>& variance, const NlMeansParams& params,
+                            int nthreads)
+{
+    std::vector<Plane> out;
+    if (image.empty() || guide.empty())
+        return out;
+    const int width = guide[0]->width, height = guide[0]->height;
+    for (size_t c = 0; c < image.size(); ++c)
+        out.emplace_back(width, height);
+    FilterJob job { image, guide, variance, params, out };
+    auto kernel = filter_tile_baseline;
+#if MCDN_X86_DISPATCH
+    Isa isa = detect_isa();
+    if (isa == Isa::Avx512)
+        kernel = filter_tile_avx512;
+    else if (isa == Isa::Avx2)
+        kernel = filter_tile_avx2;
+#endif
+    std::vector<Rect> tiles = make_tiles(width, height, nlm::kTileSize);
+    tbb::enumerable_thread_specific<FilterScratch> scratch;
+    parallel_for_index(int(tiles.size()), nthreads,
+                       [&](int i) { kernel(job, tiles[i], scratch.local()); });
+    return out;
+}
+
+}  // namespace mcdn

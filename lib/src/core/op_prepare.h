@@ -1,0 +1,17 @@
+// The preparation step every mcdn op starts with (STYLE.md, like ImageBufAlgo's IBAprep):
+// resolve the AOV set against src and make dst a float copy of src (chaining keeps every
+// channel); errors go on dst.
+#pragma once
+
+#include "mcdn/aov.h"
+
+namespace mcdn {
+
+/// On failure sets an error on dst naming `op` and returns false.
+bool prepare_op(ImageBuf& dst, const ImageBuf& src, const AovSpec& spec, AovSet& aovs,
+                const char* op);
+
+/// The ROI an op writes: `roi` clipped to src's data window (all of it when undefined).
+ROI output_roi(const ImageBuf& src, ROI roi);
+
+}  // namespace mcdn

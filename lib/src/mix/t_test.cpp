@@ -1,0 +1,118 @@
+// PD eq. 12-18: bound alpha by a t-test so the mix converges to the render.
+//
+// Around each pixel p, Gaussian-weighted sums over the 11x11 neighbourhood N_p, plus the
+// neighbour M_p of highest variance counted once more (it guards against variance that is
+// underestimated at low sample counts):
+//   x-bar - z-bar = d_M + sum kappa d_q,        d = alpha (y - x)
+//   Var[x-bar]    = Var_M + sum kappa^2 Var_q
+//   t = (z-bar - x-bar) / (sqrt(Var[x-bar]) + eps);  alpha' = (1 - Phi(a (|t| - c))) alpha
+// kappa (eq. 15) is the paper's unnormalised 1/(sigma_s sqrt(2 pi)) exp(-|p-q|^2 / 2 sigma_s^2).
+// It is separable, so each sum is a row pass and a column pass.
+#include <cmath>
+#include <vector>
+
+#include "mix/mix_steps.h"
+
+namespace mcdn {
+
+namespace {
+
+// sum over the clipped (2r+1)^2 window of taps[dx] * taps[dy] * in(q).
+Plane separable_sum(const Plane& in, const std::vector<double>& taps, int radius)
+{
+    const int w = in.width, h = in.height;
+    Plane rows(w, h), out(w, h);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            double s = 0;
+            for (int i = -radius; i <= radius; ++i)
+                if (x + i >= 0 && x + i < w)
+                    s += taps[i + radius] * in(x + i, y);
+            rows(x, y) = float(s);
+        }
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            double s = 0;
+            for (int j = -radius; j <= radius; ++j)
+                if (y + j >= 0 && y + j < h)
+                    s += taps[j + radius] * rows(x, y + j);
+            out(x, y) = float(s);
+        }
+    return out;
+}
+
+// Eq. 16: for each pixel, the flat index of its highest-variance neighbour (first in raster
+// order on ties), by a row pass and a column pass.
+std::vector<size_t> highest_variance_neighbour(const Plane& variance, int radius)
+{
+    const int w = variance.width, h = variance.height;
+    std::vector<int> row_best(size_t(w) * h);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            int best = std::max(0, x - radius);
+            for (int i = best + 1; i <= std::min(w - 1, x + radius); ++i)
+                if (variance(i, y) > variance(best, y))
+                    best = i;
+            row_best[size_t(y) * w + x] = best;
+        }
+    std::vector<size_t> best(size_t(w) * h);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            int by = std::max(0, y - radius);
+            for (int j = by + 1; j <= std::min(h - 1, y + radius); ++j)
+                if (variance(row_best[size_t(j) * w + x], j)
+                    > variance(row_best[size_t(by) * w + x], by))
+                    by = j;
+            best[size_t(y) * w + x] = size_t(by) * w + row_best[size_t(by) * w + x];
+        }
+    return best;
+}
+
+}  // namespace
+
+float t_test_sigma(const MixInputs& in, float scale)
+{
+    // "Var[x-bar], x-bar the image mean": the spatial variance of the render's values over
+    // all pixels and channels (capped at 1 before the square root, as in the paper).
+    double sum = 0, sum2 = 0;
+    size_t n = 0;
+    for (int c = 0; c < 3; ++c)
+        for (float v : in.x[c].px) {
+            sum += v;
+            sum2 += double(v) * v;
+            ++n;
+        }
+    double mean = n ? sum / n : 0, variance = n ? std::max(0.0, sum2 / n - mean * mean) : 0;
+    return float(std::min(std::sqrt(variance), 1.0) * scale);
+}
+
+void t_test_bound(Plane& alpha, const Plane& x, const Plane& y, const Plane& variance,
+                  float sigma_s, const MixOptions& o)
+{
+    const int r = o.t_radius;
+    const double sigma = std::max(double(sigma_s), 1e-3);
+    std::vector<double> kappa(2 * r + 1), kappa2(2 * r + 1);
+    for (int i = -r; i <= r; ++i) {
+        // The 2D kernel of eq. 15 is the product of these; its 1/(sigma sqrt(2 pi)) factor
+        // is split as a square root per axis, and squared for the variance sum.
+        double k = std::exp(-0.5 * i * i / (sigma * sigma)) / std::sqrt(sigma * std::sqrt(2 * M_PI));
+        kappa[i + r] = k;
+        kappa2[i + r] = k * k;
+    }
+    Plane d(x.width, x.height);
+    for (size_t i = 0; i < d.size(); ++i)
+        d.px[i] = alpha.px[i] * (y.px[i] - x.px[i]);
+    Plane d_sum = separable_sum(d, kappa, r);
+    Plane var_sum = separable_sum(variance, kappa2, r);
+    std::vector<size_t> m = highest_variance_neighbour(variance, r);
+    for (size_t i = 0; i < d.size(); ++i) {
+        double difference = double(d.px[m[i]]) + d_sum.px[i];
+        double var = double(variance.px[m[i]]) + var_sum.px[i];
+        double t = difference / (std::sqrt(std::max(var, 0.0)) + o.t_epsilon);
+        double u = o.t_strength * (std::fabs(t) - o.t_shift);
+        double phi = 0.5 * std::erfc(-u / std::sqrt(2.0));  // standard normal CDF
+        alpha.px[i] = float((1.0 - phi) * alpha.px[i]);
+    }
+}
+
+}  // namespace mcdn

@@ -1,0 +1,63 @@
+// mcdn::prefilter: the op face of the feature prefilter (feature_prefilter.cpp).
+#include "mcdn/prefilter.h"
+
+#include "core/feature_channels.h"
+#include "core/op_prepare.h"
+#include "prefilter/feature_prefilter.h"
+
+namespace mcdn {
+
+bool prefilter(ImageBuf& dst, const ImageBuf& src, const PrefilterOptions& options, ROI roi,
+               int nthreads)
+{
+    const char* op = "prefilter";
+    if (options.window_radius < 0 || options.patch_radius < 0 || options.second_window_radius < 0
+        || options.second_patch_radius < 0 || !(options.k > 0) || !(options.second_k > 0)) {
+        dst.errorfmt("prefilter: window and patch radii must be >= 0 and k > 0 (got window {}, "
+                     "patch {}, k {})", options.window_radius, options.patch_radius, options.k);
+        return false;
+    }
+    AovSet aovs;
+    std::vector<FeatureChannel> channels;
+    std::string error;
+    // Resolve against src before dst may be overwritten (dst may be src).
+    if (!resolve_aovs(aovs, options.aovs, src.spec(), error)
+        || !find_feature_channels(channels, aovs, src.spec(), options.extra_features, op, error)) {
+        dst.errorfmt("{}: {}", op, error);
+        return false;
+    }
+    if (channels.empty()) {
+        dst.errorfmt("prefilter: no feature channels (albedo, normal, depth, visibility) with "
+                     "preset '{}' in the input ({}); check --aov:preset or name them with "
+                     "aov overrides", options.aovs.preset, channel_list(src.spec()));
+        return false;
+    }
+    std::vector<FeaturePlanes> planes;
+    for (const FeatureChannel& f : channels)
+        planes.push_back(read_feature(src, f));
+    if (!prepare_op(dst, src, options.aovs, aovs, op))
+        return false;
+    prefilter_planes(planes, options, nthreads);
+
+    roi = output_roi(dst, roi);
+    for (size_t i = 0; i < channels.size(); ++i) {
+        write_plane(dst, channels[i].mean, planes[i].mean, roi);
+        if (channels[i].half_a >= 0)
+            write_plane(dst, channels[i].half_a, planes[i].half_a, roi);
+        if (channels[i].half_b >= 0)
+            write_plane(dst, channels[i].half_b, planes[i].half_b, roi);
+        if (channels[i].variance >= 0)
+            write_plane(dst, channels[i].variance, planes[i].variance, roi);
+    }
+    dst.specmod().attribute("mcdn:prefiltered", 1);
+    return true;
+}
+
+ImageBuf prefilter(const ImageBuf& src, const PrefilterOptions& options, ROI roi, int nthreads)
+{
+    ImageBuf dst;
+    prefilter(dst, src, options, roi, nthreads);
+    return dst;
+}
+
+}  // namespace mcdn

@@ -1,0 +1,155 @@
+// Every op of the oneDNN path against the plain-loop reference (lib/src/nn/reference.cpp),
+// on random inputs: 1e-5 relative.
+#include <tbb/global_control.h>
+
+#include "nn_test_util.h"
+
+using namespace nn_test;
+
+namespace {
+
+constexpr double tolerance = 1e-5;
+
+struct ConvCase {
+    int in_channels, out_channels, kernel;
+    Activation activation;
+    int height, width;
+};
+
+class ConvTest : public ::testing::TestWithParam<ConvCase> {};
+
+TEST_P(ConvTest, MatchesReference)
+{
+    const ConvCase c = GetParam();
+    Net net("conv");
+    Value x = net.input("x", c.in_channels);
+    net.output("y", net.conv(x, "conv", c.out_channels, c.kernel, c.activation));
+    const double error = onednn_vs_reference(net, { random_tensor(c.height, c.width, c.in_channels, 7) });
+    EXPECT_LT(error, tolerance);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Shapes, ConvTest,
+    ::testing::Values(ConvCase { 3, 48, 5, Activation::relu, 13, 17 },   // first mix layer
+                      ConvCase { 48, 48, 3, Activation::relu, 16, 16 },  // residual block
+                      ConvCase { 48, 48, 3, Activation::none, 9, 31 },
+                      ConvCase { 48, 9, 3, Activation::none, 12, 20 },   // mix output
+                      ConvCase { 27, 50, 3, Activation::relu, 10, 11 },  // not multiples of 16
+                      ConvCase { 64, 441, 1, Activation::none, 6, 7 },   // 21×21 kernel head
+                      ConvCase { 1, 1, 7, Activation::relu, 5, 3 }));    // image smaller than kernel
+
+TEST(NnOps, AddWithAndWithoutRelu)
+{
+    for (Activation activation : { Activation::none, Activation::relu }) {
+        Net net("add");
+        Value a = net.input("a", 20), b = net.input("b", 20);
+        net.output("y", net.add(a, b, activation));
+        EXPECT_LT(onednn_vs_reference(net, { random_tensor(6, 9, 20, 1), random_tensor(6, 9, 20, 2) }),
+                  tolerance);
+    }
+}
+
+TEST(NnOps, PoolUpsampleConcatSlice)
+{
+    Net net("shapes");
+    Value x = net.input("x", 5);
+    Value pooled = net.max_pool2(x);
+    Value up = net.upsample2(pooled);
+    net.output("pooled", pooled);
+    net.output("up", up);
+    net.output("concat", net.concat({ x, up, net.slice(x, 1, 3) }));
+    const Tensor input = random_tensor(10, 14, 5, 3);
+    EXPECT_EQ(onednn_vs_reference(net, { input }), 0.0);  // no arithmetic: exact
+
+    std::vector<Tensor> out;
+    std::string error;
+    ASSERT_TRUE(net.run({ input }, out, error)) << error;
+    ASSERT_EQ(out.size(), 3u);
+    EXPECT_EQ(out[0].height, 5);
+    EXPECT_EQ(out[0].width, 7);
+    EXPECT_EQ(out[2].channels, 5 + 5 + 3);
+    // Spot values, from the definitions (PyTorch max_pool2d(2), interpolate(nearest)).
+    EXPECT_EQ(out[0].at(2, 3, 4), std::max({ input.at(4, 6, 4), input.at(4, 7, 4), input.at(5, 6, 4),
+                                              input.at(5, 7, 4) }));
+    EXPECT_EQ(out[1].at(5, 9, 2), out[0].at(2, 4, 2));
+    EXPECT_EQ(out[2].at(3, 4, 10), input.at(3, 4, 1));
+}
+
+TEST(NnOps, ApplyKernelMatchesReference)
+{
+    for (int kernel : { 1, 3, 5, 21 }) {
+        Net net("kpcn_head");
+        Value logits = net.input("logits", kernel * kernel), image = net.input("image", 3);
+        net.output("y", net.apply_kernel(logits, image, kernel));
+        EXPECT_LT(onednn_vs_reference(net, { random_tensor(9, 12, kernel * kernel, 4, -4, 4),
+                                             random_tensor(9, 12, 3, 5, 0, 10) }),
+                  tolerance)
+            << "kernel " << kernel;
+    }
+}
+
+TEST(NnOps, ApplyKernelIsAWeightedAverage)
+{
+    // One huge logit picks one tap: the output is that neighbour, clamped at the border.
+    const int k = 3;
+    Tensor logits(4, 4, k * k, 0.0f), image = random_tensor(4, 4, 2, 6);
+    for (int y = 0; y < 4; ++y)
+        for (int x = 0; x < 4; ++x)
+            logits.at(y, x, 0 * k + 2) = 100.0f;  // tap (dy, dx) = (-1, +1)
+    Net net("pick");
+    Value l = net.input("logits", k * k), i = net.input("image", 2);
+    net.output("y", net.apply_kernel(l, i, k));
+    std::string error;
+    ASSERT_TRUE(net.load(Weights(), error)) << error;
+    std::vector<Tensor> out;
+    ASSERT_TRUE(net.run({ logits, image }, out, error)) << error;
+    for (int y = 0; y < 4; ++y)
+        for (int x = 0; x < 4; ++x)
+            EXPECT_NEAR(out[0].at(y, x, 1), image.at(std::max(y - 1, 0), std::min(x + 1, 3), 1), 1e-6);
+}
+
+TEST(NnOps, ResultDoesNotDependOnThreadCount)
+{
+    Net net("threads");
+    Value x = net.input("x", 8);
+    Value y = net.conv(x, "c1", 32, 3);
+    y = net.add(y, net.conv(y, "c2", 32, 3), Activation::relu);
+    Value logits = net.conv(net.upsample2(net.max_pool2(y)), "k", 25, 3, Activation::none);
+    net.output("y", net.apply_kernel(logits, net.slice(x, 0, 3), 5));
+    std::string error;
+    ASSERT_TRUE(net.load(random_weights(net, 9), error)) << error;
+    const Tensor input = random_tensor(32, 48, 8, 10);
+    std::vector<Tensor> many, one;
+    ASSERT_TRUE(net.run({ input }, many, error)) << error;
+    {
+        tbb::global_control single(tbb::global_control::max_allowed_parallelism, 1);
+        ASSERT_TRUE(net.run({ input }, one, error)) << error;
+    }
+    EXPECT_EQ(many[0].data, one[0].data);
+}
+
+}  // namespace
+
+namespace {
+
+// Residual adds are fused into the preceding conv (oneDNN sum post-op), accumulating into
+// the residual's own buffer only when nothing else reads it; every case against the
+// reference, which never fuses.
+TEST(NnOps, FusedResidualAddsMatchReference)
+{
+    Net net("residuals");
+    Value input = net.input("x", 16);
+    Value a = net.add(input, net.conv(input, "c0", 16, 3, Activation::none));  // residual = input
+    Value x = net.conv(a, "c1", 16, 3);
+    Value r = net.conv(net.conv(x, "c2", 16, 3), "c3", 16, 3, Activation::none);
+    Value block = net.add(x, r, Activation::relu);                       // x stolen in place
+    Value self = net.add(block, net.conv(block, "c4", 16, 3), Activation::relu);  // conv reads it
+    Value kept = net.conv(self, "c5", 16, 3);
+    Value later = net.add(kept, net.conv(kept, "c6", 16, 1));
+    net.output("later", later);
+    net.output("kept", kept);  // read after the add: must not be overwritten
+    net.output("sum_of_convs", net.add(net.conv(later, "c7", 16, 3), net.conv(later, "c8", 16, 3)));
+    EXPECT_LT(onednn_vs_reference(net, { random_tensor(12, 20, 16, 11) }), tolerance);
+}
+
+}  // namespace

@@ -1,0 +1,113 @@
+// SURE: unbiased estimate of a denoiser's MSE (PD eq. 1-2), on renders with a known truth.
+#include "mcdn/sure.h"
+
+#include <OpenImageIO/imagebufalgo.h>
+
+#include "synthetic.h"
+
+using namespace mcdn;
+using namespace mcdn_test;
+
+namespace {
+
+float gradient(int x, int y, int c) { return 0.2f + 0.004f * x + 0.002f * y + 0.1f * c; }
+float checker(int x, int y, int c) { return ((x / 4 + y / 4) % 2) ? 0.8f : 0.1f + 0.05f * c; }
+
+double true_mse(const ImageBuf& result, const ImageBuf& truth)
+{
+    ImageBuf rgb = OIIO::ImageBufAlgo::channels(result, 3, { 0, 1, 2 });
+    auto comp = OIIO::ImageBufAlgo::compare(rgb, truth, 0, 0);
+    return comp.rms_error * comp.rms_error;
+}
+
+int channel(const ImageBuf& buf, const char* name) { return buf.spec().channelindex(name); }
+
+}  // namespace
+
+TEST(Sure, DivergenceOfABoxBlurIsVarianceOverKernelSize)
+{
+    const float variance = 0.01f;
+    ImageBuf src = noisy_render(96, 96, gradient, variance, 1);
+    SureOptions options;
+    options.aovs = generic_spec();
+    options.probes = 4;
+    ImageBuf out;
+    ASSERT_TRUE(sure(out, src, box_denoiser(1), options)) << out.geterror();
+    // Interior pixels: sigma^2 f'(x) = variance / 9 in expectation.
+    ROI interior(4, 92, 4, 92);
+    auto stats = OIIO::ImageBufAlgo::computePixelStats(out, interior);
+    int d = channel(out, "sure.divergence.G");
+    EXPECT_NEAR(stats.avg[d], variance / 9, 0.05 * variance / 9);
+}
+
+TEST(Sure, MeanSureMatchesTheTrueMse)
+{
+    // 4 renders of 256x256x3: the mean of per-pixel SURE has a relative standard deviation
+    // of about 4% here (each pixel's estimate has std ~ 1.4 sigma^2 against an MSE of
+    // sigma^2 / 25), so 12% is a 3-sigma bound.
+    for (auto truth : { gradient, checker }) {
+        const float variance = 0.02f;
+        double estimate = 0, actual = 0;
+        for (unsigned seed : { 7u, 8u, 9u, 10u }) {
+            ImageBuf src = noisy_render(256, 256, truth, variance, seed);
+            SureOptions options;
+            options.aovs = generic_spec();
+            ImageBuf out;
+            ASSERT_TRUE(sure(out, src, box_denoiser(2), options)) << out.geterror();
+            for (const char* name : sure_channels::kSure)
+                estimate += channel_mean(out, channel(out, name)) / 12;
+            actual += true_mse(out, truth_image(256, 256, truth)) / 4;
+        }
+        EXPECT_NEAR(estimate, actual, 0.12 * actual);
+    }
+}
+
+TEST(Sure, OutputsTheDenoisedColourTheRenderAndTheTerms)
+{
+    ImageBuf src = noisy_render(32, 32, gradient, 0.01f, 3);
+    SureOptions options;
+    options.aovs = generic_spec();
+    ImageBuf out = sure(src, box_denoiser(1), options);
+    ASSERT_FALSE(out.has_error()) << out.geterror();
+    ImageBuf expected;
+    box_denoiser(1)(expected, src);
+    float a[32], b[32];
+    out.getpixel(10, 11, a, 32);
+    expected.getpixel(10, 11, b, 12);
+    EXPECT_EQ(a[0], b[0]);  // colour = y
+    float x[12];
+    src.getpixel(10, 11, x, 12);
+    EXPECT_EQ(a[channel(out, "noisy.R")], x[0]);  // noisy.* = x
+    double residual = (b[1] - x[1]) * double(b[1] - x[1]);
+    EXPECT_NEAR(a[channel(out, "sure.residual.G")], residual, 1e-6);
+    EXPECT_NEAR(a[channel(out, "sure.G")],
+                residual + 2 * a[channel(out, "sure.divergence.G")] - 0.01, 1e-5);
+}
+
+TEST(Sure, DeterministicAndFiniteOnBadPixels)
+{
+    ImageBuf src = noisy_render(32, 32, gradient, 0.01f, 5);
+    float px[12];
+    src.getpixel(4, 4, px, 12);
+    px[3] = 0.0f;  // zero variance pixel
+    src.setpixel(4, 4, px, 12);
+    SureOptions options;
+    options.aovs = generic_spec();
+    ImageBuf one = sure(src, box_denoiser(1), options, {}, 1);
+    ImageBuf two = sure(src, box_denoiser(1), options, {}, 2);
+    auto comp = OIIO::ImageBufAlgo::compare(one, two, 0, 0);
+    EXPECT_EQ(comp.maxerror, 0.0);
+    EXPECT_FALSE(OIIO::ImageBufAlgo::computePixelStats(one).nancount.empty());
+    for (auto n : OIIO::ImageBufAlgo::computePixelStats(one).nancount)
+        EXPECT_EQ(n, 0u);
+}
+
+TEST(Sure, NeedsTheVariance)
+{
+    ImageBuf src = make_image(8, 8, { "R", "G", "B" }, [](int, int, int) { return 0.5f; });
+    SureOptions options;
+    options.aovs = generic_spec();
+    ImageBuf out;
+    EXPECT_FALSE(sure(out, src, box_denoiser(1), options));
+    EXPECT_NE(out.geterror().find("color_variance"), std::string::npos) << out.geterror();
+}
