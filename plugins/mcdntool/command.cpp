@@ -27,8 +27,10 @@ const std::vector<CommandInfo>& command_table()
               "as a Tungsten buffer set (color.pfm, colorA.pfm, colorVariance.pfm, ...). "
               "A bare FILE is the same as -i FILE.",
               run_input },
-            { "--aov", "", { "preset", "layer" },
-              "Say which channels are what: preset=cycles|tungsten|generic (default cycles); "
+            { "--aov", "", { "preset", "layer", "colorspace" },
+              "Say which channels are what: preset=cycles|tungsten|generic (default cycles), "
+              "colorspace=NAME (OCIO space of the colour channels; default the file's "
+              "oiio:ColorSpace, else scene_linear); "
               "role=ch1,ch2,ch3 words after it override one role (color, color_variance, "
               "color_a, albedo, normal, depth, ..., extra.NAME=...).",
               run_aov },

@@ -129,6 +129,8 @@ bool run_aov(Session& s, const Command& c, std::string& error)
         s.aov_spec.preset = c.modifier("preset");
     if (c.has("layer"))
         s.aov_spec.layer = c.modifier("layer");
+    if (c.has("colorspace"))
+        s.aov_spec.colorspace = c.modifier("colorspace");
     for (const auto& token : c.args)
         if (!s.aov_spec.parse_override(token, error))
             return false;

@@ -68,12 +68,16 @@ struct AovSpec {
     std::string preset = "cycles";
     /// Blender view layer for the cycles preset; empty = the first layer with a Combined pass.
     std::string layer;
+    /// OCIO colour space of the colour channels (color.h); empty = the image's
+    /// oiio:ColorSpace, else the config's scene_linear role.
+    std::string colorspace;
     /// role name -> channel names, replacing the preset's choice for that role.
     std::map<std::string, std::vector<std::string>> overrides;
     /// Extra AOVs to denoise alongside the beauty: name -> channels (light groups, layers).
     std::map<std::string, std::vector<std::string>> extras;
 
-    /// Parses one `role=ch1,ch2,...` (or `extra.NAME=ch1,...`, `layer=NAME`) token.
+    /// Parses one `role=ch1,ch2,...` (or `extra.NAME=ch1,...`, `layer=NAME`,
+    /// `colorspace=NAME`) token.
     bool parse_override(string_view token, std::string& error);
 };
 

@@ -204,6 +204,10 @@ bool AovSpec::parse_override(string_view token, std::string& error)
         preset = value;
         return true;
     }
+    if (key == "colorspace") {
+        colorspace = value;
+        return true;
+    }
     std::vector<std::string> channels = splits(value, ",");
     if (key == "extra" || OIIO::Strutil::starts_with(key, "extra.")) {
         // extra.NAME=chans, or extra=chans named after the channels' common layer
@@ -220,7 +224,7 @@ bool AovSpec::parse_override(string_view token, std::string& error)
     if (!role) {
         std::vector<std::string> names(std::begin(kRoleNames), std::end(kRoleNames));
         error = OIIO::Strutil::fmt::format(
-            "unknown aov role '{}' (roles: {}, extra, extra.NAME, layer)", key,
+            "unknown aov role '{}' (roles: {}, extra, extra.NAME, layer, colorspace)", key,
             join(names, ", "));
         return false;
     }

@@ -8,6 +8,7 @@
 #include "core/op_prepare.h"
 #include "core/planar.h"
 #include "core/random.h"
+#include "mcdn/color.h"
 
 namespace mcdn {
 
@@ -47,8 +48,10 @@ void add_probe(ImageBuf& buf, const std::vector<int>& channels, const Plane prob
 
 }  // namespace
 
-bool sure(ImageBuf& dst, const ImageBuf& src, const Denoiser& denoiser,
-          const SureOptions& options, ROI roi, int nthreads)
+namespace {
+
+bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& denoiser,
+                           const SureOptions& options, ROI roi, int nthreads)
 {
     AovSet aovs;
     ImageBuf noisy;
@@ -134,6 +137,16 @@ bool sure(ImageBuf& dst, const ImageBuf& src, const Denoiser& denoiser,
         write_plane(dst, out[9 + c], residual, where);
     }
     return true;
+}
+
+}  // namespace
+
+bool sure(ImageBuf& dst, const ImageBuf& src, const Denoiser& denoiser,
+          const SureOptions& options, ROI roi, int nthreads)
+{
+    return run_in_working_space(dst, src, options.aovs, "sure", [&](ImageBuf& d, const ImageBuf& s) {
+        return sure_in_working_space(d, s, denoiser, options, roi, nthreads);
+    });
 }
 
 ImageBuf sure(const ImageBuf& src, const Denoiser& denoiser, const SureOptions& options,

@@ -1,0 +1,48 @@
+// Colour management: every op runs in one declared working space, the scene_linear role of
+// our OpenColorIO config (the space the networks were trained in: scene-linear Rec.709, what
+// Blender and Tungsten write). Inputs in another space are converted in and the results back.
+//
+// Only the colour channels of the AOV set are converted: colour and its halves, albedo,
+// diffuse/specular components, extras, and `noisy.*`. Variances transform with the squared
+// matrix (Var[Mx]_i = sum_j M_ij^2 Var[x_j], channels taken as independent). Data channels
+// (normal, depth, visibility) are never converted. Derived error channels that ops add
+// (sure.*, nfor.mse.*, mix.alpha.*) stay in the working space.
+#pragma once
+
+#include <array>
+#include <functional>
+#include <string>
+
+#include <OpenImageIO/imagebuf.h>
+
+#include "mcdn/aov.h"
+
+namespace mcdn {
+
+/// The config: $OCIO when set, else mcdenoise's own ocio/config.ocio.
+std::string ocio_config_path();
+
+/// The working space of every op: the config's scene_linear role.
+std::string working_colorspace();
+
+/// The space `spec` says the input is in: AovSpec::colorspace when set, else the image's
+/// "oiio:ColorSpace" attribute when the config knows it, else the scene_linear role.
+std::string input_colorspace(const AovSpec& aovs, const ImageSpec& image);
+
+/// The 3x3 matrix (row-major) of a scene-linear conversion; false with `error` when either
+/// space is unknown or the transform is not linear (a display or log encoding).
+bool linear_transform(std::array<double, 9>& matrix, const std::string& from,
+                      const std::string& to, std::string& error);
+
+/// Converts the colour channels of `aovs` in `buf` (a float buffer) from `from` to `to`.
+bool convert_colour_channels(ImageBuf& buf, const AovSet& aovs, const std::string& from,
+                             const std::string& to, std::string& error);
+
+/// Runs `op` in the working space: converts a copy of src in (if it is not already there),
+/// runs op, converts dst's colour channels back. The common case (input already in the
+/// working space) costs nothing.
+bool run_in_working_space(ImageBuf& dst, const ImageBuf& src, const AovSpec& aovs,
+                          const char* op_name,
+                          const std::function<bool(ImageBuf& dst, const ImageBuf& src)>& op);
+
+}  // namespace mcdn

@@ -1,0 +1,210 @@
+// Colour management through OpenColorIO (see mcdn/color.h). The conversions the ops need
+// are scene-linear, i.e. 3x3 matrices: we read the matrix off the OCIO processor once and
+// apply it (and its square, to variances) ourselves, to exactly the channels we mean.
+#include "mcdn/color.h"
+
+#include <cmath>
+#include <cstdlib>
+#include <map>
+#include <mutex>
+
+#include <OpenColorIO/OpenColorIO.h>
+#include <OpenImageIO/strutil.h>
+
+#include "core/planar.h"
+
+namespace OCIO = OCIO_NAMESPACE;
+
+namespace mcdn {
+
+using OIIO::Strutil::fmt::format;
+
+namespace {
+
+// Configs are parsed once per path; OCIO configs are immutable and thread-safe to share.
+OCIO::ConstConfigRcPtr load_config(std::string& error)
+{
+    static std::mutex mutex;
+    static std::map<std::string, OCIO::ConstConfigRcPtr> cache;
+    std::string path = ocio_config_path();
+    std::lock_guard<std::mutex> lock(mutex);
+    auto it = cache.find(path);
+    if (it != cache.end())
+        return it->second;
+    try {
+        auto config = OCIO::Config::CreateFromFile(path.c_str());
+        cache[path] = config;
+        return config;
+    } catch (const OCIO::Exception& e) {
+        error = format("OCIO config {}: {}", path, e.what());
+        return {};
+    }
+}
+
+// The colour-carrying channel groups of an AOV set, and whether each is a variance.
+struct ColourGroup {
+    std::vector<int> channels;
+    bool variance;
+};
+
+std::vector<ColourGroup> colour_groups(const ImageBuf& buf, const AovSet& aovs)
+{
+    std::vector<ColourGroup> groups;
+    for (Role r : { Role::Color, Role::ColorA, Role::ColorB, Role::Albedo, Role::AlbedoA,
+                    Role::AlbedoB, Role::Diffuse, Role::Specular, Role::DiffuseColor,
+                    Role::DiffuseDirect, Role::DiffuseIndirect, Role::GlossyColor,
+                    Role::GlossyDirect, Role::GlossyIndirect, Role::Emission,
+                    Role::Environment })
+        if (aovs.has(r))
+            groups.push_back({ aovs.channels(r), false });
+    for (Role r : { Role::ColorVariance, Role::AlbedoVariance })
+        if (aovs.has(r))
+            groups.push_back({ aovs.channels(r), true });
+    for (const auto& extra : aovs.extras())
+        if (extra.channels.size() == 3)
+            groups.push_back({ extra.channels, false });
+    std::vector<int> noisy;
+    for (const char* name : { "noisy.R", "noisy.G", "noisy.B" })
+        if (buf.spec().channelindex(name) >= 0)
+            noisy.push_back(buf.spec().channelindex(name));
+    if (noisy.size() == 3)
+        groups.push_back({ noisy, false });
+    return groups;
+}
+
+}  // namespace
+
+std::string ocio_config_path()
+{
+    const char* env = std::getenv("OCIO");
+    return env && *env ? std::string(env) : std::string(MCDN_DEFAULT_OCIO_CONFIG);
+}
+
+std::string working_colorspace()
+{
+    std::string error;
+    auto config = load_config(error);
+    if (!config)
+        return "scene_linear";
+    auto cs = config->getColorSpace(OCIO::ROLE_SCENE_LINEAR);
+    return cs ? cs->getName() : "scene_linear";
+}
+
+std::string input_colorspace(const AovSpec& aovs, const ImageSpec& image)
+{
+    // A buffer run_in_working_space converted is in the working space, whatever the spec says.
+    if (image.get_int_attribute("mcdn:in_working_space") == 1)
+        return working_colorspace();
+    if (!aovs.colorspace.empty())
+        return aovs.colorspace;
+    std::string error;
+    auto config = load_config(error);
+    std::string tagged = image.get_string_attribute("oiio:ColorSpace");
+    if (config && !tagged.empty() && config->getColorSpace(tagged.c_str()))
+        return config->getColorSpace(tagged.c_str())->getName();
+    return working_colorspace();
+}
+
+bool linear_transform(std::array<double, 9>& m, const std::string& from, const std::string& to,
+                      std::string& error)
+{
+    auto config = load_config(error);
+    if (!config)
+        return false;
+    for (const auto& name : { from, to })
+        if (!config->getColorSpace(name.c_str())) {
+            error = format("unknown colour space '{}' in {}", name, ocio_config_path());
+            return false;
+        }
+    OCIO::ConstCPUProcessorRcPtr cpu;
+    try {
+        cpu = config->getProcessor(from.c_str(), to.c_str())->getDefaultCPUProcessor();
+    } catch (const OCIO::Exception& e) {
+        error = format("no conversion from '{}' to '{}': {}", from, to, e.what());
+        return false;
+    }
+    // Columns of M are the images of the unit vectors; linearity checked at 0 and 4x.
+    for (int j = 0; j < 3; ++j) {
+        float e[3] = { 0, 0, 0 }, big[3] = { 0, 0, 0 };
+        e[j] = 1.0f;
+        big[j] = 4.0f;
+        cpu->applyRGB(e);
+        cpu->applyRGB(big);
+        for (int i = 0; i < 3; ++i) {
+            m[i * 3 + j] = e[i];
+            if (std::fabs(big[i] - 4.0 * e[i]) > 1e-4 * (1.0 + std::fabs(big[i]))) {
+                error = format("the conversion from '{}' to '{}' is not scene-linear: mcdn "
+                               "ops need linear radiance (convert display/log images first)",
+                               from, to);
+                return false;
+            }
+        }
+    }
+    float zero[3] = { 0, 0, 0 };
+    cpu->applyRGB(zero);
+    if (std::fabs(zero[0]) + std::fabs(zero[1]) + std::fabs(zero[2]) > 1e-6) {
+        error = format("the conversion from '{}' to '{}' has an offset: not scene-linear", from, to);
+        return false;
+    }
+    return true;
+}
+
+bool convert_colour_channels(ImageBuf& buf, const AovSet& aovs, const std::string& from,
+                             const std::string& to, std::string& error)
+{
+    if (from == to)
+        return true;
+    std::array<double, 9> m;
+    if (!linear_transform(m, from, to, error))
+        return false;
+    const int nch = buf.nchannels();
+    float* pixels = static_cast<float*>(buf.localpixels());
+    if (!pixels || buf.spec().format != OIIO::TypeDesc::FLOAT) {
+        error = "colour conversion needs a local float buffer";
+        return false;
+    }
+    const size_t npixels = buf.spec().image_pixels();
+    for (const auto& group : colour_groups(buf, aovs)) {
+        std::array<double, 9> w = m;
+        if (group.variance)
+            for (double& v : w)
+                v *= v;  // Var[Mx]_i = sum_j M_ij^2 Var[x_j]
+        const int* c = group.channels.data();
+        for (size_t p = 0; p < npixels; ++p) {
+            float* px = pixels + p * nch;
+            double in[3] = { px[c[0]], px[c[1]], px[c[2]] };
+            for (int i = 0; i < 3; ++i)
+                px[c[i]] = sanitize(float(w[i * 3] * in[0] + w[i * 3 + 1] * in[1] + w[i * 3 + 2] * in[2]));
+        }
+    }
+    return true;
+}
+
+bool run_in_working_space(ImageBuf& dst, const ImageBuf& src, const AovSpec& spec,
+                          const char* op_name,
+                          const std::function<bool(ImageBuf& dst, const ImageBuf& src)>& op)
+{
+    std::string from = input_colorspace(spec, src.spec()), working = working_colorspace();
+    if (from == working)
+        return op(dst, src);
+    std::string error;
+    AovSet aovs;
+    ImageBuf converted = src.copy(OIIO::TypeDesc::FLOAT);
+    if (!resolve_aovs(aovs, spec, converted.spec(), error)
+        || !convert_colour_channels(converted, aovs, from, working, error)) {
+        dst.errorfmt("{}: colorspace {}: {}", op_name, from, error);
+        return false;
+    }
+    converted.specmod().attribute("mcdn:in_working_space", 1);
+    if (!op(dst, converted))
+        return false;
+    dst.specmod().erase_attribute("mcdn:in_working_space");
+    if (!resolve_aovs(aovs, spec, dst.spec(), error)
+        || !convert_colour_channels(dst, aovs, working, from, error)) {
+        dst.errorfmt("{}: colorspace {}: {}", op_name, from, error);
+        return false;
+    }
+    return true;
+}
+
+}  // namespace mcdn

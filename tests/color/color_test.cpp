@@ -1,0 +1,133 @@
+// Colour management: working space, matrices read off OCIO, which channels convert.
+#include "mcdn/color.h"
+
+#include <cstdlib>
+
+#include "mcdn/io.h"
+
+#include "mcdn_test.h"
+
+using namespace mcdn;
+
+namespace {
+
+ImageBuf box16()
+{
+    ImageBuf merged;
+    std::string dir = mcdn_test::test_data("box16/");
+    EXPECT_TRUE(read_inputs(merged, { { dir + "box_0016spp.exr", InputKind::Mean },
+                                      { dir + "box_0016spp_var.exr", InputKind::Variance } }));
+    return merged;
+}
+
+AovSet resolve(const ImageBuf& buf)
+{
+    AovSet set;
+    std::string error;
+    EXPECT_TRUE(resolve_aovs(set, AovSpec(), buf.spec(), error)) << error;
+    return set;
+}
+
+std::vector<float> pixel(const ImageBuf& buf, int x, int y)
+{
+    std::vector<float> px(buf.nchannels());
+    buf.getpixel(x, y, px.data(), buf.nchannels());
+    return px;
+}
+
+}  // namespace
+
+TEST(Color, WorkingSpaceIsTheScenelinearRoleOfOurConfig)
+{
+    EXPECT_EQ(working_colorspace(), "lin_rec709");
+    EXPECT_NE(ocio_config_path().find("config.ocio"), std::string::npos);
+}
+
+TEST(Color, InputSpaceComesFromTheSpecThenTheFileThenTheRole)
+{
+    ImageBuf box = box16();
+    EXPECT_EQ(box.spec().get_string_attribute("oiio:ColorSpace"), "Linear");
+    AovSpec spec;
+    EXPECT_EQ(input_colorspace(spec, box.spec()), "lin_rec709");  // "Linear" is an alias
+    spec.colorspace = "acescg";
+    EXPECT_EQ(input_colorspace(spec, box.spec()), "acescg");
+    ImageSpec untagged(4, 4, 3);
+    EXPECT_EQ(input_colorspace(AovSpec(), untagged), "lin_rec709");
+}
+
+TEST(Color, MatricesAndNonLinearSpaces)
+{
+    std::array<double, 9> m;
+    std::string error;
+    ASSERT_TRUE(linear_transform(m, "lin_rec709", "acescg", error)) << error;
+    EXPECT_NEAR(m[0], 0.6131, 1e-4);
+    EXPECT_NEAR(m[1], 0.3395, 1e-4);
+    EXPECT_NEAR(m[3], 0.0702, 1e-4);
+    EXPECT_FALSE(linear_transform(m, "lin_rec709", "srgb_display", error));
+    EXPECT_NE(error.find("not scene-linear"), std::string::npos) << error;
+    EXPECT_FALSE(linear_transform(m, "lin_rec709", "no_such_space", error));
+    EXPECT_NE(error.find("unknown colour space 'no_such_space'"), std::string::npos) << error;
+}
+
+TEST(Color, ConvertsColourAndVarianceButNeverData)
+{
+    ImageBuf box = box16();
+    AovSet set = resolve(box);
+    ImageBuf converted = box.copy(OIIO::TypeDesc::FLOAT);
+    std::string error;
+    ASSERT_TRUE(convert_colour_channels(converted, set, "lin_rec709", "acescg", error)) << error;
+    std::array<double, 9> m;
+    ASSERT_TRUE(linear_transform(m, "lin_rec709", "acescg", error));
+    auto before = pixel(box, 20, 30), after = pixel(converted, 20, 30);
+    const auto& c = set.channels(Role::Color);
+    const auto& v = set.channels(Role::ColorVariance);
+    const auto& a = set.channels(Role::Albedo);
+    double expected_g = m[3] * before[c[0]] + m[4] * before[c[1]] + m[5] * before[c[2]];
+    EXPECT_NEAR(after[c[1]], expected_g, 1e-6 + 1e-5 * std::fabs(expected_g));
+    double expected_var = m[3] * m[3] * before[v[0]] + m[4] * m[4] * before[v[1]] + m[5] * m[5] * before[v[2]];
+    EXPECT_NEAR(after[v[1]], expected_var, 1e-9 + 1e-5 * expected_var);
+    double expected_albedo = m[0] * before[a[0]] + m[1] * before[a[1]] + m[2] * before[a[2]];
+    EXPECT_NEAR(after[a[0]], expected_albedo, 1e-6);
+    for (Role data : { Role::Normal, Role::Depth, Role::NormalVariance })
+        for (int ch : set.channels(data))
+            EXPECT_EQ(after[ch], before[ch]) << role_name(data);
+
+    ASSERT_TRUE(convert_colour_channels(converted, set, "acescg", "lin_rec709", error)) << error;
+    auto back = pixel(converted, 20, 30);
+    for (int ch : c)
+        EXPECT_NEAR(back[ch], before[ch], 1e-5 * (1 + std::fabs(before[ch])));
+}
+
+TEST(Color, OpsSeeTheWorkingSpaceAndResultsGoBack)
+{
+    ImageBuf box = box16();
+    AovSpec acescg;
+    acescg.colorspace = "acescg";
+    ImageBuf in_aces = box.copy(OIIO::TypeDesc::FLOAT);
+    std::string error;
+    ASSERT_TRUE(convert_colour_channels(in_aces, resolve(box), "lin_rec709", "acescg", error));
+    // An op that records what it saw and doubles the colour.
+    std::vector<float> seen;
+    auto op = [&](ImageBuf& dst, const ImageBuf& src) {
+        seen = pixel(src, 5, 5);
+        dst.copy(src, OIIO::TypeDesc::FLOAT);
+        AovSet set = resolve(src);
+        for (int y = 0; y < 64; ++y)
+            for (int x = 0; x < 64; ++x) {
+                auto px = pixel(src, x, y);
+                for (int ch : set.channels(Role::Color))
+                    px[ch] *= 2;
+                dst.setpixel(x, y, px.data(), int(px.size()));
+            }
+        return true;
+    };
+    ImageBuf out;
+    ASSERT_TRUE(run_in_working_space(out, in_aces, acescg, "test", op)) << out.geterror();
+    auto original = pixel(box, 5, 5), result = pixel(out, 5, 5), aces = pixel(in_aces, 5, 5);
+    AovSet set = resolve(box);
+    for (int ch : set.channels(Role::Color)) {
+        EXPECT_NEAR(seen[ch], original[ch], 1e-5 * (1 + original[ch]));  // op saw Rec.709
+        EXPECT_NEAR(result[ch], 2 * aces[ch], 1e-5 * (1 + aces[ch]));   // result is ACEScg
+    }
+    EXPECT_EQ(out.spec().get_int_attribute("mcdn:in_working_space"), 0);
+}
