@@ -53,7 +53,7 @@ def setup_render(scene, spec):
     cy.use_auto_tile = False
     cy.time_limit = 0.0
     scene.render.film_transparent = False
-    scene.render.use_persistent_data = False
+    scene.render.use_persistent_data = bool(spec.get("persistent", True))
     scene.view_settings.view_transform = "Standard"
     scene.view_settings.look = "None"
     fw, fh = spec["frame"]
@@ -111,7 +111,7 @@ def auto_exposure(scene, spec):
     mean = float(np.mean(lum))
     level = med if med > 1e-4 else mean
     target = float(spec.get("exposure_target", 0.25))
-    expo = 1.0 if level <= 1e-6 else min(max(target / level, 1 / 64), 64.0)
+    expo = 1.0 if level <= 1e-7 else min(max(target / level, 1 / 256), 4096.0)
     os.remove(path)
     return {"median_luminance_at_1": med, "mean_luminance_at_1": mean, "film_exposure": expo,
             "cpu_s": cpu, "wall_s": wall}

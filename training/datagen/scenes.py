@@ -486,6 +486,12 @@ def stage_window_room(rng, family):
     e = math.radians(st.info["sky"]["sun_elevation"])
     sun.location = (math.cos(e) * math.cos(az) * 50, math.cos(e) * math.sin(az) * 50, math.sin(e) * 50)
     look_at(sun, (0, 0, 0))
+    sky = bpy.context.scene.world.node_tree.nodes["Sky Texture"]
+    if sky.sky_type == "NISHITA":
+        sky.sun_rotation = az
+    else:
+        sky.sun_direction = Vector(sun.location).normalized()
+    st.info["sky"]["sun_azimuth"] = round(math.degrees(az), 2)
     if rng.random() < 0.5:
         area_light((0, 0, h - 0.01), (0, 0, 0), 0.5, rng.uniform(20, 100))
     st.content_box = ((-w / 2 + 0.5, -d / 2 + 0.8), (w / 2 - 0.5, d / 2 - 0.5))
@@ -729,6 +735,7 @@ def add_emitters(rng, st, n):
         ob = add_prim(kind, loc, (s, s, s * (4 if kind == "cylinder" else 1)),
                       (rng.uniform(0, 3), rng.uniform(0, 3), 0), mat)
         minfo["size"] = round(s, 3)
+        minfo["loc"] = [round(v, 3) for v in loc]
         info.append(minfo)
     return info
 
@@ -904,6 +911,8 @@ def build(family, seed):
     targets = [o["loc"] for o in objs]
     if family == "emissive":
         info["emitters"] = add_emitters(rng, st, rng.randint(2, 10))
+        if rng.random() < 0.6:  # aim at an emitter: visible bright sources in the crop
+            targets = [e["loc"] for e in info["emitters"]]
         # dim the main lights: emitters dominate and make heavy-tailed noise
         for ob in bpy.data.objects:
             if ob.type == "LIGHT":

@@ -1,0 +1,248 @@
+// `import mcdenoise`: the library's ops for Python pipeline steps. Every op takes and returns
+// OpenImageIO.ImageBuf (the types of python3-openimageio's module, shared through pybind11),
+// releases the GIL while it works, and raises RuntimeError with the library's message.
+#include <pybind11/functional.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include "mcdn/aov.h"
+#include "mcdn/io.h"
+#include "mcdn/metrics.h"
+#include "mcdn/mix.h"
+#include "mcdn/nfor.h"
+#include "mcdn/prefilter.h"
+#include "mcdn/sure.h"
+
+namespace py = pybind11;
+using OIIO::ImageBuf;
+
+namespace {
+
+// The AOV spec from the keyword arguments every op shares.
+mcdn::AovSpec aov_spec(const std::string& preset, const std::map<std::string, std::string>& aovs,
+                       const std::string& colorspace)
+{
+    mcdn::AovSpec spec;
+    spec.preset = preset;
+    spec.colorspace = colorspace;
+    std::string error;
+    for (const auto& [role, channels] : aovs)
+        if (!spec.parse_override(role + "=" + channels, error))
+            throw std::runtime_error(error);
+    return spec;
+}
+
+// Runs an op in OIIO's shape, without the GIL; its error becomes a RuntimeError.
+template<class Op> ImageBuf run(const ImageBuf& src, Op op)
+{
+    ImageBuf dst;
+    bool ok;
+    {
+        py::gil_scoped_release release;
+        ok = op(dst, src);
+    }
+    if (!ok)
+        throw std::runtime_error(dst.geterror());
+    return dst;
+}
+
+mcdn::Denoiser named_denoiser(const std::string& chain, const mcdn::AovSpec& spec, int nthreads)
+{
+    if (chain == "nfor" || chain == "prefilter,nfor")
+        return [spec, nthreads](ImageBuf& dst, const ImageBuf& src) {
+            mcdn::NforOptions o;
+            o.aovs = spec;
+            o.prefilter.aovs = spec;
+            return mcdn::nfor(dst, src, o, {}, nthreads);
+        };
+    throw std::runtime_error("sure: unknown denoiser '" + chain + "' (use 'nfor' or a callable)");
+}
+
+}  // namespace
+
+PYBIND11_MODULE(mcdenoise, m)
+{
+    m.doc() = "mcdenoise: Monte Carlo render denoisers on OpenImageIO.ImageBuf";
+    py::module_::import("OpenImageIO");  // registers ImageBuf with pybind11
+
+    m.def("read_inputs",
+          [](const std::vector<std::pair<std::string, std::string>>& files) {
+              std::vector<mcdn::InputFile> inputs;
+              for (const auto& [path, kind] : files) {
+                  auto k = mcdn::input_kind_from_name(kind);
+                  if (!k)
+                      throw std::runtime_error(path + ": kind '" + kind
+                                               + "' is not mean, variance, halfA or halfB");
+                  inputs.push_back({ path, *k });
+              }
+              ImageBuf merged;
+              bool ok;
+              {
+                  py::gil_scoped_release release;
+                  ok = mcdn::read_inputs(merged, inputs);
+              }
+              if (!ok)
+                  throw std::runtime_error(merged.geterror());
+              return merged;
+          },
+          py::arg("files"),
+          "Read [(path, 'mean'|'variance'|'halfA'|'halfB'), ...] into one ImageBuf (variance "
+          "channels prefixed 'variance.', halves 'A.' and 'B.'). A directory path reads a "
+          "Tungsten buffer set.");
+
+    m.def("write",
+          [](const ImageBuf& image, const std::string& path, const std::string& datatype,
+             const std::vector<std::string>& channels) {
+              mcdn::WriteOptions o;
+              o.datatype = datatype == "half" ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::FLOAT;
+              o.channels = channels;
+              std::string error;
+              bool ok;
+              {
+                  py::gil_scoped_release release;
+                  ok = mcdn::write_image(image, path, o, error);
+              }
+              if (!ok)
+                  throw std::runtime_error(error);
+          },
+          py::arg("image"), py::arg("path"), py::arg("datatype") = "float",
+          py::arg("channels") = std::vector<std::string>(),
+          "Write through a temporary file renamed into place (never a partial file).");
+
+    m.def("validate",
+          [](const ImageBuf& image, const std::string& preset,
+             const std::map<std::string, std::string>& aovs) {
+              mcdn::AovSet set;
+              std::string error;
+              if (!mcdn::resolve_aovs(set, aov_spec(preset, aovs, ""), image.spec(), error)
+                  || !set.require({ mcdn::Role::Color }, image.spec(), error)
+                  || !mcdn::validate_inputs(image, set, error))
+                  throw std::runtime_error(error);
+          },
+          py::arg("image"), py::arg("preset") = "cycles",
+          py::arg("aovs") = std::map<std::string, std::string>(),
+          "Raise if the colour, halves or features hold NaN, Inf or huge values.");
+
+    m.def("prefilter",
+          [](const ImageBuf& src, const std::string& preset,
+             const std::map<std::string, std::string>& aovs, const std::string& colorspace,
+             int window, int patch, float k, int nthreads) {
+              mcdn::PrefilterOptions o;
+              o.aovs = aov_spec(preset, aovs, colorspace);
+              o.window_radius = window / 2;
+              o.patch_radius = patch / 2;
+              o.k = k;
+              return run(src, [&](ImageBuf& d, const ImageBuf& s) {
+                  return mcdn::prefilter(d, s, o, {}, nthreads);
+              });
+          },
+          py::arg("image"), py::arg("preset") = "cycles",
+          py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
+          py::arg("window") = 11, py::arg("patch") = 7, py::arg("k") = 0.5f,
+          py::arg("nthreads") = 0, "NFOR feature prefilter (NFOR §5.1).");
+
+    m.def("nfor",
+          [](const ImageBuf& src, const std::string& preset,
+             const std::map<std::string, std::string>& aovs, const std::string& colorspace,
+             int window, int patch, bool mse, bool selection, int nthreads) {
+              mcdn::NforOptions o;
+              o.aovs = aov_spec(preset, aovs, colorspace);
+              o.prefilter.aovs = o.aovs;
+              o.window_radius = o.second_window_radius = window / 2;
+              o.patch_radius = patch / 2;
+              o.output_mse = mse;
+              o.output_selection = selection;
+              return run(src, [&](ImageBuf& d, const ImageBuf& s) {
+                  return mcdn::nfor(d, s, o, {}, nthreads);
+              });
+          },
+          py::arg("image"), py::arg("preset") = "cycles",
+          py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
+          py::arg("window") = 19, py::arg("patch") = 7, py::arg("mse") = false,
+          py::arg("selection") = false, py::arg("nthreads") = 0,
+          "NFOR: first-order regression denoiser (NFOR §5.2-5.4).");
+
+    m.def("sure",
+          [](const ImageBuf& src, py::object denoiser, const std::string& preset,
+             const std::map<std::string, std::string>& aovs, const std::string& colorspace,
+             int probes, float eps, int nthreads) {
+              mcdn::SureOptions o;
+              o.aovs = aov_spec(preset, aovs, colorspace);
+              o.probes = probes;
+              o.epsilon_relative = eps;
+              mcdn::Denoiser f;
+              if (py::isinstance<py::str>(denoiser))
+                  f = named_denoiser(denoiser.cast<std::string>(), o.aovs, nthreads);
+              else {
+                  // A Python callable ImageBuf -> ImageBuf; called with the GIL held.
+                  auto callable = denoiser.cast<py::function>();
+                  f = [callable](ImageBuf& dst, const ImageBuf& in) {
+                      py::gil_scoped_acquire acquire;
+                      try {
+                          dst = callable(in).cast<ImageBuf>();
+                          return true;
+                      } catch (const std::exception& e) {
+                          dst.errorfmt("python denoiser: {}", e.what());
+                          return false;
+                      }
+                  };
+              }
+              return run(src, [&](ImageBuf& d, const ImageBuf& s) {
+                  return mcdn::sure(d, s, f, o, {}, nthreads);
+              });
+          },
+          py::arg("image"), py::arg("denoiser") = "nfor", py::arg("preset") = "cycles",
+          py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
+          py::arg("probes") = 1, py::arg("eps") = 1e-3f, py::arg("nthreads") = 0,
+          "Monte-Carlo SURE (PD §3.2) of a denoiser: 'nfor' or a callable ImageBuf -> "
+          "ImageBuf. Returns the denoised image with noisy.*, sure.*, sure.divergence.*, "
+          "sure.residual.* channels.");
+
+    m.def("mix",
+          [](const ImageBuf& src, const std::string& model, const std::string& weights,
+             bool t_test, bool alpha, const std::string& preset,
+             const std::map<std::string, std::string>& aovs, const std::string& colorspace,
+             int nthreads) {
+              mcdn::MixOptions o;
+              o.aovs = aov_spec(preset, aovs, colorspace);
+              if (model == "net")
+                  o.model = mcdn::MixOptions::Model::Net;
+              else if (model != "analytic")
+                  throw std::runtime_error("mix: model '" + model + "' is not net or analytic");
+              o.weights = weights;
+              o.t_test = t_test;
+              o.output_alpha = alpha;
+              return run(src, [&](ImageBuf& d, const ImageBuf& s) {
+                  return mcdn::mix(d, s, o, {}, nthreads);
+              });
+          },
+          py::arg("image"), py::arg("model") = "analytic", py::arg("weights") = "",
+          py::arg("t_test") = true, py::arg("alpha") = false, py::arg("preset") = "cycles",
+          py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
+          py::arg("nthreads") = 0,
+          "Progressive mix (PD §4) of the output of sure(): z = x + alpha'(y - x).");
+
+    m.def("metrics",
+          [](const ImageBuf& image, const ImageBuf& reference, std::vector<int> channels,
+             std::vector<int> reference_channels, bool trim) {
+              mcdn::MetricsOptions o;
+              o.image_channels = channels;
+              o.reference_channels = reference_channels.empty() ? channels : reference_channels;
+              o.trim = trim;
+              mcdn::Metrics r;
+              std::string error;
+              bool ok;
+              {
+                  py::gil_scoped_release release;
+                  ok = mcdn::compute_metrics(r, image, reference, o, error);
+              }
+              if (!ok)
+                  throw std::runtime_error(error);
+              return std::map<std::string, double> { { "mse", r.mse }, { "rmse", r.rmse },
+                                                     { "relmse", r.relmse }, { "smape", r.smape },
+                                                     { "psnr", r.psnr }, { "ssim", r.ssim } };
+          },
+          py::arg("image"), py::arg("reference"), py::arg("channels") = std::vector<int> { 0, 1, 2 },
+          py::arg("reference_channels") = std::vector<int>(), py::arg("trim") = false,
+          "MSE, RMSE, relMSE, SMAPE, PSNR, SSIM as a dict.");
+}

@@ -1,0 +1,81 @@
+"""import mcdenoise from Debian's /usr/bin/python3: ops take and return OpenImageIO.ImageBuf."""
+import os
+import sys
+import tempfile
+import unittest
+
+import OpenImageIO as oiio
+
+import mcdenoise
+
+DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "data")
+BOX = os.path.join(DATA, "box16")
+
+
+def box_inputs():
+    return mcdenoise.read_inputs([
+        (os.path.join(BOX, "box_0016spp.exr"), "mean"),
+        (os.path.join(BOX, "box_0016spp_var.exr"), "variance"),
+        (os.path.join(BOX, "box_0016spp_A.exr"), "halfA"),
+        (os.path.join(BOX, "box_0016spp_B.exr"), "halfB"),
+    ])
+
+
+class OpsTakeAndReturnImageBufs(unittest.TestCase):
+    def setUp(self):
+        self.render = box_inputs()
+        self.reference = oiio.ImageBuf(os.path.join(BOX, "box_ref.exr"))
+
+    def test_read_inputs_returns_an_oiio_imagebuf(self):
+        self.assertIsInstance(self.render, oiio.ImageBuf)
+        self.assertEqual(self.render.spec().width, 64)
+        self.assertIn("variance.ViewLayer.Combined.R", self.render.spec().channelnames)
+
+    def test_nfor_denoises(self):
+        noisy = mcdenoise.metrics(self.render, self.reference)
+        denoised = mcdenoise.nfor(self.render, preset="cycles")
+        self.assertIsInstance(denoised, oiio.ImageBuf)
+        after = mcdenoise.metrics(denoised, self.reference)
+        self.assertLess(after["relmse"], 0.5 * noisy["relmse"])
+        self.assertEqual(denoised.nchannels, self.render.nchannels)
+
+    def test_chain_prefilter_nfor_sure_mix(self):
+        out = mcdenoise.prefilter(self.render)
+        out = mcdenoise.sure(out, denoiser="nfor")
+        self.assertIn("sure.R", out.spec().channelnames)
+        mixed = mcdenoise.mix(out, model="analytic", alpha=True)
+        self.assertIn("mix.alpha.G", mixed.spec().channelnames)
+
+    def test_sure_takes_a_python_denoiser(self):
+        calls = []
+
+        def denoise(buf):
+            calls.append(1)
+            return mcdenoise.nfor(buf)
+
+        out = mcdenoise.sure(self.render, denoiser=denoise, probes=2)
+        self.assertEqual(len(calls), 3)  # K + 1 runs
+        self.assertIn("sure.divergence.B", out.spec().channelnames)
+
+    def test_errors_raise_with_the_library_message(self):
+        with self.assertRaises(RuntimeError) as caught:
+            mcdenoise.read_inputs([("/nonexistent/frame.exr", "mean")])
+        self.assertIn("/nonexistent/frame.exr: no such file", str(caught.exception))
+        with self.assertRaises(RuntimeError) as caught:
+            mcdenoise.nfor(self.render, preset="generic")
+        self.assertIn("color", str(caught.exception))
+        with self.assertRaises(RuntimeError) as caught:
+            mcdenoise.mix(self.render)
+        self.assertIn("run sure first", str(caught.exception))
+
+    def test_write_is_atomic_and_keeps_the_render_channels(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, "out.exr")
+            mcdenoise.write(mcdenoise.nfor(self.render), path, datatype="half")
+            self.assertEqual(os.listdir(tmp), ["out.exr"])
+            written = oiio.ImageBuf(path)
+            self.assertEqual(written.nchannels, 39)
+
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)
