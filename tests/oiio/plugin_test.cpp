@@ -1,0 +1,104 @@
+// The oiiotool format plugin, through Debian's real oiiotool: URI and recipe file, chains,
+// and errors that surface as oiiotool errors.
+#include <fstream>
+#include <regex>
+
+#include "mcdn_test.h"
+
+using mcdn_test::quote;
+
+namespace {
+
+struct Run {
+    int exit_code;
+    std::string output;
+};
+
+Run oiiotool(const std::string& args)
+{
+    std::string cmd = "OIIO_LIBRARY_PATH=" + quote(MCDN_PLUGIN_DIR) + " oiiotool " + args + " 2>&1";
+    Run run { -1, "" };
+    FILE* pipe = popen(cmd.c_str(), "r");
+    char line[4096];
+    while (pipe && fgets(line, sizeof line, pipe))
+        run.output += line;
+    int status = pipe ? pclose(pipe) : -1;
+    run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return run;
+}
+
+std::string box_query(const std::string& chain)
+{
+    std::string d = mcdn_test::test_data("box16/");
+    return "shot.mcdn?in=" + d + "box_0016spp.exr&variance=" + d + "box_0016spp_var.exr&halfA="
+           + d + "box_0016spp_A.exr&halfB=" + d + "box_0016spp_B.exr&preset=cycles&chain=" + chain;
+}
+
+double relmse_of(const std::string& image)
+{
+    auto run = mcdn_test::run_mcdntool("-i " + quote(image) + " --aov:preset=generic --metrics:format=json "
+                                       + quote(mcdn_test::test_data("box16/box_ref.exr")));
+    std::smatch m;
+    if (!std::regex_search(run.output, m, std::regex("\"relmse\": ([-0-9.eE+]+)")))
+        return NAN;
+    return std::stod(m[1]);
+}
+
+}  // namespace
+
+TEST(OiioPlugin, QueryRunsTheChainInsideOiiotool)
+{
+    if (system("command -v oiiotool > /dev/null") != 0)
+        GTEST_SKIP() << "oiiotool not installed";
+    std::string dir = mcdn_test::temp_dir("plugin_query");
+    std::string out = dir + "/denoised.exr";
+    auto run = oiiotool(quote(box_query("prefilter,nfor"))
+                        + " --ch R=ViewLayer.Combined.R,G=ViewLayer.Combined.G,B=ViewLayer.Combined.B"
+                          " --colorconvert lin_rec709 lin_rec709 -o " + quote(out));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    std::string noisy = dir + "/noisy.exr";
+    auto copy = oiiotool(quote(mcdn_test::test_data("box16/box_0016spp.exr"))
+                         + " --ch R=ViewLayer.Combined.R,G=ViewLayer.Combined.G,B=ViewLayer.Combined.B -o "
+                         + quote(noisy));
+    ASSERT_EQ(copy.exit_code, 0) << copy.output;
+    EXPECT_LT(relmse_of(out), 0.5 * relmse_of(noisy));
+}
+
+TEST(OiioPlugin, RecipeFileWithRelativePaths)
+{
+    if (system("command -v oiiotool > /dev/null") != 0)
+        GTEST_SKIP() << "oiiotool not installed";
+    std::string dir = mcdn_test::temp_dir("plugin_recipe");
+    for (const char* f : { "box_0016spp.exr", "box_0016spp_var.exr", "box_0016spp_A.exr", "box_0016spp_B.exr" })
+        OIIO::Filesystem::copy(mcdn_test::test_data(std::string("box16/") + f), dir + "/" + f);
+    std::ofstream(dir + "/shot.mcdn") << "# denoise the box\n"
+                                         "in = box_0016spp.exr\nvariance = box_0016spp_var.exr\n"
+                                         "halfA = box_0016spp_A.exr\nhalfB = box_0016spp_B.exr\n"
+                                         "chain = prefilter,nfor,sure,mix\nsure.probes = 1\n"
+                                         "channels = ViewLayer.Combined.R,ViewLayer.Combined.G,ViewLayer.Combined.B\n";
+    auto run = oiiotool(quote(dir + "/shot.mcdn") + " -o " + quote(dir + "/out.exr"));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    OIIO::ImageBuf out(dir + "/out.exr");
+    ASSERT_TRUE(out.init_spec(dir + "/out.exr", 0, 0)) << out.geterror();
+    EXPECT_EQ(out.spec().width, 64);
+    EXPECT_EQ(out.spec().nchannels, 3);
+}
+
+TEST(OiioPlugin, ErrorsAreOiiotoolErrorsNotCrashes)
+{
+    if (system("command -v oiiotool > /dev/null") != 0)
+        GTEST_SKIP() << "oiiotool not installed";
+    std::string dir = mcdn_test::temp_dir("plugin_errors");
+    for (const auto& [query, message] : std::vector<std::pair<std::string, std::string>> {
+             { "x.mcdn?in=/nonexistent.exr", "/nonexistent.exr: no such file" },
+             { box_query("nfor,blur"), "unknown stage 'blur'" },
+             { box_query("nfor") + "&colour=1", "unknown key 'colour'" },
+             { box_query("mix"), "mix needs sure before it" },
+         }) {
+        auto run = oiiotool(quote(query) + " -o " + quote(dir + "/out.exr"));
+        EXPECT_NE(run.exit_code, 0) << query;
+        EXPECT_LT(run.exit_code, 128) << "crashed: " << run.output;
+        EXPECT_NE(run.output.find(message), std::string::npos) << run.output;
+    }
+    EXPECT_FALSE(OIIO::Filesystem::exists(dir + "/out.exr"));
+}
