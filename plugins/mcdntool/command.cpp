@@ -60,6 +60,9 @@ const std::vector<CommandInfo>& command_table()
               "Frames for # / @ / %04d patterns, e.g. 1-10 or 1-100x5 (default: every frame "
               "of the first input pattern that exists on disk).",
               nullptr, true },
+            { "--parallel-frames", "N", {},
+              "Denoise N frames of a sequence at once, sharing the threads (default 1).",
+              nullptr, true },
         };
         for (auto& stage : stage_commands())
             t.push_back(stage);

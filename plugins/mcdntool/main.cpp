@@ -6,7 +6,10 @@
 // Commands run left to right on one frame; file names with #, @ or %04d make a sequence
 // and the whole command line runs once per frame.
 #include <iostream>
+#include <atomic>
+#include <mutex>
 #include <regex>
+#include <thread>
 
 #include <unistd.h>
 
@@ -133,6 +136,43 @@ bool run_frame(const std::vector<Command>& commands, int frame, int nthreads, bo
     return session.load(error);
 }
 
+// Runs every frame, `parallel` at a time (each with its share of the threads); a line per
+// finished frame. Stops starting frames after the first failure; false if any failed.
+bool run_frames(const std::vector<Command>& commands, const std::vector<int>& frames,
+                int nthreads, int parallel, bool verbose)
+{
+    parallel = std::max(1, std::min<int>(parallel, int(frames.size())));
+    int threads = nthreads > 0 ? nthreads : int(std::thread::hardware_concurrency());
+    int per_frame = std::max(1, threads / parallel);
+    std::atomic<size_t> next { 0 }, done { 0 };
+    std::atomic<bool> failed { false };
+    std::mutex print;
+    auto worker = [&] {
+        for (size_t f; !failed && (f = next++) < frames.size();) {
+            OIIO::Timer timer;
+            std::string error;
+            bool ok = run_frame(commands, frames[f], parallel > 1 ? per_frame : nthreads,
+                                verbose && parallel == 1, error);
+            std::lock_guard<std::mutex> lock(print);
+            if (!ok) {
+                failed = true;
+                std::cerr << "mcdntool: error: "
+                          << (frames[f] >= 0 ? format("frame {}: ", frames[f]) : std::string())
+                          << error << "\n";
+            } else if (frames[f] >= 0)
+                std::cerr << format("mcdntool: frame {} ({}/{}) done in {:.2f} s\n", frames[f],
+                                    ++done, frames.size(), timer());
+        }
+    };
+    std::vector<std::thread> pool;
+    for (int i = 1; i < parallel; ++i)
+        pool.emplace_back(worker);
+    worker();
+    for (auto& t : pool)
+        t.join();
+    return !failed;
+}
+
 }  // namespace
 
 int main(int argc, const char** argv)
@@ -148,6 +188,7 @@ int main(int argc, const char** argv)
     int nthreads = 0;
     bool verbose = isatty(STDERR_FILENO);  // progress lines on a terminal, quiet in pipelines
     std::string frames_option;
+    int parallel_frames = 1;
     OIIO::ArgParse ap;
     ap.intro("mcdntool -- denoise Monte Carlo renders (mcdenoise)")
         .usage("mcdntool [-i[:as=KIND] FILE ...] [--aov[:preset=NAME] role=chans ...] "
@@ -172,6 +213,8 @@ int main(int argc, const char** argv)
                 nthreads = Strutil::stoi(c.args[0]);
             else if (name == "-v")
                 verbose = true;
+            else if (name == "--parallel-frames")
+                parallel_frames = Strutil::stoi(c.args[0]);
             else if (name == "--frames")
                 frames_option = c.args[0];
             else
@@ -206,17 +249,5 @@ int main(int argc, const char** argv)
     }
     if (frames.empty())
         frames.push_back(-1);  // not a sequence: one run
-    for (size_t f = 0; f < frames.size(); ++f) {
-        OIIO::Timer timer;
-        if (!run_frame(commands, frames[f], nthreads, verbose, error)) {
-            std::cerr << "mcdntool: error: "
-                      << (frames[f] >= 0 ? format("frame {}: ", frames[f]) : std::string())
-                      << error << "\n";
-            return 1;
-        }
-        if (frames[f] >= 0)
-            std::cerr << format("mcdntool: frame {} ({}/{}) done in {:.2f} s\n", frames[f],
-                                f + 1, frames.size(), timer());
-    }
-    return 0;
+    return run_frames(commands, frames, nthreads, parallel_frames, verbose) ? 0 : 1;
 }

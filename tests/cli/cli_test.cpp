@@ -181,7 +181,7 @@ TEST(Cli, FrameSequencesRunOncePerFrame)
 {
     std::string dir = mcdn_test::temp_dir("cli_frames");
     for (int f : { 1, 2, 3 })
-        for (const char* face : { "", "_var" }) {
+        for (const char* face : { "", "_var", "_A", "_B" }) {
             std::string src = mcdn_test::test_data(std::string("box16/box_0016spp") + face + ".exr");
             OIIO::Filesystem::copy(src, OIIO::Strutil::fmt::format("{}/shot{}.{:04d}.exr", dir, face, f));
         }
@@ -197,6 +197,14 @@ TEST(Cli, FrameSequencesRunOncePerFrame)
     ASSERT_EQ(run.exit_code, 0) << run.output;
     EXPECT_FALSE(OIIO::Filesystem::exists(dir + "/only.0001.exr"));
     EXPECT_TRUE(OIIO::Filesystem::exists(dir + "/only.0003.exr"));
+
+    run = run_mcdntool("-i " + quote(dir + "/shot.#.exr") + " -i:as=variance " + quote(dir + "/shot_var.#.exr")
+                       + " -i:as=halfA " + quote(dir + "/shot_A.#.exr") + " -i:as=halfB "
+                       + quote(dir + "/shot_B.#.exr") + " --parallel-frames 2 --nfor -o "
+                       + quote(dir + "/par.#.exr"));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    for (int f : { 1, 2, 3 })
+        EXPECT_TRUE(OIIO::Filesystem::exists(OIIO::Strutil::fmt::format("{}/par.{:04d}.exr", dir, f)));
 
     run = run_mcdntool("-i " + quote(dir + "/shot.#.exr") + " --frames 1-4 -o "
                        + quote(dir + "/x.#.exr"));
