@@ -1,5 +1,8 @@
-// NL-means filter over tiles: for each offset of the search window, the patch distances of
-// the whole tile (patch_distance), their weights, and the weighted sum of the shifted image.
+// NL-means filter over tiles. Per tile and guide channel: padded local copies of the guide,
+// its variance and the images it weights; for each offset of the search window the patch
+// distances of the whole tile (patch_distance), their weights, and the weighted sums of the
+// shifted images, all in 16-lane vectors over full tile rows (lanes outside the image get
+// weight 0).
 #include "core/nl_means.h"
 
 #include <tbb/enumerable_thread_specific.h>
@@ -17,34 +20,50 @@ struct FilterJob {
 
 struct FilterScratch {
     nlm::DistanceScratch distance;
-    std::vector<float> weight, sum, weight_sum;  // tile-sized; sum per image channel
+    nlm::LocalPlane guide, variance;
+    std::vector<nlm::LocalPlane> images;
+    std::vector<float> weight, sum, weight_sum;  // tile-sized; sum per image of the guide
 };
 
 MCDN_INLINE void filter_tile_impl(const FilterJob& job, Rect tile, FilterScratch& s)
 {
-    const int T = nlm::kTileSize;
+    constexpr int T = nlm::kTileSize;
     const int F = job.params.patch_radius, R = job.params.window_radius;
     const int width = job.guide[0]->width, height = job.guide[0]->height;
     const int nimage = int(job.image.size()), nguide = int(job.guide.size());
     const int tw = tile.width(), th = tile.height();
+    const float inf = std::numeric_limits<float>::infinity();
     s.distance.reserve(T, F);
     s.weight.resize(size_t(T) * T);
-    s.sum.assign(size_t(T) * T * nimage, 0.0f);
-    s.weight_sum.assign(size_t(T) * T * nimage, 0.0f);
-    const float inf = std::numeric_limits<float>::infinity();
+    s.weight_sum.resize(size_t(T) * T);
+    const int per_guide = (nimage + nguide - 1) / nguide;
+    s.sum.resize(size_t(T) * T * per_guide);
+    if (int(s.images.size()) < per_guide)
+        s.images.resize(per_guide);
+    const Rect garea = nlm::guide_area(tile, R, F);
+    // Images read at p + delta for the tile's full 16-lane rows.
+    const Rect iarea { tile.x0 - R, tile.y0 - R, tile.x0 + T + R, tile.y1 + R };
 
-    for (int dy = -R; dy <= R; ++dy) {
-        for (int dx = -R; dx <= R; ++dx) {
-            const int vx0 = std::max(tile.x0, -dx), vx1 = std::min(tile.x1, width - dx);
-            const int vy0 = std::max(tile.y0, -dy), vy1 = std::min(tile.y1, height - dy);
-            if (vx0 >= vx1 || vy0 >= vy1)
-                continue;
-            for (int g = 0; g < nguide; ++g) {
+    for (int g = 0; g < nguide; ++g) {
+        int nimg = 0;
+        for (int c = g; c < nimage; c += nguide)
+            s.images[nimg++].load(job.image[c]->data(), width, height, iarea);
+        if (nimg == 0)
+            continue;
+        s.guide.load(job.guide[g]->data(), width, height, garea);
+        s.variance.load(job.variance[g]->data(), width, height, garea);
+        std::fill(s.sum.begin(), s.sum.begin() + size_t(T) * T * nimg, 0.0f);
+        std::fill(s.weight_sum.begin(), s.weight_sum.end(), 0.0f);
+        for (int dy = -R; dy <= R; ++dy) {
+            for (int dx = -R; dx <= R; ++dx) {
+                const int vx0 = std::max(tile.x0, -dx), vx1 = std::min(tile.x1, width - dx);
+                const int vy0 = std::max(tile.y0, -dy), vy1 = std::min(tile.y1, height - dy);
+                if (vx0 >= vx1 || vy0 >= vy1)
+                    continue;
                 float* w = s.weight.data();
                 std::fill(w, w + size_t(T) * T, inf);
-                nlm::patch_distance(w, T, job.guide[g]->data(), job.variance[g]->data(), width,
-                                    height, tile, dx, dy, F, job.params.k,
-                                    job.params.variance_scale, false, s.distance);
+                nlm::patch_distance(w, T, s.guide, s.variance, width, height, tile, dx, dy, F,
+                                    job.params.k, job.params.variance_scale, false, s.distance);
                 const vfloat16 zero = {};
                 for (int i = 0; i < T * T; i += kLanes) {
                     vfloat16 d = load16(w + i);
@@ -54,32 +73,30 @@ MCDN_INLINE void filter_tile_impl(const FilterJob& job, Rect tile, FilterScratch
                     for (int y = 0; y < th; ++y)
                         for (int x = 0; x < tw; ++x)
                             w[y * T + x] = std::max(w[y * T + x], nlm::kMinCenterWeight);
-                for (int c = g; c < nimage; c += nguide) {
-                    float* sum = s.sum.data() + size_t(c) * T * T;
-                    float* wsum = s.weight_sum.data() + size_t(c) * T * T;
-                    for (int y = vy0; y < vy1; ++y) {
-                        const float* wr = w + size_t(y - tile.y0) * T;
-                        const float* src = job.image[c]->row(y + dy) + dx;
-                        float* sr = sum + size_t(y - tile.y0) * T;
-                        float* wsr = wsum + size_t(y - tile.y0) * T;
-                        for (int x = vx0; x < vx1; ++x) {
-                            int i = x - tile.x0;
-                            sr[i] += wr[i] * src[x];
-                            wsr[i] += wr[i];
-                        }
+                for (int y = 0; y < th; ++y) {
+                    const float* wr = w + size_t(y) * T;
+                    float* wsr = s.weight_sum.data() + size_t(y) * T;
+                    for (int i = 0; i < T; i += kLanes)
+                        store16(wsr + i, load16(wsr + i) + load16(wr + i));
+                    for (int m = 0; m < nimg; ++m) {
+                        const float* src = s.images[m].at(tile.x0 + dx, tile.y0 + y + dy);
+                        float* sr = s.sum.data() + size_t(m) * T * T + size_t(y) * T;
+                        for (int i = 0; i < T; i += kLanes)
+                            store16(sr + i, load16(sr + i) + load16(wr + i) * load16(src + i));
                     }
                 }
             }
         }
+        int m = 0;
+        for (int c = g; c < nimage; c += nguide, ++m)
+            for (int y = 0; y < th; ++y) {
+                const float* sr = s.sum.data() + size_t(m) * T * T + size_t(y) * T;
+                const float* wsr = s.weight_sum.data() + size_t(y) * T;
+                float* o = job.out[c].row(tile.y0 + y) + tile.x0;
+                for (int x = 0; x < tw; ++x)
+                    o[x] = sr[x] / wsr[x];
+            }
     }
-    for (int c = 0; c < nimage; ++c)
-        for (int y = 0; y < th; ++y) {
-            const float* sr = s.sum.data() + size_t(c) * T * T + size_t(y) * T;
-            const float* wsr = s.weight_sum.data() + size_t(c) * T * T + size_t(y) * T;
-            float* o = job.out[c].row(tile.y0 + y) + tile.x0;
-            for (int x = 0; x < tw; ++x)
-                o[x] = sr[x] / wsr[x];
-        }
 }
 
 #if MCDN_X86_DISPATCH
@@ -111,7 +128,8 @@ std::vector<Plane> nl_means(const std::vector<const Plane*>& image,
         kernel = filter_tile_avx2;
 #endif
     std::vector<Rect> tiles = make_tiles(width, height, nlm::kTileSize);
-    tbb::enumerable_thread_specific<FilterScratch> scratch;
+    // Scratch kept per thread across calls: no page faults for fresh buffers on every call.
+    static tbb::enumerable_thread_specific<FilterScratch> scratch;
     parallel_for_index(int(tiles.size()), nthreads,
                        [&](int i) { kernel(job, tiles[i], scratch.local()); });
     return out;

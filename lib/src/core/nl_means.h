@@ -32,34 +32,76 @@ constexpr float kMinCenterWeight = 1e-4f;  // the centre pixel always counts
 /// Tile side of the NL-means and regression loops (a multiple of the vector width).
 constexpr int kTileSize = 32;
 
+/// A rectangle of one plane copied into a padded local buffer, 0 outside the image, so that
+/// the tile loops read whole 16-lane vectors without bounds checks.
+struct LocalPlane {
+    int x0 = 0, y0 = 0;  // image position of element (0, 0)
+    int stride = 0;
+    std::vector<float> px;
+    /// Copies `area` (which may extend past the image) of `src`.
+    void load(const float* src, int width, int height, Rect area)
+    {
+        x0 = area.x0;
+        y0 = area.y0;
+        stride = area.width();
+        px.assign(size_t(stride) * area.height() + kLanes, 0.0f);
+        const int cx0 = std::max(area.x0, 0), cx1 = std::min(area.x1, width);
+        for (int y = std::max(area.y0, 0); y < std::min(area.y1, height); ++y)
+            if (cx0 < cx1)
+                std::copy(src + size_t(y) * width + cx0, src + size_t(y) * width + cx1,
+                          px.data() + size_t(y - y0) * stride + (cx0 - x0));
+    }
+    const float* at(int x, int y) const { return px.data() + ptrdiff_t(y - y0) * stride + (x - x0); }
+};
+
+MCDN_INLINE int round_up_lanes(int n) { return (n + kLanes - 1) / kLanes * kLanes; }
+
+/// The area a tile's LocalPlane of the guide (and its variance) must cover for
+/// patch_distance with window radius R and patch radius F.
+inline Rect guide_area(Rect tile, int R, int F)
+{
+    const int bws = round_up_lanes(tile.width() + 2 * F);
+    return { tile.x0 - F - R, tile.y0 - F - R, tile.x0 - F + R + bws, tile.y1 + F + R };
+}
+
 /// Scratch space for patch_distance on one tile.
 struct DistanceScratch {
-    std::vector<float> buffer, column_sum, row, inv_count_x;
+    std::vector<float> buffer, column_sum, inv_count_x, inv_count;
+    int reserved_f = -1;
     void reserve(int tile_size, int patch_radius)
     {
-        size_t side = size_t(tile_size + 2 * patch_radius);
-        buffer.resize(side * side);
-        column_sum.resize(side);
-        row.resize(tile_size);
-        inv_count_x.resize(tile_size);
+        const int F = patch_radius;
+        const size_t bws = size_t(round_up_lanes(tile_size + 2 * F));
+        buffer.resize(bws * (tile_size + 2 * F));
+        column_sum.resize(bws + 2 * F + 2 * kLanes);
+        inv_count_x.resize(round_up_lanes(tile_size));
+        if (reserved_f != F) {
+            inv_count.resize(2 * F + 2);
+            inv_count[0] = 0.0f;
+            for (int n = 1; n <= 2 * F + 1; ++n)
+                inv_count[n] = 1.0f / float(n);
+            reserved_f = F;
+        }
     }
 };
 
 /// Patch-averaged distance d²(p, p + (dx, dy)) for every p of `tile`, one channel: the mean
 /// over the part of p's patch where both pixels lie inside the image (the box filter of
 /// the reference implementation, normalised by the pixel count at the borders).
-/// Written to out[(y - tile.y0) * stride + (x - tile.x0)]; with `take_max` the result is
-/// max(out, d²) (the regression combines colour channels by their largest distance).
-/// Pixels whose neighbour falls outside the image are left untouched: the caller fills
-/// `out` with +inf first.
-MCDN_INLINE void patch_distance(float* out, int stride, const float* guide, const float* variance,
-                                int width, int height, Rect tile, int dx, int dy,
-                                int patch_radius, float k, float variance_scale, bool take_max,
-                                DistanceScratch& scratch)
+/// `guide` and `variance` are LocalPlanes covering guide_area(tile, R, F) for |dx|, |dy| <= R.
+/// Written to out[(y - tile.y0) * stride + (x - tile.x0)] (rows of round_up_lanes(tile
+/// width) writable floats); with `take_max` the result is max(out, d²) (the regression
+/// combines colour channels by their largest distance). Pixels whose neighbour falls outside
+/// the image are left untouched: the caller fills `out` with +inf first.
+MCDN_INLINE void patch_distance(float* out, int stride, const LocalPlane& guide,
+                                const LocalPlane& variance, int width, int height, Rect tile,
+                                int dx, int dy, int patch_radius, float k, float variance_scale,
+                                bool take_max, DistanceScratch& scratch)
 {
     const int F = patch_radius;
     const int bx0 = tile.x0 - F, by0 = tile.y0 - F;
-    const int bw = tile.width() + 2 * F, bh = tile.height() + 2 * F;
+    const int bw = tile.width() + 2 * F;
+    const int bws = round_up_lanes(bw);
     // Pixels p of the patches with p and p + delta inside the image.
     const int qx0 = std::max(bx0, std::max(0, -dx)), qx1 = std::min(tile.x1 + F, std::min(width, width - dx));
     const int qy0 = std::max(by0, std::max(0, -dy)), qy1 = std::min(tile.y1 + F, std::min(height, height - dy));
@@ -70,57 +112,78 @@ MCDN_INLINE void patch_distance(float* out, int stride, const float* guide, cons
         return;
 
     float* buf = scratch.buffer.data();
-    std::fill(buf, buf + size_t(bw) * bh, 0.0f);  // zero outside the valid part: box sums stay exact
     const float k2 = k * k;
-    for (int y = qy0; y < qy1; ++y) {
-        float* b = buf + size_t(y - by0) * bw + (qx0 - bx0);
-        const float* gp = guide + size_t(y) * width + qx0;
-        const float* gq = guide + size_t(y + dy) * width + qx0 + dx;
-        const float* vp_row = variance + size_t(y) * width + qx0;
-        const float* vq_row = variance + size_t(y + dy) * width + qx0 + dx;
-        const int n = qx1 - qx0;
-        for (int i = 0; i < n; ++i) {
-            float vp = vp_row[i] * variance_scale, vq = vq_row[i] * variance_scale;
-            float diff = gp[i] - gq[i];
-            float num = diff * diff - (vp + std::min(vp, vq));
-            float d = num / (kEpsilon + k2 * (vp + vq));
-            b[i] = std::min(d, kDistanceClamp);
+    const vfloat16 vs = splat16(variance_scale);
+    // Buffer rows that touch the valid rows [vy0 - F, vy1 + F); 0 outside [qy0, qy1).
+    const int ry0 = vy0 - F, ry1 = vy1 + F;
+    for (int y = ry0; y < ry1; ++y) {
+        float* b = buf + size_t(y - by0) * bws;
+        if (y < qy0 || y >= qy1) {
+            std::fill(b, b + bws, 0.0f);
+            continue;
         }
+        const float* gp = guide.at(bx0, y);
+        const float* gq = guide.at(bx0 + dx, y + dy);
+        const float* vpr = variance.at(bx0, y);
+        const float* vqr = variance.at(bx0 + dx, y + dy);
+        for (int i = 0; i < bws; i += kLanes) {
+            vfloat16 vp = load16(vpr + i) * vs, vq = load16(vqr + i) * vs;
+            vfloat16 diff = load16(gp + i) - load16(gq + i);
+            vfloat16 vmin = vp < vq ? vp : vq;
+            vfloat16 num = diff * diff - (vp + vmin);
+            vfloat16 d = num / (kEpsilon + k2 * (vp + vq));
+            store16(b + i, d < kDistanceClamp ? d : splat16(kDistanceClamp));
+        }
+        for (int x = bx0; x < qx0; ++x)
+            b[x - bx0] = 0.0f;
+        for (int x = qx1; x < bx0 + bw; ++x)
+            b[x - bx0] = 0.0f;
     }
 
-    float* colsum = scratch.column_sum.data();
-    float* row = scratch.row.data();
+    // Count of valid patch pixels along x (all 2F+1 away from the image's sides).
+    const float* inv_n = scratch.inv_count.data();
     float* inv_cx = scratch.inv_count_x.data();
-    const int nx = vx1 - vx0;
-    for (int i = 0; i < nx; ++i) {
-        int x = vx0 + i;
-        inv_cx[i] = 1.0f / float(std::min(x + F + 1, qx1) - std::max(x - F, qx0));
-    }
-    for (int y = vy0; y < vy1; ++y) {
-        // Vertical box sum of the 2F+1 rows around y, for every column of the buffer.
-        const float* b = buf + size_t(y - F - by0) * bw;
-        for (int i = 0; i < bw; ++i)
-            colsum[i] = b[i];
-        for (int j = 1; j <= 2 * F; ++j) {
-            const float* bj = b + size_t(j) * bw;
-            for (int i = 0; i < bw; ++i)
-                colsum[i] += bj[i];
+    const bool x_border = qx0 > vx0 - F || qx1 < vx1 + F;
+    const int nxv = round_up_lanes(tile.width());
+    if (x_border)
+        for (int i = 0; i < nxv; ++i) {
+            int x = tile.x0 + i;
+            int n = std::min(x + F + 1, qx1) - std::max(x - F, qx0);
+            inv_cx[i] = n > 0 ? inv_n[n] : 0.0f;
         }
-        // Horizontal box sum, then divide by the number of valid patch pixels.
-        const float* c = colsum + (vx0 - F - bx0);
-        for (int i = 0; i < nx; ++i)
-            row[i] = c[i];
-        for (int j = 1; j <= 2 * F; ++j)
-            for (int i = 0; i < nx; ++i)
-                row[i] += c[i + j];
-        const float inv_cy = 1.0f / float(std::min(y + F + 1, qy1) - std::max(y - F, qy0));
-        float* o = out + size_t(y - tile.y0) * stride + (vx0 - tile.x0);
-        if (take_max)
-            for (int i = 0; i < nx; ++i)
-                o[i] = std::max(o[i], row[i] * inv_cx[i] * inv_cy);
-        else
-            for (int i = 0; i < nx; ++i)
-                o[i] = row[i] * inv_cx[i] * inv_cy;
+
+    float* colsum = scratch.column_sum.data();
+    alignas(64) static const int32_t iota[kLanes] = { 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15 };
+    const vint16 lane = *reinterpret_cast<const vint16*>(iota);
+    for (int y = vy0; y < vy1; ++y) {
+        // Vertical box sum, summed afresh per row (a running sum would leave rounding
+        // residues where the exact sum is 0: identical patches must keep d = 0 exactly, or
+        // constant features stop being exactly constant after the prefilter).
+        const float* top = buf + size_t(y - F - by0) * bws;
+        for (int i = 0; i < bws; i += kLanes) {
+            vfloat16 s = load16(top + i);
+            for (int j = 1; j <= 2 * F; ++j)
+                s += load16(top + size_t(j) * bws + i);
+            store16(colsum + i, s);
+        }
+        const int cy = std::min(y + F + 1, qy1) - std::max(y - F, qy0);
+        const float inv_cy = inv_n[cy] * (x_border ? 1.0f : inv_n[2 * F + 1]);
+        float* o = out + size_t(y - tile.y0) * stride;
+        for (int i = 0; i < nxv; i += kLanes) {
+            // colsum index i + j is image column tile.x0 + i + j - F.
+            vfloat16 s = load16(colsum + i);
+            for (int j = 1; j <= 2 * F; ++j)
+                s += load16(colsum + i + j);
+            vfloat16 d = s * inv_cy;
+            if (x_border)
+                d *= load16(inv_cx + i);
+            const vint16 x = lane + (tile.x0 + i);
+            const auto valid = (x >= vx0) & (x < vx1);
+            vfloat16 old = load16(o + i);
+            if (take_max)
+                d = d > old ? d : old;
+            store16(o + i, valid ? d : old);
+        }
     }
 }
 

@@ -1,7 +1,12 @@
 // Collaborative regression over 32×32 tiles. Per tile:
-//   1. the NL-means weights w(p, q) of every offset of the window (patch_distance);
+//   1. the NL-means weights w(p, q) of every offset of the window (patch_distance on padded
+//      local copies of the guide), stored per tile row: [row][offset][32], so that one
+//      row's 361 offsets are contiguous (a [offset][pixel] layout has a 4 KB stride that
+//      thrashes the caches);
 //   2. for each row of 16 pixels (one vector lane per pixel): the normal equations of the
-//      16 windows, accumulated over the window offsets in float; the fits solved in double;
+//      16 windows, accumulated over the window offsets in float, in register-blocked passes
+//      (each pass keeps ≤ 24 of the D(D+1)/2 + 3D accumulators in registers and re-reads
+//      the design columns it needs); the fits solved in double;
 //   3. each fit evaluated over its window and accumulated into the tile's result, which
 //      covers the tile grown by R.
 // Tiles of one tile row run in parallel; their results are added into the image in tile
@@ -24,7 +29,9 @@ static_assert(T % L == 0, "tile side must be a multiple of the lane count");
 
 struct TileScratch {
     nlm::DistanceScratch distance;
-    std::vector<float> weights;   // [offset][T*T]
+    nlm::LocalPlane guide[3], variance[3];
+    std::vector<float> dist;      // [T*T] largest channel distance of one offset
+    std::vector<float> weights;   // per bandwidth [row][offset][T]
     std::vector<float> local;     // features then colour on the tile grown by R, 0 outside
     std::vector<float> normal;    // accumulators [entry][L]
     std::vector<float> beta;      // [D*3][L]
@@ -37,12 +44,91 @@ struct TileResult {
     std::vector<float> sum;       // per bandwidth: 3 colour planes, the weight plane
 };
 
+// The accumulators: the upper triangle of the extended product [x y]^T W [x y] restricted to
+// rows i < D (design) and columns j in [i, D + 3) (design, then the 3 colours): X^T W X and
+// X^T W Y. Row i starts at row_offset(D, i).
+constexpr int row_offset(int D, int i) { return i * (D + 3) - i * (i - 1) / 2; }
+constexpr int kMaxLiveAccumulators = 24;
+/// End of the register-blocked pass that starts at row i0: as many rows as fit.
+constexpr int pass_end(int D, int i0)
+{
+    int i1 = i0 + 1;
+    while (i1 < D && row_offset(D, i1 + 1) - row_offset(D, i0) <= kMaxLiveAccumulators)
+        ++i1;
+    return i1;
+}
+
+struct GroupInputs {
+    const float* weights;        // weight of offset o for lane l: weights[o * T + l]
+    const float* const* feat;    // local feature planes
+    const float* const* color;   // local colour planes
+    size_t centre;               // local index of lane 0's pixel
+    int stride, R;
+    const vfloat16* fp;          // centre features of the 16 pixels
+};
+
+/// One pass over the window: rows [I0, I1) of the accumulators, kept in registers.
+template<int D, int I0, int I1>
+MCDN_INLINE void accumulate_pass(const GroupInputs& g, vfloat16* G)
+{
+    constexpr int E = D + 3;
+    constexpr int N = row_offset(D, I1) - row_offset(D, I0);
+    vfloat16 acc[N];
+#pragma GCC unroll 64
+    for (int e = 0; e < N; ++e)
+        acc[e] = vfloat16 {};
+    const int R = g.R;
+    const float* w_ptr = g.weights;
+    for (int dy = -R; dy <= R; ++dy) {
+        const size_t qrow = g.centre + ptrdiff_t(dy) * g.stride;
+        for (int dx = -R; dx <= R; ++dx, w_ptr += T) {
+            const vfloat16 w = load16(w_ptr);
+            const size_t q = qrow + dx;
+            vfloat16 v[E];
+#pragma GCC unroll 32
+            for (int j = I0; j < E; ++j) {
+                if (j == 0)
+                    v[j] = splat16(1.0f);
+                else if (j == 1)
+                    v[j] = splat16(float(dx));
+                else if (j == 2)
+                    v[j] = splat16(float(dy));
+                else if (j < D)
+                    v[j] = load16(g.feat[j - 3] + q) - g.fp[j - 3];
+                else
+                    v[j] = load16(g.color[j - D] + q);
+            }
+            int e = 0;
+#pragma GCC unroll 32
+            for (int i = I0; i < I1; ++i) {
+                const vfloat16 wv = i == 0 ? w : w * v[i];
+#pragma GCC unroll 32
+                for (int j = i; j < E; ++j, ++e)
+                    acc[e] += wv * v[j];
+            }
+        }
+    }
+#pragma GCC unroll 64
+    for (int e = 0; e < N; ++e)
+        G[row_offset(D, I0) + e] = acc[e];
+}
+
+template<int D, int I0>
+MCDN_INLINE void accumulate_normal_equations(const GroupInputs& g, vfloat16* G)
+{
+    if constexpr (I0 < D) {
+        constexpr int I1 = pass_end(D, I0);
+        accumulate_pass<D, I0, I1>(g, G);
+        accumulate_normal_equations<D, I1>(g, G);
+    }
+}
+
 template<int D>
 MCDN_INLINE void regression_tile_impl(const RegressionInputs& in, Rect tile, TileScratch& s,
                                       TileResult& result)
 {
     constexpr int NF = D - 3;
-    constexpr int NG = D * (D + 1) / 2;  // upper triangle of X^T W X
+    constexpr int NA = row_offset(D, D);  // accumulators: X^T W X (upper) and X^T W Y
     const int R = in.window_radius, F = in.patch_radius;
     const int width = in.image[0]->width, height = in.image[0]->height;
     const int P = T + 2 * R;  // side of the local buffers (tile grown by R)
@@ -55,27 +141,38 @@ MCDN_INLINE void regression_tile_impl(const RegressionInputs& in, Rect tile, Til
     const int NK = int(in.bandwidths.size());
     const size_t wsize = size_t(noff) * T * T;
     s.distance.reserve(T, F);
+    s.dist.resize(size_t(T) * T);
     s.weights.resize(wsize * NK);
+    const Rect garea = nlm::guide_area(tile, R, F);
+    for (int c = 0; c < 3; ++c) {
+        s.guide[c].load(in.guide[c]->data(), width, height, garea);
+        s.variance[c].load(in.variance[c]->data(), width, height, garea);
+    }
+    float inv_k2[16];
+    for (int j = 0; j < NK && j < 16; ++j)
+        inv_k2[j] = 1.0f / (in.bandwidths[j] * in.bandwidths[j]);
     for (int dy = -R, o = 0; dy <= R; ++dy) {
         for (int dx = -R; dx <= R; ++dx, ++o) {
-            float* d = s.weights.data() + size_t(o) * T * T;  // bandwidth 0's slot
+            float* d = s.dist.data();
             std::fill(d, d + size_t(T) * T, inf);
             for (int c = 0; c < 3; ++c)
-                nlm::patch_distance(d, T, in.guide[c]->data(), in.variance[c]->data(), width,
-                                    height, tile, dx, dy, F, 1.0f, in.variance_scale, c > 0,
-                                    s.distance);
-            for (int j = NK - 1; j >= 0; --j) {
-                float* w = s.weights.data() + wsize * j + size_t(o) * T * T;
-                const float inv_k2 = 1.0f / (in.bandwidths[j] * in.bandwidths[j]);
-                for (int i = 0; i < T * T; i += kLanes) {
-                    vfloat16 di = load16(d + i);
-                    vfloat16 zero = {};
-                    store16(w + i, di < inf ? exp_neg16((di > zero ? di : zero) * inv_k2) : zero);
-                }
+                nlm::patch_distance(d, T, s.guide[c], s.variance[c], width, height, tile, dx, dy,
+                                    F, 1.0f, in.variance_scale, c > 0, s.distance);
+            for (int j = 0; j < NK; ++j) {
+                float* wj = s.weights.data() + wsize * j + size_t(o) * T;
+                const vfloat16 zero = {}, k = splat16(inv_k2[j]);
+                for (int y = 0; y < th; ++y)
+                    for (int i = 0; i < T; i += kLanes) {
+                        vfloat16 di = load16(d + y * T + i);
+                        store16(wj + size_t(y) * noff * T + i,
+                                di < inf ? exp_neg16((di > zero ? di : zero) * k) : zero);
+                    }
                 if (dx == 0 && dy == 0)
                     for (int y = 0; y < th; ++y)
-                        for (int x = 0; x < tw; ++x)
-                            w[y * T + x] = std::max(w[y * T + x], nlm::kMinCenterWeight);
+                        for (int x = 0; x < tw; ++x) {
+                            float& w = wj[size_t(y) * noff * T + x];
+                            w = std::max(w, nlm::kMinCenterWeight);
+                        }
             }
         }
     }
@@ -108,20 +205,19 @@ MCDN_INLINE void regression_tile_impl(const RegressionInputs& in, Rect tile, Til
     result.stride = PS;
     result.sum.assign(plane * 4 * NK, 0.0f);
 
-    s.normal.resize(size_t(NG + 3 * D) * L);
+    s.normal.resize(size_t(NA) * L);
     s.beta.resize(size_t(3 * D) * L);
     vfloat16* G = reinterpret_cast<vfloat16*>(s.normal.data());
-    vfloat16* Y = G + NG;
     vfloat16* B = reinterpret_cast<vfloat16*>(s.beta.data());
 
     for (int kj = 0; kj < NK; ++kj) {
-    const float* weights = s.weights.data() + wsize * kj;
     float* acc_color[3];
     for (int c = 0; c < 3; ++c)
         acc_color[c] = result.sum.data() + plane * (4 * kj + c);
     float* acc_weight = result.sum.data() + plane * (4 * kj + 3);
     for (int ty = 0; ty < th; ++ty) {
         for (int tx = 0; tx < tw; tx += L) {
+            const float* weights = s.weights.data() + wsize * kj + size_t(ty) * noff * T + tx;
             // Centre features of the 16 pixels.
             const size_t centre = size_t(ty + R) * PS + (tx + R);
             vfloat16 fp[NF > 0 ? NF : 1];
@@ -130,35 +226,8 @@ MCDN_INLINE void regression_tile_impl(const RegressionInputs& in, Rect tile, Til
 
             // 2. Normal equations X^T W X and X^T W y, summed over the window (float: the
             // design is centred on the pixel, so the sums do not cancel catastrophically).
-            for (int e = 0; e < NG + 3 * D; ++e)
-                G[e] = vfloat16 {};
-            for (int dy = -R, o = 0; dy <= R; ++dy) {
-                for (int dx = -R; dx <= R; ++dx, ++o) {
-                    const vfloat16 w = load16(weights + size_t(o) * T * T + ty * T + tx);
-                    const size_t q = centre + ptrdiff_t(dy) * PS + dx;
-                    vfloat16 x[D], wx[D];
-                    x[0] = splat16(1.0f);
-                    x[1] = splat16(float(dx));
-                    x[2] = splat16(float(dy));
-                    for (int k = 0; k < NF; ++k)
-                        x[3 + k] = load16(feat[k] + q) - fp[k];
-                    wx[0] = w;
-                    for (int i = 1; i < D; ++i)
-                        wx[i] = w * x[i];
-                    int e = 0;
-                    G[e++] += w;
-                    for (int j = 1; j < D; ++j)
-                        G[e++] += wx[j];
-                    for (int i = 1; i < D; ++i)
-                        for (int j = i; j < D; ++j)
-                            G[e++] += wx[i] * x[j];
-                    for (int c = 0; c < 3; ++c) {
-                        const vfloat16 y = load16(color[c] + q);
-                        for (int i = 0; i < D; ++i)
-                            Y[i * 3 + c] += wx[i] * y;
-                    }
-                }
-            }
+            const GroupInputs group { weights, feat, color, centre, PS, R, fp };
+            accumulate_normal_equations<D, 0>(group, G);
 
             // Solve the 16 systems (double).
             const int lanes = std::min(L, tw - tx);
@@ -169,12 +238,13 @@ MCDN_INLINE void regression_tile_impl(const RegressionInputs& in, Rect tile, Til
                     continue;
                 }
                 double gram[D * D], rhs[D * 3], beta[D * 3];
-                int e = 0;
-                for (int i = 0; i < D; ++i)
-                    for (int j = i; j < D; ++j, ++e)
-                        gram[i * D + j] = gram[j * D + i] = G[e][l];
-                for (int r = 0; r < 3 * D; ++r)
-                    rhs[r] = Y[r][l];
+                for (int i = 0; i < D; ++i) {
+                    const int row = row_offset(D, i);
+                    for (int j = i; j < D; ++j)
+                        gram[i * D + j] = gram[j * D + i] = G[row + j - i][l];
+                    for (int c = 0; c < 3; ++c)
+                        rhs[i * 3 + c] = G[row + D + c - i][l];
+                }
                 solve_normal_equations<D>(gram, rhs, beta);
                 for (int r = 0; r < 3 * D; ++r) {
                     float b = float(beta[r]);
@@ -183,13 +253,18 @@ MCDN_INLINE void regression_tile_impl(const RegressionInputs& in, Rect tile, Til
             }
 
             // 3. Collaborative filtering: evaluate each fit over its window.
-            for (int dy = -R, o = 0; dy <= R; ++dy) {
-                for (int dx = -R; dx <= R; ++dx, ++o) {
-                    const vfloat16 w = load16(weights + size_t(o) * T * T + ty * T + tx);
-                    const size_t q = centre + ptrdiff_t(dy) * PS + dx;
+            const float* w_ptr = weights;
+            for (int dy = -R; dy <= R; ++dy) {
+                vfloat16 base[3];
+                for (int c = 0; c < 3; ++c)
+                    base[c] = B[c] + B[6 + c] * float(dy);
+                const size_t qrow = centre + ptrdiff_t(dy) * PS;
+                for (int dx = -R; dx <= R; ++dx, w_ptr += T) {
+                    const vfloat16 w = load16(w_ptr);
+                    const size_t q = qrow + dx;
                     vfloat16 y[3];
                     for (int c = 0; c < 3; ++c)
-                        y[c] = B[c] + B[3 + c] * float(dx) + B[6 + c] * float(dy);
+                        y[c] = base[c] + B[3 + c] * float(dx);
                     for (int k = 0; k < NF; ++k) {
                         vfloat16 xk = load16(feat[k] + q) - fp[k];
                         for (int c = 0; c < 3; ++c)
@@ -254,7 +329,8 @@ std::vector<std::vector<Plane>> collaborative_regression(const RegressionInputs&
 
     std::vector<Rect> tiles = make_tiles(width, height, T);
     const int tiles_per_row = (width + T - 1) / T;
-    tbb::enumerable_thread_specific<TileScratch> scratch;
+    // Scratch kept per thread across calls: no page faults for fresh buffers on every call.
+    static tbb::enumerable_thread_specific<TileScratch> scratch;
     std::vector<TileResult> results(tiles_per_row);
     for (size_t row0 = 0; row0 < tiles.size(); row0 += tiles_per_row) {
         parallel_for_index(tiles_per_row, nthreads, [&](int i) {
