@@ -21,14 +21,15 @@ struct MixOptions {
 
     enum class Model {
         /// §4.3: the mixing network h_NN (5x5 conv to 48, two 3x3/48 residual blocks,
-        /// 3x3 conv to 3 outputs per channel, f_act). Needs `weights`.
+        /// 3x3 conv to 3 outputs per channel, f_act), trained by training/mix on our NFOR
+        /// and its SURE; weights from `weights` (default: default_mix_weights()).
         Net,
         /// Eq. 9 with its noisy terms averaged over a (2r+1)^2 box:
         /// alpha = (<sigma^2> - <sigma^2 f'(x)>) / <||y - x||^2>, clipped to [0, 1].
         Analytic,
     };
     Model model = Model::Analytic;
-    /// Weights file of the mixing network (Model::Net).
+    /// Weights file of the mixing network (Model::Net); empty: default_mix_weights().
     std::string weights;
     /// Neighbourhood radius of the analytic model's averages (21x21): at 11x11 the relative
     /// noise of <||y - x||^2> (~13%) pulls alpha below 1 on smooth regions and costs ~15%
@@ -46,6 +47,10 @@ struct MixOptions {
     /// Add mix.alpha.R/G/B (alpha', the final per-pixel mix).
     bool output_alpha = false;
 };
+
+/// The mixing network's default weights file: $MCDN_MODELS/mix.mcdnw when the environment
+/// variable is set, else models/mix.mcdnw of the source tree this library was built from.
+std::string default_mix_weights();
 
 /// dst = src with the colour role replaced by z (and mix.alpha.* if asked for). Pixels
 /// outside `roi` keep src's colour. Finite, identical for any thread count.

@@ -54,11 +54,15 @@ bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options, ROI roi,
 
     Plane alpha[3];
     if (options.model == MixOptions::Model::Net) {
-        dst.errorfmt("mix: model=net needs the trained mixing network, which this build does "
-                     "not have yet; use model=analytic");
-        return false;
+        nn::Net net;
+        const std::string path = options.weights.empty() ? default_mix_weights() : options.weights;
+        if (!load_mix_net(net, path, error) || !net_alpha(alpha, in, net, error)) {
+            dst.errorfmt("{}", error);
+            return false;
+        }
+    } else {
+        analytic_alpha(alpha, in, options.analytic_radius);
     }
-    analytic_alpha(alpha, in, options.analytic_radius);
 
     if (options.t_test) {
         float sigma_s = t_test_sigma(in, options.t_sigma_scale);

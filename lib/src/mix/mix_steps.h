@@ -2,8 +2,11 @@
 // the network's alpha (§4.3), and the t-test bound (eq. 12-18).
 #pragma once
 
+#include <string>
+
 #include "core/planar.h"
 #include "mcdn/mix.h"
+#include "mcdn/nn.h"
 
 namespace mcdn {
 
@@ -14,6 +17,18 @@ struct MixInputs {
 
 /// Eq. 9 with box-averaged terms, clipped to [0, 1].
 void analytic_alpha(Plane alpha[3], const MixInputs& in, int radius);
+
+/// §4.3: builds h_NN and loads its weights file (names, shapes and the input-layout tag of
+/// its metadata checked). On failure a one-line error naming the file and what to do.
+bool load_mix_net(nn::Net& net, const std::string& path, std::string& error);
+
+/// The network's 18 inputs (training/mix/model.py features()), NHWC.
+nn::Tensor net_features(const MixInputs& in);
+
+/// alpha = clip(f_act(h_NN(features)), 0, 1) per colour channel (eq. 19); `raw`, if given,
+/// receives the network's outputs (x1 RGB, x2 RGB, x3 RGB per pixel).
+bool net_alpha(Plane alpha[3], const MixInputs& in, nn::Net& net, std::string& error,
+               nn::Tensor* raw = nullptr);
 
 /// sigma_s of eq. 15: min(sqrt(spatial variance of x), 1) * scale.
 float t_test_sigma(const MixInputs& in, float scale);

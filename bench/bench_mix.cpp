@@ -1,0 +1,379 @@
+// Progressive mix (PD §4, Table 4): errors of the render, our NFOR and four mixes — the
+// network (§4.3) and the analytic eq. 9, each with and without the t-test (eq. 18) — on the
+// shared evaluation data and the held-out generated crops; the properties of issue 5 item 4
+// checked on them; and the speed of a 1920x1080 mix pass (without the denoiser runs) as a
+// ratio to one plain oneDNN 3x3 48->48 convolution of the same size, timed in the same run.
+//
+//   bench_mix [--no-speed | --only-speed] [--no-generated] [weights.mcdnw]
+//
+// Generated crops: $MCDN_CACHE (~/.cache/mcdenoise)/datasets/eval/* if rendered, else the
+// crops of datasets/full that training/mix holds out (crop number % 6 == 4).
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <map>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <oneapi/dnnl/dnnl.hpp>
+
+#include "mcdn/io.h"
+#include "mcdn/metrics.h"
+#include "mcdn/mix.h"
+#include "mcdn/nfor.h"
+#include "mcdn/sure.h"
+#include "mix/mix_steps.h"
+
+using namespace mcdn;
+using Clock = std::chrono::steady_clock;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Input {
+    std::string scene;  // a scene's levels are compared with each other (convergence)
+    int spp;
+    std::vector<InputFile> files;
+    std::string preset, reference;
+};
+
+std::string shared(const std::string& rel) { return std::string(MCDN_SHARED_DATA) + "/" + rel; }
+
+std::vector<InputFile> level_files(const std::string& stem)
+{
+    return { { stem + ".exr", InputKind::Mean }, { stem + "_var.exr", InputKind::Variance },
+             { stem + "_A.exr", InputKind::HalfA }, { stem + "_B.exr", InputKind::HalfB } };
+}
+
+std::vector<Input> inputs(bool generated)
+{
+    std::vector<Input> list;
+    for (int spp : { 16, 64, 256 }) {
+        char stem[64];
+        std::snprintf(stem, sizeof stem, "box/box_%04dspp", spp);
+        list.push_back({ "box", spp, level_files(shared(stem)), "cycles", shared("box/box_ref.exr") });
+    }
+    for (const char* scene : { "cornell20", "materialtest" })
+        list.push_back({ scene, 16, { { shared(std::string("tungsten/") + scene), InputKind::Mean } },
+                         "tungsten", shared(std::string("tungsten/") + scene + "/ref.pfm") });
+    if (!generated)
+        return list;
+    const char* cache_env = std::getenv("MCDN_CACHE");
+    const fs::path cache = cache_env ? fs::path(cache_env)
+                                     : fs::path(std::getenv("HOME") ? std::getenv("HOME") : "/") / ".cache/mcdenoise";
+    fs::path root = cache / "datasets/eval";
+    const bool eval = fs::exists(root);
+    if (!eval)
+        root = cache / "datasets/full";
+    if (!fs::exists(root))
+        return list;
+    std::vector<fs::path> crops;
+    for (const auto& entry : fs::directory_iterator(root))
+        if (entry.is_directory())
+            crops.push_back(entry.path());
+    std::sort(crops.begin(), crops.end());
+    for (const fs::path& dir : crops) {
+        const std::string crop = dir.filename().string();
+        if (!eval && (crop.size() < 4 || std::atoi(crop.substr(0, 4).c_str()) % 6 != 4))
+            continue;  // a training crop
+        const std::string ref = (dir / (crop + "_ref.exr")).string();
+        if (!fs::exists(ref))
+            continue;
+        for (int spp : { 4, 16, 64, 256, 1024 }) {
+            char level[32];
+            std::snprintf(level, sizeof level, "_%04dspp", spp);
+            const std::string stem = (dir / (crop + level)).string();
+            if (fs::exists(stem + "_B.exr"))
+                list.push_back({ (eval ? "eval/" : "full/") + crop, spp, level_files(stem), "cycles", ref });
+        }
+    }
+    return list;
+}
+
+std::vector<int> colour_channels(const ImageBuf& b)
+{
+    const ImageSpec& s = b.spec();
+    std::vector<int> c;
+    for (const char* n : { "ViewLayer.Combined.R", "ViewLayer.Combined.G", "ViewLayer.Combined.B" })
+        if (s.channelindex(n) >= 0)
+            c.push_back(s.channelindex(n));
+    if (c.size() == 3)
+        return c;
+    return { s.channelindex("R"), s.channelindex("G"), s.channelindex("B") };
+}
+
+bool metrics_of(Metrics& m, const ImageBuf& image, const ImageBuf& ref)
+{
+    MetricsOptions mo;
+    mo.image_channels = colour_channels(image);
+    mo.reference_channels = colour_channels(ref);
+    std::string error;
+    if (!compute_metrics(m, image, ref, mo, error)) {
+        std::fprintf(stderr, "metrics: %s\n", error.c_str());
+        return false;
+    }
+    return true;
+}
+
+double mean_of_channels(const ImageBuf& b, const char* const names[3])
+{
+    double sum = 0;
+    size_t n = 0;
+    for (int c = 0; c < 3; ++c) {
+        const int ch = b.spec().channelindex(names[c]);
+        for (OIIO::ImageBuf::ConstIterator<float> it(b); !it.done(); ++it, ++n)
+            sum += it[ch];
+    }
+    return n ? sum / n : 0;
+}
+
+double seconds_since(Clock::time_point t0)
+{
+    return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+template<class F> double fastest(int repeats, F f)
+{
+    f();
+    double best = 1e30;
+    for (int r = 0; r < repeats; ++r) {
+        const auto t0 = Clock::now();
+        f();
+        best = std::min(best, seconds_since(t0));
+    }
+    return best;
+}
+
+/// One 3x3 48->48 conv + ReLU on height x width, nhwc, as oneDNN's examples run it.
+double plain_conv_seconds(int height, int width, int repeats)
+{
+    using tag = dnnl::memory::format_tag;
+    using dt = dnnl::memory::data_type;
+    const int c = 48;
+    dnnl::engine engine(dnnl::engine::kind::cpu, 0);
+    dnnl::stream stream(engine);
+    dnnl::memory::desc src_md({ 1, c, height, width }, dt::f32, tag::nhwc);
+    dnnl::memory::desc dst_md({ 1, c, height, width }, dt::f32, tag::nhwc);
+    dnnl::memory::desc w_md({ c, c, 3, 3 }, dt::f32, tag::any);
+    dnnl::memory::desc b_md({ c }, dt::f32, tag::x);
+    dnnl::convolution_forward::desc desc(dnnl::prop_kind::forward_inference,
+                                         dnnl::algorithm::convolution_direct, src_md, w_md, b_md,
+                                         dst_md, { 1, 1 }, { 1, 1 }, { 1, 1 });
+    dnnl::post_ops post_ops;
+    post_ops.append_eltwise(1.0f, dnnl::algorithm::eltwise_relu, 0.0f, 0.0f);
+    dnnl::primitive_attr attr;
+    attr.set_post_ops(post_ops);
+    dnnl::convolution_forward::primitive_desc pd(desc, attr, engine);
+    dnnl::memory src(src_md, engine), dst(dst_md, engine), weights(pd.weights_desc(), engine),
+        bias(b_md, engine);
+    std::fill_n(static_cast<float*>(src.get_data_handle()), size_t(height) * width * c, 0.1f);
+    dnnl::convolution_forward conv(pd);
+    return fastest(repeats, [&] {
+        conv.execute(stream, { { DNNL_ARG_SRC, src }, { DNNL_ARG_WEIGHTS, weights },
+                               { DNNL_ARG_BIAS, bias }, { DNNL_ARG_DST, dst } });
+        stream.wait();
+    });
+}
+
+/// A 1920x1080 buffer with everything mix reads (generic channel names), noise-like values.
+ImageBuf synthetic_frame(int width, int height)
+{
+    std::vector<std::string> names = { "R", "G", "B", "variance.R", "variance.G", "variance.B" };
+    for (const auto* group : { sure_channels::kNoisy, sure_channels::kSure,
+                               sure_channels::kDivergence, sure_channels::kResidual })
+        for (int c = 0; c < 3; ++c)
+            names.push_back(group[c]);
+    ImageSpec spec(width, height, int(names.size()), OIIO::TypeFloat);
+    spec.channelnames = names;
+    ImageBuf buf(spec);
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    for (OIIO::ImageBuf::Iterator<float> it(buf); !it.done(); ++it)
+        for (int c = 0; c < spec.nchannels; ++c)
+            it[c] = c < 3 ? 0.5f + 0.1f * u(rng) : 0.01f * u(rng);
+    return buf;
+}
+
+struct Row {
+    Input in;
+    Metrics render, nfor, mix[4];
+    double alpha[4];
+};
+const char* kMixNames[4] = { "net+t", "net", "analytic+t", "analytic" };
+
+}  // namespace
+
+int main(int argc, char** argv)
+{
+    bool speed = true, generated = true, accuracy = true;
+    std::string weights;
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        if (a == "--no-speed")
+            speed = false;
+        else if (a == "--only-speed")
+            accuracy = false;
+        else if (a == "--no-generated")
+            generated = false;
+        else
+            weights = a;
+    }
+    if (weights.empty())
+        weights = default_mix_weights();
+    std::printf("mcdenoise progressive mix benchmark (PD §4, Table 4); network %s\n\n", weights.c_str());
+
+    std::vector<Row> rows;
+    for (const Input& in : accuracy ? inputs(generated) : std::vector<Input>()) {
+        ImageBuf src, ref;
+        if (!read_inputs(src, in.files) || !read_image(ref, in.reference)) {
+            std::fprintf(stderr, "%s %d spp: %s%s (skipped)\n", in.scene.c_str(), in.spp,
+                         src.geterror().c_str(), ref.geterror().c_str());
+            continue;
+        }
+        AovSpec aovs;
+        aovs.preset = in.preset;
+        NforOptions no;
+        no.aovs = aovs;
+        SureOptions so;
+        so.aovs = aovs;
+        Denoiser denoiser = [&](ImageBuf& dst, const ImageBuf& s) { return nfor(dst, s, no); };
+        ImageBuf with_sure;
+        if (!sure(with_sure, src, denoiser, so)) {
+            std::fprintf(stderr, "%s: %s\n", in.scene.c_str(), with_sure.geterror().c_str());
+            continue;
+        }
+        Row row { in, {}, {}, {}, {} };
+        bool ok = metrics_of(row.render, src, ref) && metrics_of(row.nfor, with_sure, ref);
+        for (int m = 0; m < 4 && ok; ++m) {
+            MixOptions mo;
+            mo.aovs = aovs;
+            mo.model = m < 2 ? MixOptions::Model::Net : MixOptions::Model::Analytic;
+            mo.weights = weights;
+            mo.t_test = m % 2 == 0;
+            mo.output_alpha = true;
+            ImageBuf z;
+            if (!mix(z, with_sure, mo)) {
+                std::fprintf(stderr, "%s: %s\n", in.scene.c_str(), z.geterror().c_str());
+                return 1;
+            }
+            const char* alpha_names[3] = { "mix.alpha.R", "mix.alpha.G", "mix.alpha.B" };
+            row.alpha[m] = mean_of_channels(z, alpha_names);
+            ok = metrics_of(row.mix[m], z, ref);
+        }
+        if (!ok)
+            continue;
+        rows.push_back(row);
+        std::fprintf(stderr, "%s %d spp done\n", in.scene.c_str(), in.spp);
+    }
+
+    if (accuracy) {
+        std::printf("| input | spp | RMSE render | RMSE NFOR | RMSE net+t | net | analytic+t | analytic "
+                    "| relMSE render | NFOR | net+t | net | analytic+t | analytic | mean alpha' net+t | analytic+t |\n");
+        std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+        for (const Row& r : rows) {
+            std::printf("| %s | %d | %.4f | %.4f", r.in.scene.c_str(), r.in.spp, r.render.rmse, r.nfor.rmse);
+            for (const Metrics& m : r.mix)
+                std::printf(" | %.4f", m.rmse);
+            std::printf(" | %.5f | %.5f", r.render.relmse, r.nfor.relmse);
+            for (const Metrics& m : r.mix)
+                std::printf(" | %.5f", m.relmse);
+            std::printf(" | %.3f | %.3f |\n", r.alpha[0], r.alpha[2]);
+        }
+
+        // Table 4 shape: mean RMSE per sample count over the inputs that have it.
+        std::map<int, std::vector<const Row*>> by_spp;
+        for (const Row& r : rows)
+            by_spp[r.in.spp].push_back(&r);
+        std::printf("\nMean RMSE per sample count (PD Table 4 layout)\n\n| model |");
+        for (const auto& [spp, list] : by_spp)
+            std::printf(" %d spp (n=%zu) |", spp, list.size());
+        std::printf("\n|---|");
+        for (size_t i = 0; i < by_spp.size(); ++i)
+            std::printf("---:|");
+        std::printf("\n");
+        auto mean_rmse = [](const std::vector<const Row*>& list, int which) {
+            double s = 0;
+            for (const Row* r : list)
+                s += which == -2 ? r->render.rmse : which == -1 ? r->nfor.rmse : r->mix[which].rmse;
+            return s / list.size();
+        };
+        const std::pair<const char*, int> models[] = { { "mc-render", -2 }, { "NFOR", -1 },
+                                                      { "mix net + t-test", 0 }, { "mix net, no t-test", 1 },
+                                                      { "mix analytic + t-test", 2 }, { "mix analytic, no t-test", 3 } };
+        for (auto [name, which] : models) {
+            std::printf("| %s |", name);
+            for (const auto& [spp, list] : by_spp)
+                std::printf(" %.4f |", mean_rmse(list, which));
+            std::printf("\n");
+        }
+
+        // Issue 5 item 4, per mix model.
+        std::printf("\nProperties (issue 5 item 4), RMSE:\n");
+        for (int m = 0; m < 4; ++m) {
+            int within = 0;
+            std::string misses;
+            for (const Row& r : rows) {
+                const double better = std::min(r.render.rmse, r.nfor.rmse);
+                if (r.mix[m].rmse <= better * 1.02)
+                    ++within;
+                else
+                    misses += " " + r.in.scene + "@" + std::to_string(r.in.spp) + "("
+                              + std::to_string(int(std::round(100 * (r.mix[m].rmse / better - 1)))) + "%)";
+            }
+            std::printf("  %-11s mix <= min(render, NFOR) + 2%%: %d of %zu inputs;%s\n", kMixNames[m],
+                        within, rows.size(), misses.empty() ? " all" : (" over:" + misses).c_str());
+        }
+        // Scenes with several levels: alpha' trend and the averaged-over-spp gain where NFOR is
+        // worse than the render at the highest level.
+        std::map<std::string, std::vector<const Row*>> by_scene;
+        for (const Row& r : rows)
+            by_scene[r.in.scene].push_back(&r);
+        for (const auto& [scene, list] : by_scene) {
+            if (list.size() < 2)
+                continue;
+            const Row* top = list.back();
+            std::printf("  %s: alpha'(net+t) by spp:", scene.c_str());
+            for (const Row* r : list)
+                std::printf(" %d:%.3f", r->in.spp, r->alpha[0]);
+            double nfor_mean = 0, mix_mean[4] = {};
+            for (const Row* r : list) {
+                nfor_mean += r->nfor.rmse / list.size();
+                for (int m = 0; m < 4; ++m)
+                    mix_mean[m] += r->mix[m].rmse / list.size();
+            }
+            if (top->nfor.rmse > top->render.rmse) {
+                std::printf("; NFOR worse than render at %d spp: mean-over-spp RMSE gain vs NFOR", top->in.spp);
+                for (int m = 0; m < 4; ++m)
+                    std::printf(" %s %.0f%%%s", kMixNames[m], 100 * (1 - mix_mean[m] / nfor_mean),
+                                mix_mean[m] <= 0.8 * nfor_mean ? "" : " (<20%)");
+            }
+            std::printf("\n");
+        }
+    }
+
+    if (speed) {
+        const int width = 1920, height = 1080;
+        ImageBuf frame = synthetic_frame(width, height);
+        MixOptions mo;
+        mo.aovs.preset = "generic";
+        mo.model = MixOptions::Model::Net;
+        mo.weights = weights;
+        ImageBuf z;
+        const double mix_s = fastest(2, [&] {
+            if (!mix(z, frame, mo))
+                std::fprintf(stderr, "%s\n", z.geterror().c_str());
+        });
+        mo.t_test = false;
+        const double net_only_s = fastest(2, [&] { mix(z, frame, mo); });
+        const double conv_s = plain_conv_seconds(height, width, 3);
+        std::printf("\n1920x1080 mix pass (net + t-test, without denoiser runs): %.3f s (%.3f s without "
+                    "the t-test); one plain oneDNN 3x3 48->48 conv of the same size: %.3f s; ratio %.1fx "
+                    "(the network is 4.7 such convs in FLOPs)\n",
+                    mix_s, net_only_s, conv_s, mix_s / conv_s);
+    }
+    return 0;
+}

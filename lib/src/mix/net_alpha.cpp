@@ -1,0 +1,125 @@
+// PD §4.3: the mixing network h_NN. A 5x5 conv to 48 channels, two residual blocks of 3x3/48
+// convs with ReLU, a 3x3 conv to (x1, x2, x3) per colour channel, then eq. 19
+//   f_act = (x1 - x2) / max(x3, 1e-6), clipped to [0, 1]
+// gives alpha. Trained by training/mix/train.py; its inputs are computed exactly as
+// training/mix/model.py's features() (tests/mix/net_test.cpp checks the two agree):
+//   0-2 HDR  signed log(1 + |x|)           3-5 DEN  signed log(1 + |y|)
+//   6-8 VAR, 9-11 SURE, 12-14 sigma^2 f'(x), 15-17 ||y - x||^2: arctan(v / (y^2 + 0.01))
+// (the paper's arctan of each error estimate, made relative first: see training/mix/README.md).
+#include <cmath>
+#include <cstdlib>
+
+#include <OpenImageIO/strutil.h>
+
+#include "mix/mix_steps.h"
+
+namespace mcdn {
+
+namespace {
+
+constexpr const char* kInputLayout = "pd-mix-1";  // model.py INPUT_LAYOUT
+constexpr int kInputs = 18, kFeatures = 48;
+constexpr float kErrorDenominatorOffset = 0.01f;
+constexpr float kFActEpsilon = 1e-6f;  // eq. 19
+
+float signed_log1p(float v) { return std::copysign(std::log1p(std::fabs(v)), v); }
+
+// "<source root>/models" when the build does not say where the models are.
+std::string models_dir_default()
+{
+#ifdef MCDN_MODELS_DIR
+    return MCDN_MODELS_DIR;
+#else
+    std::string root = __FILE__;  // <root>/lib/src/mix/net_alpha.cpp: up four components
+    for (int up = 0; up < 4; ++up) {
+        size_t slash = root.find_last_of("/\\");
+        root = slash == std::string::npos ? std::string() : root.substr(0, slash);
+    }
+    return root.empty() ? std::string("models") : root + "/models";
+#endif
+}
+
+}  // namespace
+
+std::string default_mix_weights()
+{
+    const char* dir = std::getenv("MCDN_MODELS");
+    return (dir && *dir ? std::string(dir) : models_dir_default()) + "/mix.mcdnw";
+}
+
+bool load_mix_net(nn::Net& net, const std::string& path, std::string& error)
+{
+    using nn::Activation;
+    net = nn::Net("mix");
+    nn::Value x = net.input("features", kInputs);
+    x = net.conv(x, "conv1", kFeatures, 5);
+    for (const char* block : { "res1", "res2" }) {
+        nn::Value r = net.conv(x, std::string(block) + ".conv1", kFeatures, 3);
+        r = net.conv(r, std::string(block) + ".conv2", kFeatures, 3, Activation::none);
+        x = net.add(x, r, Activation::relu);
+    }
+    net.output("raw", net.conv(x, "out", 9, 3, Activation::none));
+
+    nn::Weights weights;
+    if (!nn::read_weights(path, weights, error)) {
+        error = "mix: model=net: " + error
+                + " (train and export with training/mix, or pass --mix:weights=FILE)";
+        return false;
+    }
+    const std::string tag = OIIO::Strutil::fmt::format("\"input_layout\": \"{}\"", kInputLayout);
+    if (weights.metadata.find(tag) == std::string::npos) {
+        error = OIIO::Strutil::fmt::format(
+            "mix: '{}' is not a mixing network of input layout '{}' (its metadata lacks {}): "
+            "export it with training/mix/export.py", path, kInputLayout, tag);
+        return false;
+    }
+    if (!net.load(weights, error)) {
+        error = "mix: '" + path + "': " + error;
+        return false;
+    }
+    return true;
+}
+
+nn::Tensor net_features(const MixInputs& in)
+{
+    const int w = in.x[0].width, h = in.x[0].height;
+    nn::Tensor f(h, w, kInputs);
+    for (int c = 0; c < 3; ++c)
+        for (size_t i = 0; i < in.x[c].size(); ++i) {
+            float* px = f.data.data() + i * kInputs;
+            const float y = in.y[c].px[i];
+            const float scale = 1.0f / (y * y + kErrorDenominatorOffset);
+            px[0 + c] = signed_log1p(in.x[c].px[i]);
+            px[3 + c] = signed_log1p(y);
+            px[6 + c] = std::atan(in.variance[c].px[i] * scale);
+            px[9 + c] = std::atan(in.sure[c].px[i] * scale);
+            px[12 + c] = std::atan(in.divergence[c].px[i] * scale);
+            px[15 + c] = std::atan(in.residual[c].px[i] * scale);
+        }
+    return f;
+}
+
+bool net_alpha(Plane alpha[3], const MixInputs& in, nn::Net& net, std::string& error,
+               nn::Tensor* raw_out)
+{
+    std::vector<nn::Tensor> outputs;
+    if (!nn::run_tiled(net, { net_features(in) }, outputs, error)) {
+        error = "mix: model=net: " + error;
+        return false;
+    }
+    const nn::Tensor& raw = outputs[0];
+    for (int c = 0; c < 3; ++c) {
+        alpha[c] = Plane(in.x[c].width, in.x[c].height);
+        for (size_t i = 0; i < alpha[c].size(); ++i) {
+            const float* o = raw.data.data() + i * 9;
+            // Eq. 19; channel k * 3 + c is x_{k+1} of colour channel c.
+            float a = (o[c] - o[3 + c]) / std::max(o[6 + c], kFActEpsilon);
+            alpha[c].px[i] = a == a ? std::min(std::max(a, 0.0f), 1.0f) : 0.0f;
+        }
+    }
+    if (raw_out)
+        *raw_out = raw;
+    return true;
+}
+
+}  // namespace mcdn

@@ -1,0 +1,214 @@
+// The mixing network (PD §4.3): the C++ forward pass against PyTorch's on a fixture, its
+// error messages, and the mix's properties on real generated crops with our NFOR.
+#include <cstdio>
+#include <cstdlib>
+
+#include "mcdn/io.h"
+#include "mcdn/metrics.h"
+#include "mcdn/mix.h"
+#include "mcdn/nfor.h"
+#include "mcdn/sure.h"
+#include "mix/mix_steps.h"
+
+#include "../nn/nn_test_util.h"
+
+using namespace mcdn;
+using nn_test::relative_error;
+
+namespace {
+
+nn::Tensor to_tensor(const nn::NamedTensor& t)
+{
+    nn::Tensor out(t.shape[0], t.shape[1], t.shape[2]);
+    out.data = t.values;
+    return out;
+}
+
+Plane channel_plane(const nn::Tensor& t, int c)
+{
+    Plane p(t.width, t.height);
+    for (size_t i = 0; i < p.size(); ++i)
+        p.px[i] = t.data[i * t.channels + c];
+    return p;
+}
+
+nn::Tensor alpha_tensor(const Plane alpha[3])
+{
+    nn::Tensor t(alpha[0].height, alpha[0].width, 3);
+    for (int c = 0; c < 3; ++c)
+        for (size_t i = 0; i < alpha[c].size(); ++i)
+            t.data[i * 3 + c] = alpha[c].px[i];
+    return t;
+}
+
+double weights_checksum(const nn::Weights& w)
+{
+    double sum = 0;
+    for (const nn::NamedTensor& t : w.tensors)
+        for (float v : t.values)
+            sum += std::abs(double(v));
+    return sum;
+}
+
+}  // namespace
+
+TEST(MixNet, MatchesPyTorch)
+{
+    // tests/data/mix/mix_net_io.mcdnw: made by training/mix/export.py from models/mix.mcdnw.
+    nn::Weights io, weights;
+    std::string error;
+    const std::string path = default_mix_weights();
+    ASSERT_TRUE(nn::read_weights(mcdn_test::test_data("mix/mix_net_io.mcdnw"), io, error)) << error;
+    ASSERT_TRUE(nn::read_weights(path, weights, error)) << error;
+    const std::string key = "\"weights_checksum\": ";
+    size_t at = io.metadata.find(key);
+    ASSERT_NE(at, std::string::npos);
+    const double checksum = std::atof(io.metadata.c_str() + at + key.size());
+    ASSERT_NEAR(weights_checksum(weights), checksum, 1e-6 * checksum)
+        << path << " is not the network the fixture was made with: rerun training/mix/export.py";
+
+    MixInputs in;
+    const char* names[] = { "x", "y", "variance", "sure", "divergence", "residual" };
+    Plane* planes[] = { in.x, in.y, in.variance, in.sure, in.divergence, in.residual };
+    for (int k = 0; k < 6; ++k) {
+        const nn::Tensor t = to_tensor(*io.find(std::string("input.") + names[k]));
+        for (int c = 0; c < 3; ++c)
+            planes[k][c] = channel_plane(t, c);
+    }
+    nn::Net net;
+    ASSERT_TRUE(load_mix_net(net, path, error)) << error;
+    const double feature_error = relative_error(net_features(in), to_tensor(*io.find("output.features")));
+    Plane alpha[3];
+    nn::Tensor raw;
+    ASSERT_TRUE(net_alpha(alpha, in, net, error, &raw)) << error;
+    const double raw_error = relative_error(raw, to_tensor(*io.find("output.raw")));
+    const nn::Tensor expected_alpha = to_tensor(*io.find("output.alpha"));
+    const double alpha_error = relative_error(alpha_tensor(alpha), expected_alpha);
+    std::printf("C++ vs PyTorch, max relative error: features %.3g, raw outputs %.3g, alpha %.3g\n",
+                feature_error, raw_error, alpha_error);
+    EXPECT_LT(feature_error, 1e-5);
+    EXPECT_LT(raw_error, 1e-4);
+    EXPECT_LT(alpha_error, 1e-4);
+}
+
+TEST(MixNet, MissingOrWrongWeightsSayWhatToDo)
+{
+    nn::Net net;
+    std::string error;
+    EXPECT_FALSE(load_mix_net(net, "/nonexistent/mix.mcdnw", error));
+    EXPECT_NE(error.find("/nonexistent/mix.mcdnw"), std::string::npos) << error;
+    EXPECT_NE(error.find("training/mix"), std::string::npos) << error;
+    EXPECT_EQ(error.find('\n'), std::string::npos) << error;
+
+    error.clear();
+    const std::string other = mcdn_test::test_data("nn/tiny_net.mcdnw");
+    EXPECT_FALSE(load_mix_net(net, other, error));
+    EXPECT_NE(error.find("tiny_net.mcdnw"), std::string::npos) << error;
+    EXPECT_NE(error.find("input layout"), std::string::npos) << error;
+}
+
+namespace {
+
+// A generated crop (tests/data/generated, Blender Cycles 32x32) at `spp`: NFOR, SURE (K=1)
+// and the mix; errors against the reference.
+struct CropErrors {
+    Metrics render, denoised, mixed;
+};
+
+bool run_crop(CropErrors& out, const std::string& crop, int spp, MixOptions options,
+              std::string& error)
+{
+    char level[32];
+    std::snprintf(level, sizeof level, "_%04dspp", spp);
+    const std::string stem = mcdn_test::test_data("generated/" + crop + "/" + crop + level);
+    ImageBuf src, ref;
+    if (!read_inputs(src, { { stem + ".exr", InputKind::Mean },
+                            { stem + "_var.exr", InputKind::Variance },
+                            { stem + "_A.exr", InputKind::HalfA },
+                            { stem + "_B.exr", InputKind::HalfB } })
+        || !read_image(ref, mcdn_test::test_data("generated/" + crop + "/" + crop + "_ref.exr"))) {
+        error = src.geterror() + ref.geterror();
+        return false;
+    }
+    NforOptions no;
+    Denoiser denoiser = [&](ImageBuf& dst, const ImageBuf& s) { return nfor(dst, s, no); };
+    ImageBuf with_sure, mixed;
+    if (!sure(with_sure, src, denoiser) || !mix(mixed, with_sure, options)) {
+        error = with_sure.geterror() + mixed.geterror();
+        return false;
+    }
+    auto rgb = [](const ImageBuf& b) {
+        return std::vector<int> { b.spec().channelindex("ViewLayer.Combined.R"),
+                                  b.spec().channelindex("ViewLayer.Combined.G"),
+                                  b.spec().channelindex("ViewLayer.Combined.B") };
+    };
+    MetricsOptions mo;
+    mo.reference_channels = rgb(ref);
+    const std::pair<Metrics*, const ImageBuf*> runs[] = { { &out.render, &src },
+                                                          { &out.denoised, &with_sure },
+                                                          { &out.mixed, &mixed } };
+    for (auto [m, image] : runs) {
+        mo.image_channels = rgb(*image);
+        if (!compute_metrics(*m, *image, ref, mo, error))
+            return false;
+    }
+    return true;
+}
+
+}  // namespace
+
+TEST(MixNet, DeterministicAndFinite)
+{
+    const std::string stem = mcdn_test::test_data("generated/0003_bump/0003_bump_0016spp");
+    ImageBuf src;
+    ASSERT_TRUE(read_inputs(src, { { stem + ".exr", InputKind::Mean },
+                                   { stem + "_var.exr", InputKind::Variance },
+                                   { stem + "_A.exr", InputKind::HalfA },
+                                   { stem + "_B.exr", InputKind::HalfB } }))
+        << src.geterror();
+    Denoiser denoiser = [](ImageBuf& dst, const ImageBuf& s) { return nfor(dst, s); };
+    ImageBuf with_sure;
+    ASSERT_TRUE(sure(with_sure, src, denoiser)) << with_sure.geterror();
+    MixOptions options;
+    options.model = MixOptions::Model::Net;
+    options.output_alpha = true;
+    ImageBuf one, all;
+    ASSERT_TRUE(mix(one, with_sure, options, {}, 1)) << one.geterror();
+    ASSERT_TRUE(mix(all, with_sure, options, {}, 0)) << all.geterror();
+    std::vector<float> a(one.spec().image_pixels() * one.nchannels()), b(a.size());
+    one.get_pixels(one.roi(), OIIO::TypeFloat, a.data());
+    all.get_pixels(all.roi(), OIIO::TypeFloat, b.data());
+    EXPECT_EQ(a, b);
+    for (float v : a)
+        ASSERT_TRUE(std::isfinite(v));
+}
+
+TEST(MixNet, CloseToTheBetterInputOnGeneratedCrops)
+{
+    // PD §4: at every sample count the mix should be about as good as the better of render
+    // and denoised image. Issue 5's target is RMSE <= 1.02 x the better; the network shipped
+    // in models/ (trained minutes on tens of crops, see models/README.md) meets it on 5 of
+    // these 9 inputs, is within 1.03x on three more and 1.27x on 0000_interior 64 spp (it
+    // mixes in too much render at higher sample counts); 1.04x on average. The bounds below
+    // guard that level: never worse than the render, at most 1.35x the better input
+    // anywhere, 1.06x on average.
+    MixOptions options;
+    options.model = MixOptions::Model::Net;
+    double sum_ratio = 0;
+    int n = 0;
+    for (const char* crop : { "0000_interior", "0003_bump", "0007_fine" })
+        for (int spp : { 4, 16, 64 }) {
+            CropErrors e;
+            std::string error;
+            ASSERT_TRUE(run_crop(e, crop, spp, options, error)) << error;
+            const double better = std::min(e.render.rmse, e.denoised.rmse);
+            const double ratio = e.mixed.rmse / better;
+            std::printf("%-14s %3d spp  RMSE render %.4f  NFOR %.4f  mix(net) %.4f  (%.3fx the better)\n",
+                        crop, spp, e.render.rmse, e.denoised.rmse, e.mixed.rmse, ratio);
+            EXPECT_LE(e.mixed.rmse, e.render.rmse) << crop << " " << spp;
+            EXPECT_LE(ratio, 1.35) << crop << " " << spp;
+            sum_ratio += ratio;
+            ++n;
+        }
+    EXPECT_LE(sum_ratio / n, 1.06);
+}
