@@ -1,8 +1,32 @@
 #include "core/op_prepare.h"
 
+#include <cstdint>
 #include <cstring>
 
+#if defined(__linux__)
+#    include <sys/mman.h>
+#endif
+
 namespace mcdn {
+namespace {
+
+/// Asks for transparent huge pages on a fresh buffer before it is first written: one fault
+/// per 2 MB instead of per 4 KB (in a VM a fault costs ~20 us, 0.2 s for a 40 MB copy).
+void advise_huge_pages(void* data, size_t bytes)
+{
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+    const uintptr_t page = 4096;
+    uintptr_t begin = (reinterpret_cast<uintptr_t>(data) + page - 1) & ~(page - 1);
+    uintptr_t end = (reinterpret_cast<uintptr_t>(data) + bytes) & ~(page - 1);
+    if (end > begin + (2u << 20))
+        madvise(reinterpret_cast<void*>(begin), end - begin, MADV_HUGEPAGE);
+#else
+    (void)data;
+    (void)bytes;
+#endif
+}
+
+}  // namespace
 
 bool prepare_op(ImageBuf& dst, const ImageBuf& src, const AovSpec& spec, AovSet& aovs,
                 const char* op)
@@ -28,6 +52,7 @@ bool prepare_op(ImageBuf& dst, const ImageBuf& src, const AovSpec& spec, AovSet&
         && src.pixel_stride() == OIIO::stride_t(src.spec().pixel_bytes())
         && src.scanline_stride() == OIIO::stride_t(src.spec().scanline_bytes())) {
         dst.reset(src.spec());
+        advise_huge_pages(dst.localpixels(), src.spec().image_bytes());
         std::memcpy(dst.localpixels(), src.localpixels(), src.spec().image_bytes());
         return true;
     }

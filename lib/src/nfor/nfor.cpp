@@ -12,6 +12,7 @@
 #include "core/feature_channels.h"
 #include "core/nl_means.h"
 #include "core/op_prepare.h"
+#include "mcdn/color.h"
 #include "nfor/mse_estimate.h"
 #include "nfor/regression.h"
 #include "prefilter/feature_prefilter.h"
@@ -53,7 +54,10 @@ struct ColorPlanes {
 
 }  // namespace
 
-bool nfor(ImageBuf& dst, const ImageBuf& src, const NforOptions& options, ROI roi, int nthreads)
+namespace {
+
+bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions& options,
+                         ROI roi, int nthreads)
 {
     const char* op = "nfor";
     if (!check_options(dst, options))
@@ -276,6 +280,15 @@ bool nfor(ImageBuf& dst, const ImageBuf& src, const NforOptions& options, ROI ro
     }
     timer("write");
     return true;
+}
+
+}  // namespace
+
+bool nfor(ImageBuf& dst, const ImageBuf& src, const NforOptions& options, ROI roi, int nthreads)
+{
+    return run_in_working_space(dst, src, options.aovs, "nfor", [&](ImageBuf& d, const ImageBuf& s) {
+        return nfor_in_working_space(d, s, options, roi, nthreads);
+    });
 }
 
 ImageBuf nfor(const ImageBuf& src, const NforOptions& options, ROI roi, int nthreads)

@@ -24,6 +24,8 @@ struct RegressionInputs {
     /// exp(-d²(k=1) / k²); the reference's ε and clamp make no difference at these scales).
     std::vector<float> bandwidths = { 1.0f };
     float variance_scale = 2.0f;
+    /// Use the kernel for any design size even where an unrolled one exists (tests).
+    bool any_size_kernel = false;
 };
 
 /// Most features a regression takes (design columns = 3 + this).

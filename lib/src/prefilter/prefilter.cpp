@@ -3,12 +3,15 @@
 
 #include "core/feature_channels.h"
 #include "core/op_prepare.h"
+#include "mcdn/color.h"
 #include "prefilter/feature_prefilter.h"
 
 namespace mcdn {
 
-bool prefilter(ImageBuf& dst, const ImageBuf& src, const PrefilterOptions& options, ROI roi,
-               int nthreads)
+namespace {
+
+bool prefilter_in_working_space(ImageBuf& dst, const ImageBuf& src,
+                                const PrefilterOptions& options, ROI roi, int nthreads)
 {
     const char* op = "prefilter";
     if (options.window_radius < 0 || options.patch_radius < 0 || options.second_window_radius < 0
@@ -51,6 +54,15 @@ bool prefilter(ImageBuf& dst, const ImageBuf& src, const PrefilterOptions& optio
     }
     dst.specmod().attribute("mcdn:prefiltered", 1);
     return true;
+}
+
+}  // namespace
+
+bool prefilter(ImageBuf& dst, const ImageBuf& src, const PrefilterOptions& options, ROI roi, int nthreads)
+{
+    return run_in_working_space(dst, src, options.aovs, "prefilter", [&](ImageBuf& d, const ImageBuf& s) {
+        return prefilter_in_working_space(d, s, options, roi, nthreads);
+    });
 }
 
 ImageBuf prefilter(const ImageBuf& src, const PrefilterOptions& options, ROI roi, int nthreads)
