@@ -75,6 +75,12 @@ TEST(Golden, NforSureMixBox)
     std::vector<std::string> names = kBoxColour;
     for (const char* n : { "sure.R", "sure.G", "sure.B", "mix.alpha.R", "mix.alpha.G", "mix.alpha.B" })
         names.push_back(n);
-    // SURE's single probe makes its channels noisy by design; the mix follows the same seed.
-    EXPECT_TRUE(matches_golden(out, names, "nfor_sure_mix_box16"));
+    // SURE is a finite difference (divided by a step ~1e-3 of the image level), so float
+    // differences between instruction sets grow ~1000x in sure.* and move alpha: looser
+    // bounds here, still far below a real change (a changed NFOR solve moved the mean 20%).
+    GoldenThresholds loose;
+    loose.relative = 2e-2;
+    loose.mean_relative = 1e-2;
+    loose.fail_fraction = 0.01;
+    EXPECT_TRUE(matches_golden(out, names, "nfor_sure_mix_box16", loose));
 }
