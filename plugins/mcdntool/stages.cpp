@@ -3,6 +3,7 @@
 // them, and --sure takes the queued chain as the denoiser whose error it estimates.
 #include <OpenImageIO/strutil.h>
 
+#include "mcdn/cnn.h"
 #include "mcdn/mix.h"
 #include "mcdn/nfor.h"
 #include "mcdn/prefilter.h"
@@ -90,6 +91,20 @@ bool queue_nfor(Session& s, const Command& c, std::string& error)
     return true;
 }
 
+bool queue_cnn(Session& s, const Command& c, std::string& error)
+{
+    mcdn::CnnOptions o;
+    o.aovs = s.aov_spec;
+    if (c.has("weights"))
+        o.weights = c.modifier("weights");
+    if (c.has("tile"))
+        o.tile_size = Strutil::stoi(c.modifier("tile"));
+    s.queue("cnn", [o](ImageBuf& dst, const ImageBuf& src, int nthreads) {
+        return mcdn::cnn(dst, src, o, {}, nthreads);
+    });
+    return true;
+}
+
 bool run_sure(Session& s, const Command& c, std::string& error)
 {
     mcdn::SureOptions o;
@@ -144,6 +159,10 @@ std::vector<CommandInfo> stage_commands()
           "add nfor.mse.* and nfor.selection.* channels. Prefilters the features itself "
           "unless --prefilter ran.",
           queue_nfor },
+        { "--cnn", "", { "weights", "tile" },
+          "Kernel-predicting CNN denoiser (KPCN): diffuse/specular split, our trained weights "
+          "(models/kpcn.mcdnw; weights=FILE), tiled (tile=256).",
+          queue_cnn },
         { "--sure", "", { "probes", "eps", "seed" },
           "Monte-Carlo SURE of the denoisers before it (PD §3.2): adds sure.*, "
           "sure.divergence.*, sure.residual.* and noisy.* channels. probes=1 (K; costs K+1 "

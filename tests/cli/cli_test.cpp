@@ -229,3 +229,15 @@ TEST(Cli, DoneWhenCommandOnTheSharedBoxPrintsThePublishedRelMse)
     ASSERT_EQ(run.exit_code, 0) << run.output;
     EXPECT_NEAR(json_number(run.output, "relmse"), 0.01185, 0.0005);
 }
+
+TEST(Cli, DenoisingChainsRunEndToEnd)
+{
+    std::string dir = mcdn_test::temp_dir("cli_chains");
+    for (const std::string chain : { "--prefilter --nfor", "--nfor --sure --mix", "--cnn", "--cnn --sure --mix:alpha=1" }) {
+        auto noisy = run_mcdntool(box_inputs() + " --metrics:format=json " + box("box_ref.exr"));
+        auto run = run_mcdntool(box_inputs() + " " + chain + " --metrics:format=json "
+                                + box("box_ref.exr") + " -o " + quote(dir + "/out.exr"));
+        ASSERT_EQ(run.exit_code, 0) << chain << ": " << run.output;
+        EXPECT_LT(json_number(run.output, "relmse"), 0.5 * json_number(noisy.output, "relmse")) << chain;
+    }
+}

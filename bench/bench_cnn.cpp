@@ -1,0 +1,250 @@
+// KPCN (lib/src/cnn, issue 6 item 4): the network's cost (GFLOP per 1920x1080 frame, both
+// branches), the time of the whole op's network part on a frame, and the relMSE of the
+// render, our NFOR and the CNN on the shared evaluation data (box 16/64, cycles preset) and
+// the generated crops training/cnn holds out (datasets/eval if rendered, else the `full`
+// crops whose number % 6 == 4) at 16 and 64 spp.
+//
+//   bench_cnn [--no-quality] [--no-speed] [--size WxH] [weights.mcdnw]
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "cnn/cnn_steps.h"
+#include "mcdn/cnn.h"
+#include "mcdn/io.h"
+#include "mcdn/metrics.h"
+#include "mcdn/nfor.h"
+
+using namespace mcdn;
+using Clock = std::chrono::steady_clock;
+namespace fs = std::filesystem;
+
+namespace {
+
+double seconds_since(Clock::time_point t0)
+{
+    return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+/// Multiply-adds x 2 of a network per output pixel, from its ops (convs at their scale).
+double flops_per_pixel(const nn::Net& net)
+{
+    double flops = 0;
+    for (const auto& node : net.nodes()) {
+        const double area = double(node.scale) * node.scale;
+        if (node.op == nn::Net::Op::conv) {
+            const int in = net.nodes()[node.inputs[0]].channels;
+            flops += 2.0 * in * node.channels * node.kernel * node.kernel / area;
+        } else if (node.op == nn::Net::Op::apply_kernel) {
+            flops += 2.0 * node.kernel * node.kernel * node.channels / area;
+        }
+    }
+    return flops;
+}
+
+/// Random raw planes of a frame: smooth-ish radiance with noise, features in range.
+kpcn::RawPlanes random_frame(int w, int h)
+{
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    kpcn::RawPlanes raw;
+    raw.split = true;
+    auto fill = [&](Plane& p, float scale) {
+        p = Plane(w, h);
+        for (float& v : p.px)
+            v = scale * u(rng);
+    };
+    for (int c = 0; c < 3; ++c) {
+        fill(raw.color[c], 1);
+        fill(raw.color_var[c], 0.01f);
+        fill(raw.diffuse[c], 0.6f);
+        fill(raw.diffuse_var[c], 0.01f);
+        fill(raw.specular[c], 0.4f);
+        fill(raw.specular_var[c], 0.01f);
+        fill(raw.demod[c], 1);
+        fill(raw.albedo[c], 1);
+        fill(raw.albedo_var[c], 0.001f);
+        fill(raw.normal[c], 1);
+        fill(raw.normal_var[c], 0.001f);
+    }
+    fill(raw.depth, 1);
+    fill(raw.depth_var, 0.001f);
+    return raw;
+}
+
+void speed(kpcn::Model& model, int w, int h, int tile)
+{
+    kpcn::RawPlanes raw = random_frame(w, h);
+    nn::TileOptions tiles;
+    tiles.tile_size = tile;
+    const double gflop = (flops_per_pixel(model.diffuse) + flops_per_pixel(model.specular))
+                         * double(w) * h / 1e9;
+    const auto t0 = Clock::now();
+    std::string error;
+    for (auto [net, branch] : { std::pair{ &model.diffuse, kpcn::Branch::diffuse },
+                                std::pair{ &model.specular, kpcn::Branch::specular } }) {
+        nn::Tensor features, image;
+        kpcn::branch_inputs(raw, branch, features, image);
+        std::vector<nn::Tensor> out;
+        if (!nn::run_tiled(*net, { features, image }, out, error, tiles)) {
+            std::fprintf(stderr, "%s\n", error.c_str());
+            return;
+        }
+    }
+    const double s = seconds_since(t0);
+    std::printf("%dx%d, tile %d (halo %d): %.2f s for both branches, %.1f GFLOP (nominal), "
+                "%.1f GFLOP/s\n", w, h, tile, model.diffuse.receptive_radius(), s, gflop, gflop / s);
+}
+
+std::string shared(const std::string& rel) { return std::string(MCDN_SHARED_DATA) + "/" + rel; }
+
+struct Input {
+    std::string name;
+    int spp;
+    std::string stem, reference;
+};
+
+std::vector<Input> inputs()
+{
+    std::vector<Input> list;
+    for (int spp : { 16, 64 }) {
+        char stem[64];
+        std::snprintf(stem, sizeof stem, "box/box_%04dspp", spp);
+        if (fs::exists(shared(stem) + ".exr"))
+            list.push_back({ "box", spp, shared(stem), shared("box/box_ref.exr") });
+    }
+    const char* cache_env = std::getenv("MCDN_CACHE");
+    const fs::path cache = cache_env ? fs::path(cache_env)
+                                     : fs::path(std::getenv("HOME") ? std::getenv("HOME") : "/") / ".cache/mcdenoise";
+    fs::path root = cache / "datasets/eval";
+    const bool eval = fs::exists(root);
+    if (!eval)
+        root = cache / "datasets/full";
+    if (!fs::exists(root))
+        return list;
+    std::vector<fs::path> crops;
+    for (const auto& entry : fs::directory_iterator(root))
+        if (entry.is_directory() && fs::exists(entry.path() / "crop.json"))
+            crops.push_back(entry.path());
+    std::sort(crops.begin(), crops.end());
+    for (const fs::path& dir : crops) {
+        const std::string crop = dir.filename().string();
+        if (!eval && std::atoi(crop.substr(0, 4).c_str()) % 6 != 4)
+            continue;  // a training crop
+        for (int spp : { 16, 64 }) {
+            char level[32];
+            std::snprintf(level, sizeof level, "_%04dspp", spp);
+            const std::string stem = (dir / (crop + level)).string();
+            if (fs::exists(stem + "_B.exr"))
+                list.push_back({ (eval ? "eval/" : "full/") + crop, spp, stem,
+                                 (dir / (crop + "_ref.exr")).string() });
+        }
+    }
+    return list;
+}
+
+double relmse(const ImageBuf& image, const ImageBuf& ref, bool trim = false)
+{
+    auto colour = [](const ImageBuf& b) {
+        const int r = b.spec().channelindex("ViewLayer.Combined.R");
+        return std::vector<int>{ r, r + 1, r + 2 };
+    };
+    MetricsOptions mo;
+    mo.image_channels = colour(image);
+    mo.reference_channels = colour(ref);
+    mo.trim = trim;  // KPCN §6: 0.01% best and worst pixels dropped
+    Metrics m;
+    std::string error;
+    if (!compute_metrics(m, image, ref, mo, error)) {
+        std::fprintf(stderr, "metrics: %s\n", error.c_str());
+        return NAN;
+    }
+    return m.relmse;
+}
+
+void quality(const std::string& weights)
+{
+    std::printf("\nrelMSE, and in brackets trimmed as KPCN reports it (0.01%% best/worst dropped)\n");
+    std::printf("%-22s %5s %20s %20s %20s %7s %7s\n", "input", "spp", "noisy", "NFOR", "CNN",
+                "NFOR s", "CNN s");
+    double log_sum[6] = {}, count = 0;
+    for (const Input& in : inputs()) {
+        ImageBuf src, ref;
+        if (!read_inputs(src, { { in.stem + ".exr", InputKind::Mean },
+                                { in.stem + "_var.exr", InputKind::Variance },
+                                { in.stem + "_A.exr", InputKind::HalfA },
+                                { in.stem + "_B.exr", InputKind::HalfB } })
+            || !read_image(ref, in.reference)) {
+            std::fprintf(stderr, "%s: %s %s\n", in.stem.c_str(), src.geterror().c_str(), ref.geterror().c_str());
+            continue;
+        }
+        CnnOptions co;
+        co.weights = weights;
+        auto t0 = Clock::now();
+        ImageBuf nf = nfor(src);
+        const double nfor_s = seconds_since(t0);
+        t0 = Clock::now();
+        ImageBuf cn = cnn(src, co);
+        const double cnn_s = seconds_since(t0);
+        if (cn.has_error() || nf.has_error()) {
+            std::fprintf(stderr, "%s: %s %s\n", in.name.c_str(), cn.geterror().c_str(), nf.geterror().c_str());
+            continue;
+        }
+        const double e[6] = { relmse(src, ref), relmse(src, ref, true), relmse(nf, ref),
+                              relmse(nf, ref, true), relmse(cn, ref), relmse(cn, ref, true) };
+        std::printf("%-22s %5d %9.5f (%8.5f) %9.5f (%8.5f) %9.5f (%8.5f) %7.2f %7.2f\n",
+                    in.name.c_str(), in.spp, e[0], e[1], e[2], e[3], e[4], e[5], nfor_s, cnn_s);
+        for (int k = 0; k < 6; ++k)
+            log_sum[k] += std::log(e[k]);
+        ++count;
+    }
+    if (count > 0) {
+        double g[6];
+        for (int k = 0; k < 6; ++k)
+            g[k] = std::exp(log_sum[k] / count);
+        std::printf("%-22s %5s %9.5f (%8.5f) %9.5f (%8.5f) %9.5f (%8.5f)\n", "geometric mean", "",
+                    g[0], g[1], g[2], g[3], g[4], g[5]);
+    }
+}
+
+}  // namespace
+
+int main(int argc, char** argv)
+{
+    bool do_quality = true, do_speed = true;
+    int w = 1920, h = 1080;
+    std::string weights = default_cnn_weights();
+    for (int i = 1; i < argc; ++i) {
+        if (!std::strcmp(argv[i], "--no-quality"))
+            do_quality = false;
+        else if (!std::strcmp(argv[i], "--no-speed"))
+            do_speed = false;
+        else if (!std::strcmp(argv[i], "--size") && i + 1 < argc)
+            std::sscanf(argv[++i], "%dx%d", &w, &h);
+        else
+            weights = argv[i];
+    }
+    kpcn::Model model;
+    std::string error;
+    if (!kpcn::load_model(model, weights, error)) {
+        std::fprintf(stderr, "%s\n", error.c_str());
+        return 1;
+    }
+    const double per_pixel = flops_per_pixel(model.diffuse) + flops_per_pixel(model.specular);
+    std::printf("model %s\n%.1f kFLOP per pixel (both branches): %.1f GFLOP per 1920x1080 frame; "
+                "receptive radius %d px\n", weights.c_str(), per_pixel / 1e3, per_pixel * 1920 * 1080 / 1e9,
+                model.diffuse.receptive_radius());
+    if (do_speed) {
+        speed(model, w, h, 256);
+        speed(model, w, h, 512);
+    }
+    if (do_quality)
+        quality(weights);
+    return 0;
+}

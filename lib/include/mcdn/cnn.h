@@ -1,0 +1,47 @@
+// Kernel-predicting convolutional denoiser (KPCN; Bako et al. 2017, "Kernel-Predicting
+// Convolutional Networks for Denoising Monte Carlo Renderings"), sized for CPUs.
+//
+//   §4.3  the light is split into diffuse = DiffCol·(DiffDir + DiffInd) and specular =
+//         everything else (Combined − diffuse, so eq. 4 gives back Combined exactly);
+//         diffuse is divided by (albedo + 0.00316), specular goes through log(1 + x)
+//   §5.1  variances moved through those transforms (Taylor rule), depth scaled to [0, 1],
+//         x/y gradients of colour and features; 34 input channels per branch
+//   §4.2  each branch is a small UNet that predicts per-pixel softmax kernels; instead of one
+//         21×21 kernel it predicts five 5×5 kernels applied one after the other (the same
+//         21×21 footprint for ~1/18 of the cost of the paper's head)
+//   eq. 4 the inverse transforms and the sum of the two branches
+// Without a diffuse/specular split the specular network denoises log(1 + colour).
+// Training: training/cnn (PyTorch); the model: models/kpcn.mcdnw (models/README-kpcn.md).
+#pragma once
+
+#include <string>
+
+#include <OpenImageIO/imagebuf.h>
+
+#include "mcdn/aov.h"
+
+namespace mcdn {
+
+struct CnnOptions {
+    AovSpec aovs;
+    /// The weights file; empty = default_cnn_weights().
+    std::string weights;
+    /// Output tile side of the tiled inference (nn::run_tiled): memory is bounded by
+    /// (tile_size + 2 · halo)² × the widest layer, not by the image.
+    int tile_size = 256;
+};
+
+/// $MCDN_MODELS/kpcn.mcdnw when MCDN_MODELS is set, else <models dir>/kpcn.mcdnw (the
+/// compiled-in MCDN_MODELS_DIR, or the source tree's models/).
+std::string default_cnn_weights();
+
+/// dst = src with the colour role replaced by the KPCN estimate (written inside `roi`; every
+/// other channel of src kept, so ops chain and sure() can wrap it). Needs the colour;
+/// uses the diffuse/specular split, albedo, normal, depth and their variances where present
+/// (missing features are zero). Deterministic for any `nthreads` (0 = all cores).
+bool cnn(ImageBuf& dst, const ImageBuf& src, const CnnOptions& options = {}, ROI roi = {},
+         int nthreads = 0);
+ImageBuf cnn(const ImageBuf& src, const CnnOptions& options = {}, ROI roi = {},
+             int nthreads = 0);
+
+}  // namespace mcdn

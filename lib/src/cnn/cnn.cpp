@@ -1,0 +1,149 @@
+// The KPCN op (Bako et al. 2017, Fig. 2), top to bottom: read the render and split its light
+// (§4.3), make each branch's inputs (§5.1), run the branch networks tile by tile (§4.2),
+// undo the transforms and add the branches (eq. 4).
+#include "mcdn/cnn.h"
+
+#include <dlfcn.h>
+
+#include <cmath>
+#include <cstdlib>
+
+#include <tbb/task_arena.h>
+
+#include "cnn/cnn_steps.h"
+#include "core/op_prepare.h"
+#include "mcdn/color.h"
+
+namespace mcdn {
+
+namespace {
+
+// "<source root>/models" when the build does not say where the models are.
+std::string models_dir_default()
+{
+#ifdef MCDN_MODELS_DIR
+    return MCDN_MODELS_DIR;
+#else
+    std::string root = __FILE__;  // <root>/lib/src/cnn/cnn.cpp: up four components
+    for (int up = 0; up < 4; ++up) {
+        size_t slash = root.find_last_of("/\\");
+        root = slash == std::string::npos ? std::string() : root.substr(0, slash);
+    }
+    return root.empty() ? std::string("models") : root + "/models";
+#endif
+}
+
+/// Runs `body` on at most `nthreads` threads (0 = all): a TBB arena for our ops, and the
+/// OpenMP thread count of this thread for oneDNN's convolutions (looked up at run time, as
+/// only oneDNN links OpenMP; absent with a TBB-threaded oneDNN, where the arena suffices).
+/// No result depends on the count: every output value is computed by one thread.
+template <class Body>
+bool with_threads(int nthreads, Body&& body)
+{
+    if (nthreads <= 0)
+        return body();
+    using SetThreads = void (*)(int);
+    using GetThreads = int (*)();
+    auto set = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "omp_set_num_threads"));
+    auto get = reinterpret_cast<GetThreads>(dlsym(RTLD_DEFAULT, "omp_get_max_threads"));
+    const int previous = set && get ? get() : 0;
+    if (set && get)
+        set(nthreads);
+    bool ok = false;
+    tbb::task_arena arena(nthreads);
+    arena.execute([&] { ok = body(); });
+    if (set && get)
+        set(previous);
+    return ok;
+}
+
+bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& options,
+                          ROI roi, int nthreads)
+{
+    AovSet aovs;
+    if (!prepare_op(dst, src, options.aovs, aovs, "cnn"))
+        return false;
+    std::string error;
+    if (!aovs.require({ Role::Color }, src.spec(), error)) {
+        dst.errorfmt("cnn: {}", error);
+        return false;
+    }
+    kpcn::Model model;
+    const std::string path = options.weights.empty() ? default_cnn_weights() : options.weights;
+    if (!kpcn::load_model(model, path, error)) {
+        dst.errorfmt("{}", error);
+        return false;
+    }
+
+    // §4.3 / §5.1: the split and the per-frame depth scale, on the whole image.
+    kpcn::RawPlanes raw;
+    if (!kpcn::read_raw_planes(raw, dst, aovs, error)) {
+        dst.errorfmt("cnn: {}", error);
+        return false;
+    }
+    kpcn::scale_depth(raw);
+
+    // §4.2: each branch's network, tiled so memory is bounded by the tile.
+    nn::TileOptions tiles;
+    tiles.tile_size = options.tile_size;
+    nn::Tensor irradiance, log_specular;
+    auto run_branch = [&](nn::Net& net, kpcn::Branch branch, nn::Tensor& result) {
+        nn::Tensor features, image;
+        kpcn::branch_inputs(raw, branch, features, image);
+        std::vector<nn::Tensor> outputs;
+        if (!nn::run_tiled(net, { features, image }, outputs, error, tiles)) {
+            error = "cnn: '" + path + "': " + error;
+            return false;
+        }
+        result = std::move(outputs[0]);
+        return true;
+    };
+    const bool ran = with_threads(nthreads, [&] {
+        return (!raw.split || run_branch(model.diffuse, kpcn::Branch::diffuse, irradiance))
+               && run_branch(model.specular, kpcn::Branch::specular, log_specular);
+    });
+    if (!ran) {
+        dst.errorfmt("{}", error);
+        return false;
+    }
+
+    // Eq. 4: (albedo + eps) · irradiance + exp(log specular) − 1.
+    const ROI where = output_roi(src, roi);
+    const auto& colour = aovs.channels(Role::Color);
+    for (int c = 0; c < 3; ++c) {
+        Plane out(raw.width(), raw.height());
+        for (size_t i = 0; i < out.size(); ++i) {
+            float v = std::expm1(log_specular.data[i * 3 + c]);
+            if (raw.split)
+                v += (std::max(raw.demod[c].px[i], 0.0f) + kpcn::kAlbedoEpsilon)
+                     * irradiance.data[i * 3 + c];
+            out.px[i] = sanitize(v);
+        }
+        write_plane(dst, colour[c], out, where);
+    }
+    return true;
+}
+
+}  // namespace
+
+std::string default_cnn_weights()
+{
+    const char* dir = std::getenv("MCDN_MODELS");
+    return (dir && *dir ? std::string(dir) : models_dir_default()) + "/kpcn.mcdnw";
+}
+
+bool cnn(ImageBuf& dst, const ImageBuf& src, const CnnOptions& options, ROI roi, int nthreads)
+{
+    return run_in_working_space(dst, src, options.aovs, "cnn", [&](ImageBuf& d, const ImageBuf& s) {
+        return cnn_in_working_space(d, s, options, roi, nthreads);
+    });
+}
+
+ImageBuf cnn(const ImageBuf& src, const CnnOptions& options, ROI roi, int nthreads)
+{
+    ImageBuf dst;
+    cnn(dst, src, options, roi, nthreads);
+    return dst;
+}
+
+}  // namespace mcdn

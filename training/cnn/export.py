@@ -1,0 +1,102 @@
+#!/usr/bin/python3
+"""Exports the trained KPCN and remakes the C++ test fixture.
+
+    /usr/bin/python3 training/cnn/export.py            # checkpoint -> models/kpcn.mcdnw
+    /usr/bin/python3 training/cnn/export.py --fixture  # only tests/data/cnn/*
+
+Writes
+  models/kpcn.mcdnw        the two branches ("diffuse.*", "specular.*"), metadata with the
+                           input layout, widths, training steps/time/data and final metrics
+  models/kpcn_loss.csv     the training curve ($CACHE/cnn/run/loss.csv)
+  tests/data/cnn/kpcn_tiny.mcdnw, kpcn_tiny_io.mcdnw
+                           a small random network of the same architecture (peaky kernels)
+                           and model.denoise's output on tests/data/generated/0000_interior
+                           at 16 spp, whole (32x32) and cut to 29x30 (the padding path):
+                           tests/cnn/pytorch_test.cpp runs the C++ op on the same files.
+"""
+import argparse
+import os
+import shutil
+import sys
+
+import numpy as np
+import torch
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
+sys.path.insert(0, HERE)
+sys.path.insert(0, os.path.join(ROOT, "training", "common"))
+import data  # noqa: E402
+import model as kpcn  # noqa: E402
+from weights import write_weights  # noqa: E402
+
+CACHE = os.environ.get("MCDN_CACHE", os.path.expanduser("~/.cache/mcdenoise"))
+RUN = os.path.join(CACHE, "cnn", "run")
+FIXTURE_RENDER = os.path.join(ROOT, "tests", "data", "generated", "0000_interior", "0000_interior")
+CUT = (30, 29)  # rows, columns of the cut fixture (not multiples of 4)
+
+
+def metadata(net, extra=None):
+    w1 = net.diffuse.enc1.out_channels
+    meta = {"network": "kpcn", "input_layout": kpcn.INPUT_LAYOUT,
+            "widths": [w1, net.diffuse.enc2a.out_channels, net.diffuse.bottleneck_a.out_channels],
+            "kernel": kpcn.KERNEL, "iterations": net.diffuse.iterations,
+            "albedo_epsilon": kpcn.ALBEDO_EPSILON,
+            "gflop_1080p_both_branches": round(
+                kpcn.flops_per_pixel(kpcn.WIDTHS) * 1920 * 1080 * 2 / 1e9, 1)}
+    meta.update(extra or {})
+    return meta
+
+
+def make_fixture():
+    torch.manual_seed(6)
+    net = kpcn.KPCN(widths=(8, 8, 8))
+    with torch.no_grad():
+        for branch in (net.diffuse, net.specular):
+            branch.kernels.weight.normal_(std=0.5)  # peaky, varied kernels: a demanding test
+            branch.kernels.bias.normal_(std=0.5)
+            for m in branch.modules():
+                if isinstance(m, torch.nn.Conv2d) and m is not branch.kernels:
+                    m.bias.normal_(std=0.05)
+    os.makedirs(os.path.join(ROOT, "tests", "data", "cnn"), exist_ok=True)
+    meta = metadata(net, {"purpose": "test fixture (random weights)"})
+    meta["widths"] = [8, 8, 8]
+    meta.pop("gflop_1080p_both_branches")
+    write_weights(os.path.join(ROOT, "tests", "data", "cnn", "kpcn_tiny.mcdnw"), net.state_dict(), meta)
+    raw = {k: torch.from_numpy(v) for k, v in data.load_render(FIXTURE_RENDER, 16).items()}
+    whole = kpcn.denoise(net, raw)
+    cut = kpcn.denoise(net, {k: v[:, :CUT[0], :CUT[1]] for k, v in raw.items()})
+    hwc = lambda t: t.permute(1, 2, 0).contiguous()  # noqa: E731
+    write_weights(os.path.join(ROOT, "tests", "data", "cnn", "kpcn_tiny_io.mcdnw"),
+                  {"output.color": hwc(whole), "output.color_cut": hwc(cut)},
+                  {"render": "tests/data/generated/0000_interior/0000_interior_0016spp.exr",
+                   "cut": list(CUT)})
+    print("fixture: colour range %.4g..%.4g" % (float(whole.min()), float(whole.max())))
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--fixture", action="store_true", help="only remake the test fixture")
+    ap.add_argument("--out", default=os.path.join(ROOT, "models", "kpcn.mcdnw"))
+    args = ap.parse_args()
+    make_fixture()
+    if args.fixture:
+        return
+    ck = torch.load(os.path.join(RUN, "checkpoint.pt"))
+    net = kpcn.KPCN()
+    net.load_state_dict(ck["model"])
+    state = ck["state"]
+    curve = state["curve"]
+    meta = metadata(net, {
+        "training": {"steps": state["step"], "minutes": round(state["elapsed"] / 60, 1),
+                     "batch": state["args"]["batch"], "patch": state["args"]["patch"],
+                     "data": "training/datagen crops ($CACHE/datasets/{full,small}), "
+                             "levels 4/16/64/256, validation = full crops number % 6 == 4",
+                     "last_validation": curve[-1] if curve else None}})
+    write_weights(args.out, net.state_dict(), meta)
+    shutil.copyfile(os.path.join(RUN, "loss.csv"), os.path.join(os.path.dirname(args.out), "kpcn_loss.csv"))
+    print("wrote %s (step %d, %.1f min)" % (args.out, state["step"], state["elapsed"] / 60))
+
+
+if __name__ == "__main__":
+    main()
