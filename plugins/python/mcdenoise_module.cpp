@@ -6,6 +6,7 @@
 #include <pybind11/stl.h>
 
 #include "mcdn/aov.h"
+#include "mcdn/cnn.h"
 #include "mcdn/io.h"
 #include "mcdn/metrics.h"
 #include "mcdn/mix.h"
@@ -48,6 +49,12 @@ template<class Op> ImageBuf run(const ImageBuf& src, Op op)
 
 mcdn::Denoiser named_denoiser(const std::string& chain, const mcdn::AovSpec& spec, int nthreads)
 {
+    if (chain == "cnn")
+        return [spec, nthreads](ImageBuf& dst, const ImageBuf& src) {
+            mcdn::CnnOptions o;
+            o.aovs = spec;
+            return mcdn::cnn(dst, src, o, {}, nthreads);
+        };
     if (chain == "nfor" || chain == "prefilter,nfor")
         return [spec, nthreads](ImageBuf& dst, const ImageBuf& src) {
             mcdn::NforOptions o;
@@ -55,7 +62,7 @@ mcdn::Denoiser named_denoiser(const std::string& chain, const mcdn::AovSpec& spe
             o.prefilter.aovs = spec;
             return mcdn::nfor(dst, src, o, {}, nthreads);
         };
-    throw std::runtime_error("sure: unknown denoiser '" + chain + "' (use 'nfor' or a callable)");
+    throw std::runtime_error("sure: unknown denoiser '" + chain + "' (use 'nfor', 'cnn' or a callable)");
 }
 
 }  // namespace
@@ -161,6 +168,22 @@ PYBIND11_MODULE(mcdenoise, m)
           py::arg("window") = 19, py::arg("patch") = 7, py::arg("mse") = false,
           py::arg("selection") = false, py::arg("nthreads") = 0,
           "NFOR: first-order regression denoiser (NFOR §5.2-5.4).");
+
+    m.def("cnn",
+          [](const ImageBuf& src, const std::string& preset,
+             const std::map<std::string, std::string>& aovs, const std::string& colorspace,
+             const std::string& weights, int nthreads) {
+              mcdn::CnnOptions o;
+              o.aovs = aov_spec(preset, aovs, colorspace);
+              o.weights = weights;
+              return run(src, [&](ImageBuf& d, const ImageBuf& s) {
+                  return mcdn::cnn(d, s, o, {}, nthreads);
+              });
+          },
+          py::arg("image"), py::arg("preset") = "cycles",
+          py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
+          py::arg("weights") = "", py::arg("nthreads") = 0,
+          "KPCN: kernel-predicting CNN denoiser with our trained weights.");
 
     m.def("sure",
           [](const ImageBuf& src, py::object denoiser, const std::string& preset,

@@ -92,6 +92,7 @@ TEST(OiioPlugin, ErrorsAreOiiotoolErrorsNotCrashes)
     for (const auto& [query, message] : std::vector<std::pair<std::string, std::string>> {
              { "x.mcdn?in=/nonexistent.exr", "/nonexistent.exr: no such file" },
              { box_query("nfor,blur"), "unknown stage 'blur'" },
+             { box_query("cnn") + "&cnn.weights=/nonexistent.mcdnw", "/nonexistent.mcdnw" },
              { box_query("nfor") + "&colour=1", "unknown key 'colour'" },
              { box_query("mix"), "mix needs sure before it" },
          }) {

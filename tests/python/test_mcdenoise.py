@@ -39,6 +39,11 @@ class OpsTakeAndReturnImageBufs(unittest.TestCase):
         self.assertLess(after["relmse"], 0.5 * noisy["relmse"])
         self.assertEqual(denoised.nchannels, self.render.nchannels)
 
+    def test_cnn_denoises(self):
+        noisy = mcdenoise.metrics(self.render, self.reference)
+        after = mcdenoise.metrics(mcdenoise.cnn(self.render), self.reference)
+        self.assertLess(after["relmse"], 0.5 * noisy["relmse"])
+
     def test_chain_prefilter_nfor_sure_mix(self):
         out = mcdenoise.prefilter(self.render)
         out = mcdenoise.sure(out, denoiser="nfor")

@@ -15,7 +15,7 @@ namespace mcdn {
 
 struct ChainOptions {
     AovSpec aovs;
-    /// Stage names in order: prefilter, nfor, sure, mix.
+    /// Stage names in order: prefilter, nfor, cnn, sure, mix.
     std::vector<std::string> stages = { "prefilter", "nfor" };
     /// Per-stage settings "stage.key" -> value: nfor.window=19, sure.probes=4,
     /// mix.model=net, mix.ttest=0, ... (the same keys as mcdntool's modifiers).

@@ -5,6 +5,7 @@
 
 #include <OpenImageIO/strutil.h>
 
+#include "mcdn/cnn.h"
 #include "mcdn/mix.h"
 #include "mcdn/nfor.h"
 #include "mcdn/prefilter.h"
@@ -17,7 +18,7 @@ namespace Strutil = OIIO::Strutil;
 
 namespace {
 
-const std::vector<std::string> kStages = { "prefilter", "nfor", "sure", "mix" };
+const std::vector<std::string> kStages = { "prefilter", "nfor", "cnn", "sure", "mix" };
 
 std::string setting(const ChainOptions& o, const std::string& key, const std::string& fallback)
 {
@@ -43,6 +44,12 @@ Denoiser denoiser_stage(const std::string& name, const ChainOptions& o, int nthr
         return [p, nthreads](ImageBuf& dst, const ImageBuf& src) {
             return prefilter(dst, src, p, {}, nthreads);
         };
+    }
+    if (name == "cnn") {
+        CnnOptions c;
+        c.aovs = o.aovs;
+        c.weights = setting(o, "cnn.weights", "");
+        return [c, nthreads](ImageBuf& dst, const ImageBuf& src) { return cnn(dst, src, c, {}, nthreads); };
     }
     NforOptions n;
     n.aovs = n.prefilter.aovs = o.aovs;
@@ -107,7 +114,7 @@ bool run_chain(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, ROI ro
         const std::string& name = o.stages[i];
         ImageBuf next;
         bool ok = true;
-        if (name == "prefilter" || name == "nfor") {
+        if (name == "prefilter" || name == "nfor" || name == "cnn") {
             // Denoisers wait: a sure after them runs them itself (K + 1 times), else they
             // run at the end.
             pending.push_back(denoiser_stage(name, o, nthreads));
