@@ -21,6 +21,8 @@
 #include "mcdn/metrics.h"
 #include "mcdn/nfor.h"
 
+#include "bench_data.h"
+
 using namespace mcdn;
 using Clock = std::chrono::steady_clock;
 namespace fs = std::filesystem;
@@ -119,13 +121,8 @@ std::vector<Input> inputs()
         if (fs::exists(shared(stem) + ".exr"))
             list.push_back({ "box", spp, shared(stem), shared("box/box_ref.exr") });
     }
-    const char* cache_env = std::getenv("MCDN_CACHE");
-    const fs::path cache = cache_env ? fs::path(cache_env)
-                                     : fs::path(std::getenv("HOME") ? std::getenv("HOME") : "/") / ".cache/mcdenoise";
-    fs::path root = cache / "datasets/eval";
-    const bool eval = fs::exists(root);
-    if (!eval)
-        root = cache / "datasets/full";
+    bool eval = false;
+    const fs::path root = mcdn_bench::generated_dataset(eval);
     if (!fs::exists(root))
         return list;
     std::vector<fs::path> crops;
