@@ -2,23 +2,14 @@
 #include "mcdn/aov.h"
 #include "mcdn/io.h"
 
+#include "fixtures.h"
 #include "mcdn_test.h"
+
+using mcdn_test::box16;
 
 using namespace mcdn;
 
 namespace {
-
-ImageBuf box16()
-{
-    ImageBuf merged;
-    std::string dir = mcdn_test::test_data("box16/");
-    EXPECT_TRUE(read_inputs(merged, { { dir + "box_0016spp.exr", InputKind::Mean },
-                                      { dir + "box_0016spp_var.exr", InputKind::Variance },
-                                      { dir + "box_0016spp_A.exr", InputKind::HalfA },
-                                      { dir + "box_0016spp_B.exr", InputKind::HalfB } }))
-        << merged.geterror();
-    return merged;
-}
 
 ImageBuf named(const std::vector<std::string>& names)
 {

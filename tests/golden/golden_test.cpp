@@ -5,30 +5,13 @@
 #include "mcdn/nfor.h"
 #include "mcdn/prefilter.h"
 
+#include "fixtures.h"
 #include "golden.h"
 
 using namespace mcdn;
 using namespace mcdn_test;
 
 namespace {
-
-ImageBuf box16()
-{
-    ImageBuf merged;
-    std::string d = test_data("box16/");
-    EXPECT_TRUE(read_inputs(merged, { { d + "box_0016spp.exr", InputKind::Mean },
-                                      { d + "box_0016spp_var.exr", InputKind::Variance },
-                                      { d + "box_0016spp_A.exr", InputKind::HalfA },
-                                      { d + "box_0016spp_B.exr", InputKind::HalfB } }));
-    return merged;
-}
-
-ImageBuf cornell20()
-{
-    ImageBuf merged;
-    EXPECT_TRUE(read_inputs(merged, { { test_data("cornell20"), InputKind::Mean } }));
-    return merged;
-}
 
 const std::vector<std::string> kBoxColour = { "ViewLayer.Combined.R", "ViewLayer.Combined.G",
                                               "ViewLayer.Combined.B" };

@@ -5,23 +5,12 @@
 
 #include "mcdn/color.h"
 #include "mcdn/nfor.h"
+#include "fixtures.h"
 #include "nfor_support.h"
 
 using namespace mcdn;
 
 namespace {
-
-OIIO::ImageBuf box16_fixture()
-{
-    OIIO::ImageBuf merged;
-    std::string b = mcdn_test::test_data("box16/box_0016spp");
-    EXPECT_TRUE(read_inputs(merged, { { b + ".exr", InputKind::Mean },
-                                      { b + "_var.exr", InputKind::Variance },
-                                      { b + "_A.exr", InputKind::HalfA },
-                                      { b + "_B.exr", InputKind::HalfB } }))
-        << merged.geterror();
-    return merged;
-}
 
 AovSet resolved(const OIIO::ImageBuf& img, const AovSpec& spec)
 {
@@ -43,7 +32,7 @@ AovSet resolved(const OIIO::ImageBuf& img, const AovSpec& spec)
 // Normals and depth are data: never converted, left untouched.
 TEST(NforColor, AcescgInputMatchesRec709PathConverted)
 {
-    OIIO::ImageBuf box = box16_fixture();
+    OIIO::ImageBuf box = mcdn_test::box16();
     NforOptions rec709;
     rec709.aovs.preset = "cycles";
     NforOptions aces = rec709;

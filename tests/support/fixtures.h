@@ -1,0 +1,32 @@
+// The committed render fixtures, merged the way the front ends merge them (io.h).
+#pragma once
+
+#include "mcdn/io.h"
+
+#include "mcdn_test.h"
+
+namespace mcdn_test {
+
+/// tests/data/box16: Blender Cycles 16 spp with variance and both halves (cycles preset).
+inline OIIO::ImageBuf box16()
+{
+    OIIO::ImageBuf merged;
+    std::string b = test_data("box16/box_0016spp");
+    EXPECT_TRUE(mcdn::read_inputs(merged, { { b + ".exr", mcdn::InputKind::Mean },
+                                            { b + "_var.exr", mcdn::InputKind::Variance },
+                                            { b + "_A.exr", mcdn::InputKind::HalfA },
+                                            { b + "_B.exr", mcdn::InputKind::HalfB } }))
+        << merged.geterror();
+    return merged;
+}
+
+/// tests/data/cornell20: a Tungsten buffer directory (tungsten preset).
+inline OIIO::ImageBuf cornell20()
+{
+    OIIO::ImageBuf merged;
+    EXPECT_TRUE(mcdn::read_inputs(merged, { { test_data("cornell20"), mcdn::InputKind::Mean } }))
+        << merged.geterror();
+    return merged;
+}
+
+}  // namespace mcdn_test
