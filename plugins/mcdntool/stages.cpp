@@ -72,6 +72,7 @@ bool queue_nfor(Session& s, const Command& c, std::string& error)
     o.extra_features = features_of(c);
     o.output_mse = c.modifier("mse", "0") == "1";
     o.output_selection = c.modifier("selection", "0") == "1";
+    o.denoise_extras = c.modifier("extras", "1") != "0";
     if (!width_to_radius(c, "window", o.window_radius, error)
         || !width_to_radius(c, "patch", o.patch_radius, error))
         return false;
@@ -99,6 +100,7 @@ bool queue_cnn(Session& s, const Command& c, std::string& error)
         o.weights = c.modifier("weights");
     if (c.has("tile"))
         o.tile_size = Strutil::stoi(c.modifier("tile"));
+    o.denoise_extras = c.modifier("extras", "1") != "0";
     s.queue("cnn", [o](ImageBuf& dst, const ImageBuf& src, int nthreads) {
         return mcdn::cnn(dst, src, o, {}, nthreads);
     });
@@ -153,15 +155,17 @@ std::vector<CommandInfo> stage_commands()
           "and visibility with their half buffers. window=11 patch=7 k=0.5; features=a,b "
           "adds extra feature channels.",
           queue_prefilter },
-        { "--nfor", "", { "window", "patch", "k", "mse", "selection", "features" },
+        { "--nfor", "", { "window", "patch", "k", "mse", "selection", "features", "extras" },
           "NFOR denoiser (§5.2-5.4): first-order regression on the features, collaborative, "
           "bandwidth chosen per pixel. window=19 patch=7 k=0.5,1.0; mse=1 and selection=1 "
           "add nfor.mse.* and nfor.selection.* channels. Prefilters the features itself "
-          "unless --prefilter ran.",
+          "unless --prefilter ran. Extra AOVs (light groups, extra.NAME) are denoised with "
+          "the beauty's weights so they still add up (extras=0: keep them as they are).",
           queue_nfor },
-        { "--cnn", "", { "weights", "tile" },
+        { "--cnn", "", { "weights", "tile", "extras" },
           "Kernel-predicting CNN denoiser (KPCN): diffuse/specular split, our trained weights "
-          "(models/kpcn.mcdnw; weights=FILE), tiled (tile=256).",
+          "(models/kpcn.mcdnw; weights=FILE), tiled (tile=256). Extra AOVs take their share "
+          "of the beauty's denoised light through its kernels (extras=0: keep them).",
           queue_cnn },
         { "--sure", "", { "probes", "eps", "seed" },
           "Monte-Carlo SURE of the denoisers before it (PD §3.2): adds sure.*, "

@@ -151,8 +151,9 @@ PYBIND11_MODULE(mcdenoise, m)
     m.def("nfor",
           [](const ImageBuf& src, const std::string& preset,
              const std::map<std::string, std::string>& aovs, const std::string& colorspace,
-             int window, int patch, bool mse, bool selection, int nthreads) {
+             int window, int patch, bool mse, bool selection, bool extras, int nthreads) {
               mcdn::NforOptions o;
+              o.denoise_extras = extras;
               o.aovs = aov_spec(preset, aovs, colorspace);
               o.prefilter.aovs = o.aovs;
               o.window_radius = o.second_window_radius = window / 2;
@@ -166,24 +167,27 @@ PYBIND11_MODULE(mcdenoise, m)
           py::arg("image"), py::arg("preset") = "cycles",
           py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
           py::arg("window") = 19, py::arg("patch") = 7, py::arg("mse") = false,
-          py::arg("selection") = false, py::arg("nthreads") = 0,
-          "NFOR: first-order regression denoiser (NFOR §5.2-5.4).");
+          py::arg("selection") = false, py::arg("extras") = true, py::arg("nthreads") = 0,
+          "NFOR: first-order regression denoiser (NFOR §5.2-5.4). extras: denoise the extra "
+          "AOVs (light groups) with the beauty's weights.");
 
     m.def("cnn",
           [](const ImageBuf& src, const std::string& preset,
              const std::map<std::string, std::string>& aovs, const std::string& colorspace,
-             const std::string& weights, int nthreads) {
+             const std::string& weights, bool extras, int nthreads) {
               mcdn::CnnOptions o;
               o.aovs = aov_spec(preset, aovs, colorspace);
               o.weights = weights;
+              o.denoise_extras = extras;
               return run(src, [&](ImageBuf& d, const ImageBuf& s) {
                   return mcdn::cnn(d, s, o, {}, nthreads);
               });
           },
           py::arg("image"), py::arg("preset") = "cycles",
           py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
-          py::arg("weights") = "", py::arg("nthreads") = 0,
-          "KPCN: kernel-predicting CNN denoiser with our trained weights.");
+          py::arg("weights") = "", py::arg("extras") = true, py::arg("nthreads") = 0,
+          "KPCN: kernel-predicting CNN denoiser with our trained weights. extras: denoise the "
+          "extra AOVs (light groups) with the beauty's kernels.");
 
     m.def("sure",
           [](const ImageBuf& src, py::object denoiser, const std::string& preset,

@@ -95,10 +95,13 @@ public:
     /// First channel index of a role (roles are contiguous or not; use channels() to be sure).
     int first(Role role) const { return has(role) ? m_channels[int(role)][0] : -1; }
 
+    /// An extra AOV and, where the inputs have them, its own variance and half buffers
+    /// ("variance.<channel>", "A.<channel>", "B.<channel>"; empty when absent).
     struct Extra {
         std::string name;
         std::vector<std::string> names;
         std::vector<int> channels;
+        std::vector<int> variance, half_a, half_b;
     };
     const std::vector<Extra>& extras() const { return m_extras; }
     const std::string& preset() const { return m_preset; }

@@ -48,6 +48,11 @@ struct NforOptions {
     bool prefilter_features = true;
     PrefilterOptions prefilter;  // its aovs and extra_features are taken from these options
 
+    /// Denoise the AOV set's extra AOVs (AovSpec::extras, Blender light groups) with the
+    /// beauty's regression weights and bandwidth selection, so that extras which add up to
+    /// the beauty still do. Each extra costs about the three regressions of the beauty.
+    bool denoise_extras = true;
+
     /// Add channels nfor.mse.R/G/B (estimated MSE of the chosen result, first pass) and
     /// nfor.selection.R/G/B (0: k = candidate_k[0], 1: candidate_k[1]).
     bool output_mse = false;

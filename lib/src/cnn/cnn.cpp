@@ -11,6 +11,7 @@
 #include <tbb/task_arena.h>
 
 #include "cnn/cnn_steps.h"
+#include "cnn/extras.h"
 #include "core/op_prepare.h"
 #include "mcdn/color.h"
 
@@ -68,9 +69,15 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
         dst.errorfmt("cnn: {}", error);
         return false;
     }
+    std::vector<ExtraPlanes> extras;
+    if (denoises_extras(options.denoise_extras, src) && !read_extras(extras, dst, aovs, false, error)) {
+        dst.errorfmt("cnn: {}", error);
+        return false;
+    }
     kpcn::Model model;
     const std::string path = options.weights.empty() ? default_cnn_weights() : options.weights;
-    if (!kpcn::load_model(model, path, error)) {
+    const int image_channels = extras.empty() ? 3 : 3 * (2 + int(extras.size()));
+    if (!kpcn::load_model(model, path, error, image_channels)) {
         dst.errorfmt("{}", error);
         return false;
     }
@@ -90,6 +97,8 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
     auto run_branch = [&](nn::Net& net, kpcn::Branch branch, nn::Tensor& result) {
         nn::Tensor features, image;
         kpcn::branch_inputs(raw, branch, features, image);
+        if (!extras.empty())
+            image = kpcn::with_extra_parts(image, raw, extras, branch);
         std::vector<nn::Tensor> outputs;
         if (!nn::run_tiled(net, { features, image }, outputs, error, tiles)) {
             error = "cnn: '" + path + "': " + error;
@@ -108,19 +117,31 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
     }
 
     // Eq. 4: (albedo + eps) · irradiance + exp(log specular) − 1.
+    kpcn::BranchResult diffuse, specular;
+    diffuse.filtered = &irradiance;
+    specular.filtered = &log_specular;
+    const size_t stride = size_t(log_specular.channels);
+    for (int c = 0; c < 3; ++c) {
+        specular.component[c] = Plane(raw.width(), raw.height());
+        diffuse.component[c] = Plane(raw.width(), raw.height());
+        for (size_t i = 0; i < raw.color[c].size(); ++i) {
+            specular.component[c].px[i] = std::expm1(log_specular.data[i * stride + c]);
+            if (raw.split)
+                diffuse.component[c].px[i] = (std::max(raw.demod[c].px[i], 0.0f)
+                                              + kpcn::kAlbedoEpsilon)
+                                             * irradiance.data[i * stride + c];
+        }
+    }
     const ROI where = output_roi(src, roi);
     const auto& colour = aovs.channels(Role::Color);
     for (int c = 0; c < 3; ++c) {
         Plane out(raw.width(), raw.height());
-        for (size_t i = 0; i < out.size(); ++i) {
-            float v = std::expm1(log_specular.data[i * 3 + c]);
-            if (raw.split)
-                v += (std::max(raw.demod[c].px[i], 0.0f) + kpcn::kAlbedoEpsilon)
-                     * irradiance.data[i * 3 + c];
-            out.px[i] = sanitize(v);
-        }
+        for (size_t i = 0; i < out.size(); ++i)
+            out.px[i] = sanitize(specular.component[c].px[i] + diffuse.component[c].px[i]);
         write_plane(dst, colour[c], out, where);
     }
+    // The extras' shares of the same components: they add up to the beauty.
+    kpcn::write_extras(dst, where, extras, raw.split ? &diffuse : nullptr, specular);
     return true;
 }
 

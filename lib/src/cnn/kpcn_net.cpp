@@ -9,13 +9,14 @@
 namespace mcdn {
 namespace kpcn {
 
-nn::Net build_branch(const std::string& prefix, int w1, int w2, int w3, int iterations)
+nn::Net build_branch(const std::string& prefix, int w1, int w2, int w3, int iterations,
+                     int image_channels)
 {
     using nn::Value;
     nn::Net net("kpcn." + prefix);
     const std::string p = prefix + ".";
     Value features = net.input("features", kInputChannels);
-    Value image = net.input("image", 3);
+    Value image = net.input("image", image_channels);
     Value e1 = net.conv(features, p + "enc1", w1, 3);
     Value e2 = net.conv(net.conv(net.max_pool2(e1), p + "enc2a", w2, 3), p + "enc2b", w2, 3);
     Value b = net.conv(net.conv(net.max_pool2(e2), p + "bottleneck_a", w3, 3),
@@ -54,7 +55,7 @@ nn::Weights subset(const nn::Weights& weights, const std::string& prefix)
 
 }  // namespace
 
-bool load_model(Model& model, const std::string& path, std::string& error)
+bool load_model(Model& model, const std::string& path, std::string& error, int image_channels)
 {
     nn::Weights weights;
     if (!nn::read_weights(path, weights, error)) {
@@ -82,7 +83,7 @@ bool load_model(Model& model, const std::string& path, std::string& error)
             return false;
         }
         nn::Net& net = std::string(branch) == "diffuse" ? model.diffuse : model.specular;
-        net = build_branch(branch, w1, w2, w3, head / taps);
+        net = build_branch(branch, w1, w2, w3, head / taps, image_channels);
         if (!net.load(subset(weights, p), error)) {
             error = "cnn: " + error;  // names the file, the tensor and both shapes
             return false;

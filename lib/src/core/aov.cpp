@@ -299,7 +299,7 @@ bool resolve_aovs(AovSet& set, const AovSpec& spec, const ImageSpec& merged,
                 join(names, ","), channel_source(merged, names[0]), channel_list(merged));
             return false;
         }
-        set.m_extras.push_back({ name, names, indices });
+        set.m_extras.push_back({ name, names, indices, {}, {}, {} });
     }
     // Blender light groups ("<layer>.Combined_<group>.RGB") are denoised alongside.
     if (spec.preset == "cycles" && !layer.empty()) {
@@ -310,9 +310,17 @@ bool resolve_aovs(AovSet& set, const AovSpec& spec, const ImageSpec& merged,
                 std::vector<std::string> names = with_suffixes(group, "RGB");
                 std::vector<int> indices = find_channels(merged, names);
                 if (!indices.empty() && !spec.extras.count(group))
-                    set.m_extras.push_back({ group, names, indices });
+                    set.m_extras.push_back({ group, names, indices, {}, {}, {} });
             }
         }
+    }
+    for (AovSet::Extra& extra : set.m_extras) {
+        extra.variance = find_channels(merged, prefixed(input_kind_prefix(InputKind::Variance),
+                                                        extra.names));
+        extra.half_a = find_channels(merged, prefixed(input_kind_prefix(InputKind::HalfA),
+                                                      extra.names));
+        extra.half_b = find_channels(merged, prefixed(input_kind_prefix(InputKind::HalfB),
+                                                      extra.names));
     }
     return true;
 }

@@ -49,6 +49,7 @@ Denoiser denoiser_stage(const std::string& name, const ChainOptions& o, int nthr
         CnnOptions c;
         c.aovs = o.aovs;
         c.weights = setting(o, "cnn.weights", "");
+        c.denoise_extras = setting(o, "cnn.extras", "1") != "0";
         return [c, nthreads](ImageBuf& dst, const ImageBuf& src) { return cnn(dst, src, c, {}, nthreads); };
     }
     NforOptions n;
@@ -57,6 +58,7 @@ Denoiser denoiser_stage(const std::string& name, const ChainOptions& o, int nthr
     n.patch_radius = radius(o, "nfor.patch", n.patch_radius);
     n.output_mse = setting(o, "nfor.mse", "0") == "1";
     n.output_selection = setting(o, "nfor.selection", "0") == "1";
+    n.denoise_extras = setting(o, "nfor.extras", "1") != "0";
     return [n, nthreads](ImageBuf& dst, const ImageBuf& src) { return nfor(dst, src, n, {}, nthreads); };
 }
 

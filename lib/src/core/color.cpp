@@ -62,7 +62,19 @@ std::vector<ColourGroup> colour_groups(const ImageBuf& buf, const AovSet& aovs)
             groups.push_back({ aovs.channels(r), true });
     for (const auto& extra : aovs.extras())
         if (extra.channels.size() == 3)
-            groups.push_back({ extra.channels, false });
+            for (const auto* face : { &extra.channels, &extra.half_a, &extra.half_b,
+                                      &extra.variance })
+                if (!face->empty())
+                    groups.push_back({ *face, face == &extra.variance });
+    for (const auto& extra : aovs.extras())
+        if (extra.channels.size() == 3) {
+            std::vector<int> noisy;
+            for (const auto& name : extra.names)
+                if (buf.spec().channelindex("noisy." + name) >= 0)
+                    noisy.push_back(buf.spec().channelindex("noisy." + name));
+            if (noisy.size() == 3)
+                groups.push_back({ noisy, false });
+        }
     std::vector<int> noisy;
     for (const char* name : { "noisy.R", "noisy.G", "noisy.B" })
         if (buf.spec().channelindex(name) >= 0)

@@ -83,6 +83,20 @@ bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options, ROI roi,
         if (options.output_alpha)
             write_plane(dst, alpha_channels[c], alpha[c], where);
     }
+    // Extra AOVs that sure recorded x for: the same alpha', so they still add up to z.
+    for (const AovSet::Extra& extra : aovs.extras()) {
+        if (extra.channels.size() != 3)
+            continue;
+        for (int c = 0; c < 3; ++c) {
+            const int noisy = src.spec().channelindex(sure_channels::noisy_extra(extra.names[c]));
+            if (noisy < 0)
+                break;
+            Plane x = read_plane(src, noisy), y = read_plane(src, extra.channels[c]);
+            for (size_t i = 0; i < x.size(); ++i)
+                x.px[i] = sanitize(x.px[i] + alpha[c].px[i] * (y.px[i] - x.px[i]));
+            write_plane(dst, extra.channels[c], x, where);
+        }
+    }
     return true;
 }
 

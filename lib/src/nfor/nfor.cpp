@@ -9,10 +9,12 @@
 
 #include <OpenImageIO/imagebufalgo.h>
 
+#include "core/extra_aovs.h"
 #include "core/feature_channels.h"
 #include "core/nl_means.h"
 #include "core/op_prepare.h"
 #include "mcdn/color.h"
+#include "nfor/extras.h"
 #include "nfor/mse_estimate.h"
 #include "nfor/regression.h"
 #include "prefilter/feature_prefilter.h"
@@ -104,6 +106,11 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     std::vector<FeaturePlanes> features;
     for (const FeatureChannel& f : feature_channels)
         features.push_back(read_feature(src, f));
+    std::vector<ExtraPlanes> extras;
+    if (denoises_extras(options.denoise_extras, src) && !read_extras(extras, src, aovs, true, error)) {
+        dst.errorfmt("{}: {}", op, error);
+        return false;
+    }
 
     // §5.1: prefiltered features, unless the prefilter op ran already.
     const bool prefiltered = src.spec().get_int_attribute("mcdn:prefiltered", 0) == 1;
@@ -125,28 +132,27 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
 
     // §5.2: half A fitted with the features and colour weights of half B, and vice versa,
     // for each candidate bandwidth; §5.3: the two-buffer MSE estimate of each candidate.
+    RegressionInputs first_a, first_b;  // kept for the extra AOVs
+    first_a.window_radius = options.window_radius;
+    first_a.patch_radius = options.patch_radius;
+    first_a.bandwidths = { options.candidate_k[0], options.candidate_k[1] };
+    first_a.variance_scale = options.variance_scale;
+    first_b = first_a;
+    for (int c = 0; c < 3; ++c) {
+        first_a.image[c] = &color.half_a[c];
+        first_a.guide[c] = &color.half_b[c];
+        first_b.image[c] = &color.half_b[c];
+        first_b.guide[c] = &color.half_a[c];
+        first_a.variance[c] = first_b.variance[c] = &color.variance[c];
+    }
+    first_a.features = features_b;
+    first_b.features = features_a;
     std::vector<Plane> fit_a[2], fit_b[2], mse[2];
     {
-        RegressionInputs in;
-        in.window_radius = options.window_radius;
-        in.patch_radius = options.patch_radius;
-        in.bandwidths = { options.candidate_k[0], options.candidate_k[1] };
-        in.variance_scale = options.variance_scale;
-        for (int c = 0; c < 3; ++c) {
-            in.image[c] = &color.half_a[c];
-            in.guide[c] = &color.half_b[c];
-            in.variance[c] = &color.variance[c];
-        }
-        in.features = features_b;
-        std::vector<std::vector<Plane>> fits = collaborative_regression(in, nthreads);
+        std::vector<std::vector<Plane>> fits = collaborative_regression(first_a, nthreads);
         fit_a[0] = std::move(fits[0]);
         fit_a[1] = std::move(fits[1]);
-        for (int c = 0; c < 3; ++c) {
-            in.image[c] = &color.half_b[c];
-            in.guide[c] = &color.half_a[c];
-        }
-        in.features = features_a;
-        fits = collaborative_regression(in, nthreads);
+        fits = collaborative_regression(first_b, nthreads);
         fit_b[0] = std::move(fits[0]);
         fit_b[1] = std::move(fits[1]);
     }
@@ -188,8 +194,8 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
         combined_variance[c] = result_a[c];
         for (size_t i = 0; i < result_a[c].size(); ++i) {
             float s = selection[c].px[i];
-            float a = fit_a[0][c].px[i] + s * (fit_a[1][c].px[i] - fit_a[0][c].px[i]);
-            float b = fit_b[0][c].px[i] + s * (fit_b[1][c].px[i] - fit_b[0][c].px[i]);
+            float a = blend_candidates(fit_a, c, i, s);
+            float b = blend_candidates(fit_b, c, i, s);
             // §5.4: the second pass filters the average of the halves, whose variance the
             // halves' squared difference estimates.
             combined[c].px[i] = 0.5f * (a + b);
@@ -228,6 +234,19 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     roi = output_roi(dst, roi);
     for (int c = 0; c < 3; ++c)
         write_plane(dst, aovs.channels(Role::Color)[c], denoised[c], roi);
+
+    // Extra AOVs through the same filters: their sum stays the denoised beauty.
+    if (!extras.empty()) {
+        BeautyFilters filters { first_a, first_b, selection, second };
+        std::vector<std::vector<Plane>> denoised_extras;
+        for (const ExtraPlanes& extra : extras)
+            denoised_extras.push_back(denoise_extra(extra, filters, nthreads));
+        share_rounding(denoised_extras, extras, color.mean, denoised);
+        for (size_t e = 0; e < extras.size(); ++e)
+            for (int c = 0; c < 3; ++c)
+                write_plane(dst, extras[e].channels[c], denoised_extras[e][c], roi);
+    }
+    timer("extra AOVs");
 
     if (options.output_mse || options.output_selection) {
         const ImageSpec& spec = dst.spec();

@@ -100,6 +100,7 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
                              * standard_normal(options.seed, uint64_t(k), i * 3 + c);
         }
         ImageBuf probed = noisy.copy(OIIO::TypeDesc::FLOAT);
+        probed.specmod().attribute(sure_channels::kProbeAttribute, 1);
         for (size_t g = 0; g < moved.size(); g += 3)
             add_probe(probed, { moved[g], moved[g + 1], moved[g + 2] }, b, eps);
         ImageBuf response;
@@ -121,8 +122,17 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
     for (const auto* group : { sure_channels::kNoisy, sure_channels::kSure,
                                sure_channels::kDivergence, sure_channels::kResidual })
         names.insert(names.end(), group, group + 3);
+    std::vector<int> extra_channels;  // x of the extras, so that mix can mix them too
+    for (const AovSet::Extra& extra : aovs.extras())
+        if (extra.channels.size() == 3)
+            for (int c = 0; c < 3; ++c) {
+                names.push_back(sure_channels::noisy_extra(extra.names[c]));
+                extra_channels.push_back(extra.channels[c]);
+            }
     std::vector<int> out = add_channels(dst, names);
     ROI where = output_roi(src, roi);
+    for (size_t e = 0; e < extra_channels.size(); ++e)
+        write_plane(dst, out[12 + e], read_plane(noisy, extra_channels[e]), where);
     for (int c = 0; c < 3; ++c) {
         Plane residual(w, h), estimate(w, h);
         for (size_t i = 0; i < residual.size(); ++i) {

@@ -1,0 +1,68 @@
+#include "cnn/extras.h"
+
+#include <algorithm>
+
+namespace mcdn {
+namespace kpcn {
+
+namespace {
+
+/// r = diffuse / colour in [0, 1] (0 without a split or where the colour is ~0).
+float diffuse_fraction(const RawPlanes& raw, int c, size_t i)
+{
+    const float colour = raw.color[c].px[i];
+    if (!raw.split || !(std::abs(colour) > 1e-12f))
+        return 0.0f;
+    return std::clamp(raw.diffuse[c].px[i] / colour, 0.0f, 1.0f);
+}
+
+}  // namespace
+
+nn::Tensor with_extra_parts(const nn::Tensor& image, const RawPlanes& raw,
+                            const std::vector<ExtraPlanes>& extras, Branch branch)
+{
+    const int parts = 1 + int(extras.size());
+    nn::Tensor out(image.height, image.width, 3 * (1 + parts));
+    const size_t n = size_t(image.height) * image.width;
+    for (size_t i = 0; i < n; ++i) {
+        float* o = out.data.data() + i * out.channels;
+        for (int c = 0; c < 3; ++c) {
+            o[c] = image.data[i * 3 + c];
+            const float r = diffuse_fraction(raw, c, i);
+            const float share = branch == Branch::diffuse
+                                    ? r / (std::max(raw.demod[c].px[i], 0.0f) + kAlbedoEpsilon)
+                                    : 1.0f - r;
+            o[3 + c] = share * raw.color[c].px[i];
+            for (int e = 0; e < int(extras.size()); ++e)
+                o[6 + 3 * e + c] = share * extras[e].mean[c].px[i];
+        }
+    }
+    return out;
+}
+
+void write_extras(ImageBuf& dst, ROI roi, const std::vector<ExtraPlanes>& extras,
+                  const BranchResult* diffuse, const BranchResult& specular)
+{
+    // The extra's share of one branch's component at pixel i (0 where the colour's filtered
+    // part vanishes: there the component has nothing to share).
+    auto share = [](const BranchResult& b, int e, int c, size_t i) {
+        const float* f = b.filtered->data.data() + i * b.filtered->channels;
+        const float whole = f[3 + c];
+        return std::abs(whole) > 1e-12f ? b.component[c].px[i] * (f[6 + 3 * e + c] / whole)
+                                        : 0.0f;
+    };
+    for (int e = 0; e < int(extras.size()); ++e)
+        for (int c = 0; c < 3; ++c) {
+            Plane out = specular.component[c];
+            for (size_t i = 0; i < out.size(); ++i) {
+                float v = share(specular, e, c, i);
+                if (diffuse)
+                    v += share(*diffuse, e, c, i);
+                out.px[i] = sanitize(v);
+            }
+            write_plane(dst, extras[e].channels[c], out, roi);
+        }
+}
+
+}  // namespace kpcn
+}  // namespace mcdn

@@ -1,0 +1,112 @@
+// Extra AOVs (light groups) denoised with the beauty's regression weights add up to the
+// denoised beauty, with or without half buffers of their own, and are denoised, not copied.
+#include <OpenImageIO/imagebufalgo.h>
+
+#include "fixtures.h"
+#include "mcdn/metrics.h"
+#include "mcdn/mix.h"
+#include "mcdn/nfor.h"
+#include "mcdn/sure.h"
+#include "partition.h"
+
+using namespace mcdn;
+using namespace mcdn_test;
+
+namespace {
+
+/// relMSE of channels `a` of x against channels `b` of y.
+double channel_relmse(const OIIO::ImageBuf& x, const std::vector<int>& a, const OIIO::ImageBuf& y,
+                      const std::vector<int>& b)
+{
+    MetricsOptions options;
+    options.image_channels = a;
+    options.reference_channels = b;
+    Metrics m;
+    std::string error;
+    EXPECT_TRUE(compute_metrics(m, x, y, options, error)) << error;
+    return m.relmse;
+}
+
+}  // namespace
+
+TEST(NforExtras, LightGroupsAddUpToTheDenoisedBeauty)
+{
+    for (bool own_halves : { true, false }) {
+        Partition p = add_light_groups(box16(), "cycles", own_halves);
+        NforOptions o;
+        o.aovs = p.spec;
+        ImageBuf out = nfor(p.image, o);
+        ASSERT_FALSE(out.has_error()) << out.geterror();
+        EXPECT_LT(partition_error(out, p), 1e-4) << (own_halves ? "own halves" : "borrowed halves");
+        EXPECT_LT(partition_error(p.image, p), 1e-5);  // the input partitions the beauty
+
+        // Denoised, not copied: the key moved as far as the beauty's noise.
+        const double changed = channel_relmse(out, p.key, p.image, p.key);
+        EXPECT_GT(changed, 1e-3);
+    }
+}
+
+// The rounding share (nfor/extras.h) does not hide a wrong filter: with the fill shifted by a
+// constant the input no longer adds up, nothing is shared, and the result is off by that
+// constant (regressions reproduce constants) plus only the regressions' rounding.
+TEST(NforExtras, WithoutTheRoundingShareTheyAddUpToRounding)
+{
+    Partition p = add_light_groups(box16(), "cycles", true);
+    const float shift = 0.01f;
+    std::vector<float> add(p.image.nchannels(), 0.0f);
+    for (const char* face : { "", "A.", "B." })
+        for (const char* c : { "R", "G", "B" }) {
+            int ch = p.image.spec().channelindex(std::string(face) + "ViewLayer.Combined_fill." + c);
+            ASSERT_GE(ch, 0);
+            add[ch] = shift;
+        }
+    ImageBuf shifted = OIIO::ImageBufAlgo::add(p.image, add);
+    NforOptions o;
+    o.aovs = p.spec;
+    ImageBuf out = nfor(shifted, o);
+    ASSERT_FALSE(out.has_error()) << out.geterror();
+    EXPECT_LT(partition_error(out, p, shift), 1e-2);  // measured 3.7e-3 (2.5e-6 when shared)
+    EXPECT_GT(partition_error(out, p, shift), 1e-5);  // and the share is really off here
+}
+
+TEST(NforExtras, SwitchedOffTheExtrasAreKept)
+{
+    Partition p = add_light_groups(box16(), "cycles", true);
+    NforOptions o;
+    o.aovs = p.spec;
+    o.denoise_extras = false;
+    ImageBuf out = nfor(p.image, o);
+    ASSERT_FALSE(out.has_error()) << out.geterror();
+    EXPECT_EQ(channel_relmse(out, p.key, p.image, p.key), 0.0);
+}
+
+TEST(NforExtras, AnExtraThatIsNotRgbIsAnError)
+{
+    ImageBuf merged = box16();
+    NforOptions o;
+    std::string error;
+    ASSERT_TRUE(o.aovs.parse_override("extra.depth=ViewLayer.Depth.Z", error)) << error;
+    ImageBuf out = nfor(merged, o);
+    ASSERT_TRUE(out.has_error());
+    EXPECT_NE(out.geterror().find("extra aov 'depth'"), std::string::npos) << out.geterror();
+}
+
+// Through the progressive mix the extras get the beauty's alpha': they still add up.
+TEST(NforExtras, ThroughSureAndMixTheyStillAddUp)
+{
+    Partition p = add_light_groups(box16(), "cycles", true);
+    NforOptions n;
+    n.aovs = p.spec;
+    SureOptions s;
+    s.aovs = p.spec;
+    ImageBuf sured = sure(p.image, [&](ImageBuf& dst, const ImageBuf& src) {
+        return nfor(dst, src, n);
+    }, s);
+    ASSERT_FALSE(sured.has_error()) << sured.geterror();
+    MixOptions m;
+    m.aovs = p.spec;
+    ImageBuf out = mix(sured, m);
+    ASSERT_FALSE(out.has_error()) << out.geterror();
+    EXPECT_LT(partition_error(out, p), 1e-4);
+    EXPECT_GT(channel_relmse(out, p.key, sured, p.key), 1e-6);  // mixed, not the NFOR result
+}
