@@ -120,7 +120,7 @@ def scaling_renders(source, sizes, workdir):
                                                 files + [(stem + "_ref.exr", "")]):
             if not os.path.exists(dst_path):
                 write_square(oiio.ImageBuf(src_path), size, dst_path)
-        renders.append(Render("scaling", f"{source.scene}-scaled", source.spp, source.preset, files,
+        renders.append(Render("scaling", f"{source.scene}{size}", source.spp, source.preset, files,
                               stem + "_ref.exr", notes={"made_from": source.key}))
     return renders
 
