@@ -131,8 +131,9 @@ lines are means over the set's crops. All numbers: <a href="results.csv">results
 <p>SSIM (higher is better).</p>
 {table("error-ssim", ssim_header, ssim_body, ssim_best)}
 <h2>Time and memory</h2>
-<p>Stage time: the denoising stages alone (mcdntool -v), mean per image size; in brackets as a
-multiple of the baseline op timed just before each run; peak RSS of the mcdntool process.</p>
+<p>Stage time: the wall time of the denoising stages alone (mcdntool -v), mean per image size;
+in brackets as a multiple of the baseline op timed just before each run; then the user+system
+CPU time of the whole mcdntool process (reading and writing included) and its peak RSS.</p>
 {table("speed", speed_header, speed_body)}
 <h2>Plots</h2>
 <div class="plots">{plot_images}</div>

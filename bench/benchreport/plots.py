@@ -5,7 +5,8 @@
                    set as the mean over its crops)
   pareto           error against time (x the in-run baseline): each chain's mean over a group,
                    the chains no other chain beats on both joined (the Pareto front)
-  time_vs_pixels   stage time and peak memory against pixel count, one line per chain
+  time_vs_pixels   stage wall time, process CPU time and peak memory against pixel count,
+                   one line per chain (CPU time is what survives a busy machine)
 """
 import math
 from collections import defaultdict
@@ -14,6 +15,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402  (after choosing the backend)
+import matplotlib.ticker  # noqa: E402
 
 from .runs import CHAINS  # noqa: E402
 from .summary import chain_order, group_title, ok_rows  # noqa: E402
@@ -121,6 +123,7 @@ def pareto(rows, path):
                 label="Pareto front")
         ax.set_xscale("log")
         ax.set_yscale("log")
+        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())  # labels collide
         ax.set_xlabel("stage time / baseline op (same run)")
         ax.set_ylabel("relMSE")
         n = len({(r["scene"], r["spp"]) for r in group_rows})
@@ -135,9 +138,10 @@ def pareto(rows, path):
 def time_vs_pixels(rows, path):
     rows = [r for r in ok_rows(rows) if r["chain"] != "noisy"]
     chains = chain_order(rows)
-    figure, axes = plt.subplots(1, 2, figsize=(9, 3.4))
-    for ax, key, label in ((axes[0], "stage_s", "stage time (s)"),
-                           (axes[1], "peak_rss_mb", "peak RSS of the process (MB)")):
+    figure, axes = plt.subplots(1, 3, figsize=(12, 3.4))
+    for ax, key, label in ((axes[0], "stage_s", "stage wall time (s)"),
+                           (axes[1], "cpu_s", "process CPU time (s)"),
+                           (axes[2], "peak_rss_mb", "peak RSS of the process (MB)")):
         for chain in chains:
             per = defaultdict(list)
             for row in rows:
@@ -151,8 +155,9 @@ def time_vs_pixels(rows, path):
         ax.set_xlabel("pixels")
         ax.set_ylabel(label)
         ax.grid(True, which="both", alpha=0.3)
-    axes[0].set_title("time (mean per size)", fontsize=9)
-    axes[1].set_title("memory (mean per size)", fontsize=9)
+    axes[0].set_title("denoising stages, wall (mean per size)", fontsize=9)
+    axes[1].set_title("whole mcdntool run, user+system CPU", fontsize=9)
+    axes[2].set_title("memory (mean per size)", fontsize=9)
     axes[0].legend(fontsize=7, loc="best")
     figure.tight_layout()
     figure.savefig(path, dpi=DPI)
