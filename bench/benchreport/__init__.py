@@ -1,0 +1,1 @@
+"""The benchmark report (bench/report): every chain on every scene x spp -> CSV, plots, HTML."""
