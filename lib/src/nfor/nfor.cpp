@@ -106,11 +106,14 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     std::vector<FeaturePlanes> features;
     for (const FeatureChannel& f : feature_channels)
         features.push_back(read_feature(src, f));
-    std::vector<ExtraPlanes> extras;
-    if (denoises_extras(options.denoise_extras, src) && !read_extras(extras, src, aovs, true, error)) {
+    std::vector<ExtraPlanes> extra_planes;
+    if (denoises_extras(options.denoise_extras, src)
+        && !read_extras(extra_planes, src, aovs, true, error)) {
         dst.errorfmt("{}: {}", op, error);
         return false;
     }
+    // Extra AOVs go through the beauty's filters stage by stage (nfor/extras.h).
+    ExtraAovs extras(std::move(extra_planes));
 
     // §5.1: prefiltered features, unless the prefilter op ran already.
     const bool prefiltered = src.spec().get_int_attribute("mcdn:prefiltered", 0) == 1;
@@ -131,7 +134,7 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
 
     // §5.2: half A fitted with the features and colour weights of half B, and vice versa,
     // for each candidate bandwidth; §5.3: the two-buffer MSE estimate of each candidate.
-    RegressionInputs first_a, first_b;  // kept for the extra AOVs
+    RegressionInputs first_a, first_b;
     first_a.window_radius = options.window_radius;
     first_a.patch_radius = options.patch_radius;
     first_a.bandwidths = { options.candidate_k[0], options.candidate_k[1] };
@@ -155,6 +158,7 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
         fit_b[0] = std::move(fits[0]);
         fit_b[1] = std::move(fits[1]);
     }
+    extras.first_pass(first_a, first_b, nthreads);
     for (FeaturePlanes& f : features) {
         f.half_a = Plane();
         f.half_b = Plane();
@@ -216,6 +220,7 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
             mse0[c].px[i] = mse0[c].px[i] + s * (mse1[c].px[i] - mse0[c].px[i]);
         }
     }
+    extras.blend(selection);
     for (int j = 0; j < 2; ++j) {
         fit_a[j].clear();
         fit_b[j].clear();
@@ -240,6 +245,7 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     second.features = features_mean;
     timer("blend");
     std::vector<Plane> denoised = std::move(collaborative_regression(second, nthreads)[0]);
+    extras.second_pass(second, nthreads);
     for (int c = 0; c < 3; ++c) {
         combined[c] = Plane();
         combined_variance[c] = Plane();
@@ -262,18 +268,11 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     for (int c = 0; c < 3; ++c)
         write_plane(dst, aovs.channels(Role::Color)[c], denoised[c], roi);
 
-    // Extra AOVs through the same filters: their sum stays the denoised beauty.
+    // The extras' sum stays the denoised beauty.
     if (!extras.empty()) {
-        BeautyFilters filters { first_a, first_b, selection, second };
-        std::vector<std::vector<Plane>> denoised_extras;
-        for (const ExtraPlanes& extra : extras)
-            denoised_extras.push_back(denoise_extra(extra, filters, nthreads));
-        share_rounding(denoised_extras, extras, color.mean, denoised);
-        for (size_t e = 0; e < extras.size(); ++e)
-            for (int c = 0; c < 3; ++c)
-                write_plane(dst, extras[e].channels[c], denoised_extras[e][c], roi);
+        extras.share_rounding(color.mean, denoised);
+        extras.write(dst, roi);
     }
-    timer("extra AOVs");
 
     if (options.output_mse || options.output_selection) {
         const ImageSpec& spec = dst.spec();
