@@ -92,7 +92,7 @@ struct DistanceScratch {
 /// Written to out[(y - tile.y0) * stride + (x - tile.x0)] (rows of round_up_lanes(tile
 /// width) writable floats); with `take_max` the result is max(out, d²) (the regression
 /// combines colour channels by their largest distance). Pixels whose neighbour falls outside
-/// the image are left untouched: the caller fills `out` with +inf first.
+/// the image get +inf: columns here, rows by the caller, who fills `out` with +inf first.
 MCDN_INLINE void patch_distance(float* out, int stride, const LocalPlane& guide,
                                 const LocalPlane& variance, int width, int height, Rect tile,
                                 int dx, int dy, int patch_radius, float k, float variance_scale,
@@ -153,8 +153,7 @@ MCDN_INLINE void patch_distance(float* out, int stride, const LocalPlane& guide,
         }
 
     float* colsum = scratch.column_sum.data();
-    alignas(64) static const int32_t iota[kLanes] = { 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15 };
-    const vint16 lane = *reinterpret_cast<const vint16*>(iota);
+    const float inf = std::numeric_limits<float>::infinity();
     for (int y = vy0; y < vy1; ++y) {
         // Vertical box sum, summed afresh per row (a running sum would leave rounding
         // residues where the exact sum is 0: identical patches must keep d = 0 exactly, or
@@ -177,13 +176,18 @@ MCDN_INLINE void patch_distance(float* out, int stride, const LocalPlane& guide,
             vfloat16 d = s * inv_cy;
             if (x_border)
                 d *= load16(inv_cx + i);
-            const vint16 x = lane + (tile.x0 + i);
-            const auto valid = (x >= vx0) & (x < vx1);
-            vfloat16 old = load16(o + i);
-            if (take_max)
+            if (take_max) {
+                vfloat16 old = load16(o + i);
                 d = d > old ? d : old;
-            store16(o + i, valid ? d : old);
+            }
+            store16(o + i, d);
         }
+        // Columns whose neighbour is outside the image, and lanes past the tile, stay +inf
+        // (a per-lane mask in the loop above compiles to scalar code).
+        for (int x = tile.x0; x < vx0; ++x)
+            o[x - tile.x0] = inf;
+        for (int x = vx1; x < tile.x0 + nxv; ++x)
+            o[x - tile.x0] = inf;
     }
 }
 

@@ -4,7 +4,7 @@ namespace mcdn {
 
 namespace {
 
-/// The candidate fits of `in` with `image` in place of the beauty's half.
+/// The fits of `in` with `image` in place of the beauty's.
 std::vector<std::vector<Plane>> fit(RegressionInputs in, const Plane image[3], int nthreads)
 {
     for (int c = 0; c < 3; ++c)
@@ -14,54 +14,81 @@ std::vector<std::vector<Plane>> fit(RegressionInputs in, const Plane image[3], i
 
 }  // namespace
 
-std::vector<Plane> denoise_extra(const ExtraPlanes& extra, const BeautyFilters& beauty,
-                                 int nthreads)
+ExtraAovs::ExtraAovs(std::vector<ExtraPlanes> extras)
 {
-    std::vector<std::vector<Plane>> fits_a = fit(beauty.first_a, extra.half_a, nthreads);
-    std::vector<std::vector<Plane>> fits_b = fit(beauty.first_b, extra.half_b, nthreads);
-    Plane combined[3];
-    for (int c = 0; c < 3; ++c) {
-        combined[c] = Plane(extra.mean[c].width, extra.mean[c].height);
-        for (size_t i = 0; i < combined[c].size(); ++i) {
-            const float s = beauty.selection[c].px[i];
-            combined[c].px[i] = 0.5f * (blend_candidates(fits_a.data(), c, i, s)
-                                        + blend_candidates(fits_b.data(), c, i, s));
-        }
-    }
-    fits_a.clear();
-    fits_b.clear();
-    std::vector<Plane> denoised = std::move(fit(beauty.second, combined, nthreads)[0]);
-    for (int c = 0; c < 3; ++c)
-        for (size_t i = 0; i < denoised[c].size(); ++i)
-            if (!std::isfinite(denoised[c].px[i]))
-                denoised[c].px[i] = extra.mean[c].px[i];
-    return denoised;
+    for (ExtraPlanes& e : extras)
+        m_extras.push_back({ std::move(e), {}, {}, {}, {} });
 }
 
-void share_rounding(std::vector<std::vector<Plane>>& denoised,
-                    const std::vector<ExtraPlanes>& extras, const Plane colour[3],
-                    const std::vector<Plane>& denoised_colour)
+void ExtraAovs::first_pass(const RegressionInputs& first_a, const RegressionInputs& first_b,
+                           int nthreads)
+{
+    for (Extra& e : m_extras) {
+        e.fits_a = fit(first_a, e.planes.half_a, nthreads);
+        e.fits_b = fit(first_b, e.planes.half_b, nthreads);
+        for (int c = 0; c < 3; ++c)
+            e.planes.half_a[c] = e.planes.half_b[c] = Plane();
+    }
+}
+
+void ExtraAovs::blend(const std::vector<Plane>& selection)
+{
+    for (Extra& e : m_extras) {
+        for (int c = 0; c < 3; ++c) {
+            e.combined[c] = Plane(e.planes.mean[c].width, e.planes.mean[c].height);
+            for (size_t i = 0; i < e.combined[c].size(); ++i) {
+                const float s = selection[c].px[i];
+                e.combined[c].px[i] = 0.5f * (blend_candidates(e.fits_a.data(), c, i, s)
+                                              + blend_candidates(e.fits_b.data(), c, i, s));
+            }
+        }
+        e.fits_a.clear();
+        e.fits_b.clear();
+    }
+}
+
+void ExtraAovs::second_pass(const RegressionInputs& second, int nthreads)
+{
+    for (Extra& e : m_extras) {
+        e.denoised = std::move(fit(second, e.combined, nthreads)[0]);
+        for (int c = 0; c < 3; ++c) {
+            e.combined[c] = Plane();
+            for (size_t i = 0; i < e.denoised[c].size(); ++i)
+                if (!std::isfinite(e.denoised[c].px[i]))
+                    e.denoised[c].px[i] = e.planes.mean[c].px[i];
+        }
+    }
+}
+
+void ExtraAovs::share_rounding(const Plane colour[3], const std::vector<Plane>& denoised_colour)
 {
     constexpr double kAddsUp = 1e-5;  // relative to the pixel's magnitude
     for (int c = 0; c < 3; ++c)
         for (size_t i = 0; i < colour[c].size(); ++i) {
             double input_sum = 0, input_scale = std::abs(colour[c].px[i]);
             double output_sum = 0, output_scale = 0;
-            for (size_t e = 0; e < extras.size(); ++e) {
-                input_sum += extras[e].mean[c].px[i];
-                input_scale += std::abs(extras[e].mean[c].px[i]);
-                output_sum += denoised[e][c].px[i];
-                output_scale += std::abs(denoised[e][c].px[i]);
+            for (const Extra& e : m_extras) {
+                input_sum += e.planes.mean[c].px[i];
+                input_scale += std::abs(e.planes.mean[c].px[i]);
+                output_sum += e.denoised[c].px[i];
+                output_scale += std::abs(e.denoised[c].px[i]);
             }
             if (!(std::abs(input_sum - colour[c].px[i]) <= kAddsUp * input_scale)
                 || !(output_scale > 0))
                 continue;
             const double residual = denoised_colour[c].px[i] - output_sum;
-            for (size_t e = 0; e < extras.size(); ++e) {
-                float& v = denoised[e][c].px[i];
+            for (Extra& e : m_extras) {
+                float& v = e.denoised[c].px[i];
                 v = sanitize(float(v + residual * (std::abs(v) / output_scale)));
             }
         }
+}
+
+void ExtraAovs::write(ImageBuf& dst, ROI roi) const
+{
+    for (const Extra& e : m_extras)
+        for (int c = 0; c < 3; ++c)
+            write_plane(dst, e.planes.channels[c], e.denoised[c], roi);
 }
 
 }  // namespace mcdn

@@ -1,4 +1,6 @@
-// Extra AOVs through the beauty's NFOR filters (core/extra_aovs.h says why).
+// Extra AOVs through the beauty's NFOR filters (core/extra_aovs.h says why), stage by stage
+// alongside the beauty so that each stage's inputs are still there (nfor.cpp frees planes
+// after their last use).
 #pragma once
 
 #include <vector>
@@ -14,29 +16,38 @@ inline float blend_candidates(const std::vector<Plane> fits[2], int c, size_t i,
     return fits[0][c].px[i] + s * (fits[1][c].px[i] - fits[0][c].px[i]);
 }
 
-/// What the beauty went through: the first-pass regressions of each half (guides, variances,
-/// features, bandwidths; their images are replaced), the filtered selection map, the second
-/// pass (guided by the beauty's combined halves).
-struct BeautyFilters {
-    const RegressionInputs& first_a;
-    const RegressionInputs& first_b;
-    const std::vector<Plane>& selection;
-    const RegressionInputs& second;
+class ExtraAovs {
+public:
+    explicit ExtraAovs(std::vector<ExtraPlanes> extras);
+    bool empty() const { return m_extras.empty(); }
+
+    /// §5.2: each extra's halves fitted by the beauty's first-pass regressions (their
+    /// guides, variances, features and bandwidths; only the image differs).
+    void first_pass(const RegressionInputs& first_a, const RegressionInputs& first_b,
+                    int nthreads);
+    /// §5.3: the candidates blended with the beauty's filtered selection map; the halves'
+    /// average is what the second pass filters.
+    void blend(const std::vector<Plane>& selection);
+    /// §5.4: the beauty's second-pass regression (guided by its combined halves).
+    void second_pass(const RegressionInputs& second, int nthreads);
+
+    /// Linear in exact arithmetic, the regressions round their float sums differently for
+    /// each AOV, and ill-conditioned windows amplify that (up to ~4e-3 of the beauty on the
+    /// box fixture). Where the extras' input adds up to the beauty's (to 1e-5), the residual
+    /// beauty − Σ extras of the result is shared out in proportion to |extra|, so that they
+    /// add up there as well.
+    void share_rounding(const Plane colour[3], const std::vector<Plane>& denoised_colour);
+    /// Writes each extra's result into its channels of dst inside roi.
+    void write(ImageBuf& dst, ROI roi) const;
+
+private:
+    struct Extra {
+        ExtraPlanes planes;
+        std::vector<std::vector<Plane>> fits_a, fits_b;  // first pass, per bandwidth
+        Plane combined[3];
+        std::vector<Plane> denoised;
+    };
+    std::vector<Extra> m_extras;
 };
-
-/// Fits the extra's halves like the beauty's (§5.2), blends the candidates with the beauty's
-/// selection (§5.3) and filters their average in the second pass (§5.4). Every step is
-/// linear in the extra.
-std::vector<Plane> denoise_extra(const ExtraPlanes& extra, const BeautyFilters& beauty,
-                                 int nthreads);
-
-/// Linear in exact arithmetic, the regressions round their float sums differently for each
-/// AOV, and ill-conditioned windows amplify that (up to ~4e-3 of the beauty on the box
-/// fixture). Where the extras' input adds up to the beauty's (to 1e-5), the residual
-/// beauty − Σ extras of the result is shared out in proportion to |extra|, so that they add
-/// up there as well. `denoised[e]` holds extra e's result.
-void share_rounding(std::vector<std::vector<Plane>>& denoised,
-                    const std::vector<ExtraPlanes>& extras, const Plane colour[3],
-                    const std::vector<Plane>& denoised_colour);
 
 }  // namespace mcdn

@@ -106,23 +106,25 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     std::vector<FeaturePlanes> features;
     for (const FeatureChannel& f : feature_channels)
         features.push_back(read_feature(src, f));
-    std::vector<ExtraPlanes> extras;
-    if (denoises_extras(options.denoise_extras, src) && !read_extras(extras, src, aovs, true, error)) {
+    std::vector<ExtraPlanes> extra_planes;
+    if (denoises_extras(options.denoise_extras, src)
+        && !read_extras(extra_planes, src, aovs, true, error)) {
         dst.errorfmt("{}: {}", op, error);
         return false;
     }
+    // Extra AOVs go through the beauty's filters stage by stage (nfor/extras.h).
+    ExtraAovs extras(std::move(extra_planes));
 
     // §5.1: prefiltered features, unless the prefilter op ran already.
     const bool prefiltered = src.spec().get_int_attribute("mcdn:prefiltered", 0) == 1;
     timer("read planes");
     if (!prefiltered && options.prefilter_features)
         prefilter_planes(features, options.prefilter, nthreads);
+    // Planes are freed as soon as their last stage is done (peak memory at 1080p).
+    for (FeaturePlanes& f : features)
+        f.variance = Plane();
     timer("prefilter (5.1)");
 
-    if (!prepare_op(dst, src, options.aovs, aovs, op))
-        return false;
-
-    timer("copy src to dst");
     std::vector<const Plane*> features_a, features_b, features_mean;
     for (const FeaturePlanes& f : features) {
         features_a.push_back(&f.half_a);
@@ -132,7 +134,7 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
 
     // §5.2: half A fitted with the features and colour weights of half B, and vice versa,
     // for each candidate bandwidth; §5.3: the two-buffer MSE estimate of each candidate.
-    RegressionInputs first_a, first_b;  // kept for the extra AOVs
+    RegressionInputs first_a, first_b;
     first_a.window_radius = options.window_radius;
     first_a.patch_radius = options.patch_radius;
     first_a.bandwidths = { options.candidate_k[0], options.candidate_k[1] };
@@ -156,12 +158,21 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
         fit_b[0] = std::move(fits[0]);
         fit_b[1] = std::move(fits[1]);
     }
+    extras.first_pass(first_a, first_b, nthreads);
+    for (FeaturePlanes& f : features) {
+        f.half_a = Plane();
+        f.half_b = Plane();
+    }
     timer("first pass regressions (5.2)");
     for (int j = 0; j < 2; ++j) {
         const Plane* half_a[3] = { &color.half_a[0], &color.half_a[1], &color.half_a[2] };
         const Plane* half_b[3] = { &color.half_b[0], &color.half_b[1], &color.half_b[2] };
         const Plane* variance[3] = { &color.variance[0], &color.variance[1], &color.variance[2] };
         mse[j] = estimate_mse(half_a, half_b, variance, fit_a[j], fit_b[j]);
+    }
+    for (int c = 0; c < 3; ++c) {
+        color.half_a[c] = Plane();
+        color.half_b[c] = Plane();
     }
 
     // §5.3: filter the MSE estimates (NL-means on the mean colour), pick the lower per
@@ -177,22 +188,28 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
         for (int c = 0; c < 3; ++c)
             noisy.push_back(&mse[j][c]);
     std::vector<Plane> filtered_mse = nl_means(noisy, map_guide, map_variance, map_params, nthreads);
-    std::vector<Plane> mse0(filtered_mse.begin(), filtered_mse.begin() + 3);
-    std::vector<Plane> mse1(filtered_mse.begin() + 3, filtered_mse.end());
+    for (int j = 0; j < 2; ++j)
+        mse[j].clear();
+    std::vector<Plane> mse0(std::make_move_iterator(filtered_mse.begin()),
+                            std::make_move_iterator(filtered_mse.begin() + 3));
+    std::vector<Plane> mse1(std::make_move_iterator(filtered_mse.begin() + 3),
+                            std::make_move_iterator(filtered_mse.end()));
+    filtered_mse.clear();
     std::vector<Plane> selection_noisy = select_candidate(mse0, mse1);
     noisy.clear();
     for (int c = 0; c < 3; ++c)
         noisy.push_back(&selection_noisy[c]);
     std::vector<Plane> selection = nl_means(noisy, map_guide, map_variance, map_params, nthreads);
+    selection_noisy.clear();
+    for (int c = 0; c < 3; ++c)
+        color.variance[c] = Plane();
 
     timer("MSE + selection maps (5.3)");
-    Plane result_a[3], result_b[3], combined[3], combined_variance[3];
+    Plane combined[3], combined_variance[3];
     for (int c = 0; c < 3; ++c) {
-        result_a[c] = Plane(src.spec().width, src.spec().height);
-        result_b[c] = result_a[c];
-        combined[c] = result_a[c];
-        combined_variance[c] = result_a[c];
-        for (size_t i = 0; i < result_a[c].size(); ++i) {
+        combined[c] = Plane(src.spec().width, src.spec().height);
+        combined_variance[c] = combined[c];
+        for (size_t i = 0; i < combined[c].size(); ++i) {
             float s = selection[c].px[i];
             float a = blend_candidates(fit_a, c, i, s);
             float b = blend_candidates(fit_b, c, i, s);
@@ -203,11 +220,16 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
             mse0[c].px[i] = mse0[c].px[i] + s * (mse1[c].px[i] - mse0[c].px[i]);
         }
     }
+    extras.blend(selection);
     for (int j = 0; j < 2; ++j) {
         fit_a[j].clear();
         fit_b[j].clear();
-        mse[j].clear();
     }
+    mse1.clear();
+    if (!options.output_mse)
+        mse0.clear();
+    if (!options.output_selection)
+        selection.clear();
 
     // §5.4: second pass, guided by and fitted to the combined result, mean features.
     RegressionInputs second;
@@ -223,6 +245,12 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     second.features = features_mean;
     timer("blend");
     std::vector<Plane> denoised = std::move(collaborative_regression(second, nthreads)[0]);
+    extras.second_pass(second, nthreads);
+    for (int c = 0; c < 3; ++c) {
+        combined[c] = Plane();
+        combined_variance[c] = Plane();
+    }
+    features.clear();
     timer("second pass (5.4)");
 
     // Nothing non-finite leaves the op (the regression already falls back per pixel).
@@ -231,22 +259,20 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
             if (!std::isfinite(denoised[c].px[i]))
                 denoised[c].px[i] = color.mean[c].px[i];
 
+    // dst (a copy of src) is made only now, when the working planes are gone; everything was
+    // read from src before (dst may be src).
+    if (!prepare_op(dst, src, options.aovs, aovs, op))
+        return false;
+    timer("copy src to dst");
     roi = output_roi(dst, roi);
     for (int c = 0; c < 3; ++c)
         write_plane(dst, aovs.channels(Role::Color)[c], denoised[c], roi);
 
-    // Extra AOVs through the same filters: their sum stays the denoised beauty.
+    // The extras' sum stays the denoised beauty.
     if (!extras.empty()) {
-        BeautyFilters filters { first_a, first_b, selection, second };
-        std::vector<std::vector<Plane>> denoised_extras;
-        for (const ExtraPlanes& extra : extras)
-            denoised_extras.push_back(denoise_extra(extra, filters, nthreads));
-        share_rounding(denoised_extras, extras, color.mean, denoised);
-        for (size_t e = 0; e < extras.size(); ++e)
-            for (int c = 0; c < 3; ++c)
-                write_plane(dst, extras[e].channels[c], denoised_extras[e][c], roi);
+        extras.share_rounding(color.mean, denoised);
+        extras.write(dst, roi);
     }
-    timer("extra AOVs");
 
     if (options.output_mse || options.output_selection) {
         const ImageSpec& spec = dst.spec();

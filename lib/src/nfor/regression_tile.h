@@ -19,13 +19,15 @@ namespace regression_detail {
 constexpr int T = nlm::kTileSize;
 constexpr int kMaxDesign = 3 + kMaxRegressionFeatures;
 constexpr int L = 16;  // pixels solved together (vector lanes)
+constexpr int kMaxBandwidths = 16;
 static_assert(T % L == 0, "tile side must be a multiple of the lane count");
 
 struct TileScratch {
     nlm::DistanceScratch distance;
     nlm::LocalPlane guide[3], variance[3];
     std::vector<float> dist;      // [T*T] largest channel distance of one offset
-    std::vector<float> weights;   // per bandwidth [row][offset][T]
+    std::vector<float> weights;   // per stored bandwidth [row][offset][T]
+    std::vector<float> row_weights;  // a derived bandwidth's weights of one row [offset][T]
     std::vector<float> local;     // features then colour on the tile grown by R, 0 outside
     std::vector<float> normal;    // accumulators [entry][L]
     std::vector<float> beta;      // [D*3][L]
@@ -167,19 +169,35 @@ MCDN_INLINE void regression_tile_impl(const RegressionInputs& in, Rect tile, Til
 
     // 1. Weights of every offset for the whole tile, per bandwidth; 0 where p or q is
     // outside the image. The distance is computed once with k = 1: d²(k) = d²(1) / k².
-    const int NK = int(in.bandwidths.size());
+    // A bandwidth half another's (the candidates 0.5 and 1) is derived, not stored:
+    // exp(-4 d²) = exp(-d²)^4, one row at a time (half the exponentials and the stores).
+    const int NK = std::min(int(in.bandwidths.size()), kMaxBandwidths);
+    float inv_k2[kMaxBandwidths];
+    int source[kMaxBandwidths], slot[kMaxBandwidths], nstored = 0;
+    for (int j = 0; j < NK; ++j)
+        inv_k2[j] = 1.0f / (in.bandwidths[j] * in.bandwidths[j]);
+    for (int j = 0; j < NK; ++j) {
+        source[j] = -1;
+        for (int i = 0; i < NK; ++i)
+            if (source[j] < 0 && i != j && inv_k2[j] == 4.0f * inv_k2[i])
+                source[j] = i;
+    }
+    for (int j = 0; j < NK; ++j) {
+        if (source[j] >= 0 && source[source[j]] >= 0)
+            source[j] = -1;  // derive from stored weights only
+        if (source[j] < 0)
+            slot[j] = nstored++;
+    }
     const size_t wsize = size_t(noff) * T * T;
     s.distance.reserve(T, F);
     s.dist.resize(size_t(T) * T);
-    s.weights.resize(wsize * NK);
+    s.weights.resize(wsize * nstored);
+    s.row_weights.resize(size_t(noff) * T);
     const Rect garea = nlm::guide_area(tile, R, F);
     for (int c = 0; c < 3; ++c) {
         s.guide[c].load(in.guide[c]->data(), width, height, garea);
         s.variance[c].load(in.variance[c]->data(), width, height, garea);
     }
-    float inv_k2[16];
-    for (int j = 0; j < NK && j < 16; ++j)
-        inv_k2[j] = 1.0f / (in.bandwidths[j] * in.bandwidths[j]);
     for (int dy = -R, o = 0; dy <= R; ++dy) {
         for (int dx = -R; dx <= R; ++dx, ++o) {
             float* d = s.dist.data();
@@ -188,7 +206,9 @@ MCDN_INLINE void regression_tile_impl(const RegressionInputs& in, Rect tile, Til
                 nlm::patch_distance(d, T, s.guide[c], s.variance[c], width, height, tile, dx, dy,
                                     F, 1.0f, in.variance_scale, c > 0, s.distance);
             for (int j = 0; j < NK; ++j) {
-                float* wj = s.weights.data() + wsize * j + size_t(o) * T;
+                if (source[j] >= 0)
+                    continue;
+                float* wj = s.weights.data() + wsize * slot[j] + size_t(o) * T;
                 const vfloat16 zero = {}, k = splat16(inv_k2[j]);
                 for (int y = 0; y < th; ++y)
                     for (int i = 0; i < T; i += kLanes) {
@@ -244,9 +264,21 @@ MCDN_INLINE void regression_tile_impl(const RegressionInputs& in, Rect tile, Til
     for (int c = 0; c < 3; ++c)
         acc_color[c] = result.sum.data() + plane * (4 * kj + c);
     float* acc_weight = result.sum.data() + plane * (4 * kj + 3);
+    const int stored = source[kj] < 0 ? kj : source[kj];
     for (int ty = 0; ty < th; ++ty) {
+        const float* row_weights = s.weights.data() + wsize * slot[stored] + size_t(ty) * noff * T;
+        if (source[kj] >= 0) {
+            // w^4 = exp(-4 d²); 0 where exp_neg16 would flush exp(-4 d²) (4 d² >= 80), so
+            // no denormals. The centre weight is max(1, kMinCenterWeight)^4 = 1 (d²(p, p) <= 0).
+            const vfloat16 zero = {}, cutoff = splat16(2.0611536e-9f);  // exp(-20)
+            for (size_t i = 0; i < size_t(noff) * T; i += kLanes) {
+                vfloat16 w = load16(row_weights + i), w2 = w * w;
+                store16(s.row_weights.data() + i, w > cutoff ? w2 * w2 : zero);
+            }
+            row_weights = s.row_weights.data();
+        }
         for (int tx = 0; tx < tw; tx += L) {
-            const float* weights = s.weights.data() + wsize * kj + size_t(ty) * noff * T + tx;
+            const float* weights = row_weights + tx;
             // Centre features of the 16 pixels.
             const size_t centre = size_t(ty + R) * PS + (tx + R);
             vfloat16 fp[NFM];
