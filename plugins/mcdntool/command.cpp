@@ -2,20 +2,56 @@
 #include "command.h"
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 
 #include <OpenImageIO/strutil.h>
 
+#include "command_line.h"
 #include "session.h"
 
 namespace mcdntool {
 
 using OIIO::Strutil::fmt::format;
+namespace Strutil = OIIO::Strutil;
 
 std::string Command::modifier(const std::string& key, const std::string& fallback) const
 {
     auto it = modifiers.find(key);
     return it == modifiers.end() ? fallback : it->second;
 }
+
+bool parse_finite(const std::string& text, double& value)
+{
+    if (!Strutil::string_is_float(text))
+        return false;
+    value = Strutil::stod(text);
+    return std::abs(value) <= std::numeric_limits<float>::max();  // false for nan too
+}
+
+bool Command::number(const std::string& key, double& value, std::string& error) const
+{
+    if (has(key) && !parse_finite(modifier(key), value)) {
+        error = format("{}:{}={} is not a number", name, key, modifier(key));
+        return false;
+    }
+    return true;
+}
+
+namespace {
+
+// The N of --threads (0 = all cores) and --parallel-frames (at least 1).
+CommandCheck whole_number_at_least(int minimum)
+{
+    return [minimum](const Command& c, std::string& error) {
+        if (Strutil::string_is_int(c.args[0]) && Strutil::stoi(c.args[0]) >= minimum)
+            return true;
+        error = format("{} {}: needs a whole number >= {}", c.name, c.args[0], minimum);
+        return false;
+    };
+}
+
+}  // namespace
 
 const std::vector<CommandInfo>& command_table()
 {
@@ -26,43 +62,43 @@ const std::vector<CommandInfo>& command_table()
               "mean (as=variance), or a half buffer (as=halfA, as=halfB). A directory is read "
               "as a Tungsten buffer set (color.pfm, colorA.pfm, colorVariance.pfm, ...). "
               "A bare FILE is the same as -i FILE.",
-              run_input },
+              run_input, false, check_input },
             { "--aov", "", { "preset", "layer", "colorspace" },
               "Say which channels are what: preset=cycles|tungsten|generic (default cycles), "
               "colorspace=NAME (OCIO space of the colour channels; default the file's "
               "oiio:ColorSpace, else scene_linear); "
               "role=ch1,ch2,ch3 words after it override one role (color, color_variance, "
               "color_a, albedo, normal, depth, ..., extra.NAME=...).",
-              run_aov },
+              run_aov, false, check_aov },
             { "--info", "", { "verbose" },
-              "Print the image size, channels and the resolved AOV roles.", run_info },
+              "Print the image size, channels and the resolved AOV roles.", run_info, false, {} },
             { "--metrics", "REF", { "format", "trim", "channels" },
               "Print MSE, RMSE, relMSE, SMAPE, PSNR and SSIM of the colour against a reference "
               "image (format=text|json, trim=1 drops the 0.01% best and worst pixels, "
               "channels=a,b,c compares other channels).",
-              run_metrics },
+              run_metrics, false, check_metrics },
             { "--heatmap", "FILE", { "ref", "metric", "min", "max" },
               "Write a false-colour per-pixel error PNG against the last --metrics reference "
               "(or ref=FILE): metric=relmse|se|ae|smape, log10 range min=-4 max=0.",
-              run_heatmap },
+              run_heatmap, false, check_heatmap },
             { "--ch", "CHANNELS", {},
               "Channels -o writes, comma-separated (default: the render's own channels).",
-              run_channels },
+              run_channels, false, {} },
             { "-o", "FILE", { "datatype", "compression" },
               "Write the current image (datatype=half|float, default float; compression=zip). "
               "Written to a temporary name and renamed: never a partial file.",
-              run_output },
+              run_output, false, check_output },
             { "--threads", "N", {}, "Worker threads (0 = all cores, the default).", nullptr,
-              true },
+              true, whole_number_at_least(0) },
             { "-v", "", {}, "Print a line per stage with its run time (the default when "
-              "stderr is a terminal).", nullptr, true },
+              "stderr is a terminal).", nullptr, true, {} },
             { "--frames", "SPEC", {},
               "Frames for # / @ / %04d patterns, e.g. 1-10 or 1-100x5 (default: every frame "
               "of the first input pattern that exists on disk).",
-              nullptr, true },
+              nullptr, true, check_frames },
             { "--parallel-frames", "N", {},
               "Denoise N frames of a sequence at once, sharing the threads (default 1).",
-              nullptr, true },
+              nullptr, true, whole_number_at_least(1) },
         };
         for (auto& stage : stage_commands())
             t.push_back(stage);

@@ -17,12 +17,18 @@ struct Command {
 
     std::string modifier(const std::string& key, const std::string& fallback = "") const;
     bool has(const std::string& key) const { return modifiers.count(key) != 0; }
+    /// A numeric modifier: `value` is left alone when absent; false with `error` when it is
+    /// not a finite number.
+    bool number(const std::string& key, double& value, std::string& error) const;
 };
 
 class Session;
 
 /// What a command does to the session of one frame; false with `error` set on failure.
 using CommandAction = std::function<bool(Session&, const Command&, std::string& error)>;
+/// Checks a command's modifier values and arguments before anything runs (no file is read):
+/// false with `error` set when a value can never work (--sure:seed=abc).
+using CommandCheck = std::function<bool(const Command&, std::string& error)>;
 
 struct CommandInfo {
     std::string name;                    // "--metrics"
@@ -31,7 +37,12 @@ struct CommandInfo {
     std::string help;
     CommandAction run;                   // null for commands handled before the frame loop
     bool global = false;                 // --threads, --frames: set once, not per frame
+    CommandCheck check;                  // null when any value is accepted
 };
+
+/// True when `text` is a number within float range (nan and inf would reach the ops as NaN
+/// outputs; every option is a float or double).
+bool parse_finite(const std::string& text, double& value);
 
 /// Every command mcdntool knows, in --help order (built-ins, then the stages).
 const std::vector<CommandInfo>& command_table();

@@ -8,18 +8,16 @@
 #include <iostream>
 #include <atomic>
 #include <mutex>
-#include <regex>
 #include <thread>
 
 #include <unistd.h>
 
-#include <OpenImageIO/argparse.h>
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/strutil.h>
 #include <OpenImageIO/sysutil.h>
 #include <OpenImageIO/timer.h>
 
-#include "command.h"
+#include "command_line.h"
 #include "session.h"
 
 using namespace mcdntool;
@@ -28,46 +26,6 @@ namespace Filesystem = OIIO::Filesystem;
 namespace Strutil    = OIIO::Strutil;
 
 namespace {
-
-int nargs(const CommandInfo& info) { return int(Strutil::splits(info.metavar, " ").size()); }
-
-// Checks every command word before anything runs, so a typo at the end of a long command
-// line fails at once, with a suggestion, instead of after minutes of denoising.
-bool check_words(int argc, const char** argv, std::string& error)
-{
-    for (int i = 1; i < argc; ++i) {
-        std::string word = argv[i];
-        if (word.size() < 2 || word[0] != '-' || word == "--help" || word == "-h")
-            continue;
-        Command command = split_command(word);
-        if (!check_command(command, error))
-            return false;
-        const CommandInfo* info = find_command(command.name);
-        if (i + nargs(*info) >= argc) {
-            error = format("{} needs {} argument(s): {} {}", command.name, nargs(*info),
-                           command.name, info->metavar);
-            return false;
-        }
-        i += nargs(*info);
-    }
-    return true;
-}
-
-// A file name with frame numbers in it: '#', '@' or printf's %d.
-bool is_sequence(const std::string& name, std::string& normalized, std::string& framespec)
-{
-    if (!Filesystem::parse_pattern(name.c_str(), 0, normalized, framespec))
-        return false;
-    static const std::regex printf_frame("%0?[0-9]*d");
-    return std::regex_search(normalized, printf_frame);
-}
-
-std::string frame_name(const std::string& normalized, int frame)
-{
-    std::vector<std::string> names;
-    Filesystem::enumerate_file_sequence(normalized, { frame }, names);
-    return names.empty() ? normalized : names[0];
-}
 
 // The frames a command line runs on: --frames, a range written in a pattern
 // (shot.1-10#.exr), or every frame of the first input pattern found on disk.
@@ -95,13 +53,8 @@ bool find_frames(const std::vector<Command>& commands, const std::string& frames
         return true;
     }
     std::string spec = !frames_option.empty() ? frames_option : pattern_range;
-    if (!spec.empty()) {
-        if (!Filesystem::enumerate_sequence(spec, frames) || frames.empty()) {
-            error = format("--frames {}: not a frame range (e.g. 1-10, 1-100x5, 3,7,9)", spec);
-            return false;
-        }
-        return true;
-    }
+    if (!spec.empty())
+        return frames_from_spec(spec, frames, error);
     std::vector<std::string> files;
     if (first_input_pattern.empty()
         || !Filesystem::scan_for_matching_filenames(first_input_pattern, frames, files)
@@ -178,76 +131,22 @@ bool run_frames(const std::vector<Command>& commands, const std::vector<int>& fr
 int main(int argc, const char** argv)
 {
     Filesystem::convert_native_arguments(argc, argv);
-    std::string error;
-    if (!check_words(argc, argv, error)) {
-        std::cerr << "mcdntool: error: " << error << "\n";
-        return 1;
-    }
-
-    std::vector<Command> commands;
-    int nthreads = 0;
-    bool verbose = isatty(STDERR_FILENO);  // progress lines on a terminal, quiet in pipelines
-    std::string frames_option;
-    int parallel_frames = 1;
-    OIIO::ArgParse ap;
-    ap.intro("mcdntool -- denoise Monte Carlo renders (mcdenoise)")
-        .usage("mcdntool [-i[:as=KIND] FILE ...] [--aov[:preset=NAME] role=chans ...] "
-               "[COMMAND ...] -o FILE")
-        .description("Commands run left to right, oiiotool style; every command accepts "
-                     ":modifier=value. File names with #, @ or %04d run the whole command "
-                     "line once per frame.")
-        .epilog("Example:\n  mcdntool -i box.exr -i:as=variance box_var.exr -i:as=halfA "
-                "box_A.exr -i:as=halfB box_B.exr --aov:preset=cycles --metrics ref.exr "
-                "-o out.exr")
-        .exit_on_error(false);
-    for (const auto& info : command_table()) {
-        std::string decl = info.name + (info.metavar.empty() ? "" : " " + info.metavar);
-        std::string help = info.help;
-        if (!info.modifiers.empty())
-            help += " [modifiers: " + Strutil::join(info.modifiers, ", ") + "]";
-        ap.arg(decl.c_str()).help(help).action([&, name = info.name](OIIO::cspan<const char*> a) {
-            Command c = split_command(a[0]);
-            for (int k = 1; k < int(a.size()); ++k)
-                c.args.push_back(a[k]);
-            if (name == "--threads")
-                nthreads = Strutil::stoi(c.args[0]);
-            else if (name == "-v")
-                verbose = true;
-            else if (name == "--parallel-frames")
-                parallel_frames = Strutil::stoi(c.args[0]);
-            else if (name == "--frames")
-                frames_option = c.args[0];
-            else
-                commands.push_back(c);
-        });
-    }
-    ap.arg("filename").hidden().action([&](OIIO::cspan<const char*> a) {
-        // `role=chans` words belong to the --aov before them; anything else is an input.
-        std::string word = a[0];
-        if (!commands.empty() && commands.back().name == "--aov"
-            && word.find('=') != std::string::npos && !Filesystem::exists(word))
-            commands.back().args.push_back(word);
-        else
-            commands.push_back(Command { "-i", {}, { word } });
-    });
-    bool help = argc <= 1;
-    for (int i = 1; i < argc; ++i)
-        help |= std::string(argv[i]) == "--help" || std::string(argv[i]) == "-h";
-    if (help) {
-        ap.print_help();
+    if (wants_help(argc, argv)) {
+        print_help();
         return 0;
     }
-    if (ap.parse_args(argc, argv) < 0) {
-        std::cerr << "mcdntool: error: " << ap.geterror() << "\n";
-        return 1;
-    }
-
+    CommandLine line;
+    line.verbose = isatty(STDERR_FILENO);  // progress lines on a terminal, quiet in pipelines
     std::vector<int> frames;
-    if (!find_frames(commands, frames_option, frames, error)) {
+    std::string error;
+    if (!parse_command_line(argc, argv, line, error)
+        || !find_frames(line.commands, line.frames, frames, error)) {
         std::cerr << "mcdntool: error: " << error << "\n";
         return 1;
     }
     if (frames.empty())
         frames.push_back(-1);  // not a sequence: one run
-    return run_frames(commands, frames, nthreads, parallel_frames, verbose) ? 0 : 1;
+    return run_frames(line.commands, frames, line.nthreads, line.parallel_frames, line.verbose)
+               ? 0
+               : 1;
 }

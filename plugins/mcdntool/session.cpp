@@ -111,14 +111,105 @@ bool Session::replace_image(ImageBuf result, std::string& error)
     return mcdn::resolve_aovs(m_aovs, aov_spec, m_image.spec(), error);
 }
 
-bool run_input(Session& s, const Command& c, std::string& error)
+namespace {
+
+bool input_kind_of(const Command& c, mcdn::InputKind& kind, std::string& error)
 {
-    auto kind = mcdn::input_kind_from_name(c.modifier("as", "mean"));
-    if (!kind) {
+    auto named = mcdn::input_kind_from_name(c.modifier("as", "mean"));
+    if (!named) {
         error = format("-i:as={} is not one of mean, variance, halfA, halfB", c.modifier("as"));
         return false;
     }
-    s.inputs.push_back({ c.args[0], *kind });
+    kind = *named;
+    return true;
+}
+
+bool metrics_format_of(const Command& c, bool& json, std::string& error)
+{
+    std::string fmt = c.modifier("format", "text");
+    if (fmt != "text" && fmt != "json") {
+        error = format("--metrics:format={} is not text or json", fmt);
+        return false;
+    }
+    json = fmt == "json";
+    return true;
+}
+
+struct HeatmapSettings {
+    mcdn::ErrorKind kind;
+    double log10_min, log10_max;
+};
+
+bool heatmap_settings_of(const Command& c, HeatmapSettings& settings, std::string& error)
+{
+    static const std::map<std::string, mcdn::ErrorKind> kinds = {
+        { "relmse", mcdn::ErrorKind::RelMSE }, { "se", mcdn::ErrorKind::SquaredError },
+        { "ae", mcdn::ErrorKind::AbsoluteError }, { "smape", mcdn::ErrorKind::SMAPE } };
+    auto kind = kinds.find(c.modifier("metric", "relmse"));
+    if (kind == kinds.end()) {
+        error = format("--heatmap:metric={} is not relmse, se, ae or smape", c.modifier("metric"));
+        return false;
+    }
+    settings.kind = kind->second;
+    settings.log10_min = -4;
+    settings.log10_max = 0;
+    return c.number("min", settings.log10_min, error) && c.number("max", settings.log10_max, error);
+}
+
+bool write_options_of(const Command& c, mcdn::WriteOptions& options, std::string& error)
+{
+    std::string datatype = c.modifier("datatype", "float");
+    if (datatype == "half")
+        options.datatype = OIIO::TypeDesc::HALF;
+    else if (datatype != "float") {
+        error = format("-o:datatype={} is not half or float", datatype);
+        return false;
+    }
+    options.compression = c.modifier("compression", "zip");
+    return true;
+}
+
+}  // namespace
+
+bool check_input(const Command& c, std::string& error)
+{
+    mcdn::InputKind kind;
+    return input_kind_of(c, kind, error);
+}
+
+bool check_aov(const Command& c, std::string& error)
+{
+    mcdn::AovSpec spec;
+    for (const auto& token : c.args)
+        if (!spec.parse_override(token, error))
+            return false;
+    return true;
+}
+
+bool check_metrics(const Command& c, std::string& error)
+{
+    bool json;
+    return metrics_format_of(c, json, error);
+}
+
+bool check_heatmap(const Command& c, std::string& error)
+{
+    HeatmapSettings settings;
+    return heatmap_settings_of(c, settings, error);
+}
+
+bool check_output(const Command& c, std::string& error)
+{
+    mcdn::WriteOptions options;
+    return write_options_of(c, options, error);
+}
+
+bool run_input(Session& s, const Command& c, std::string& error)
+{
+    mcdn::InputKind kind;
+    if (!input_kind_of(c, kind, error))
+        return false;
+    s.inputs.push_back({ c.args[0], kind });
     s.invalidate();
     return true;
 }
@@ -226,17 +317,15 @@ bool run_metrics(Session& s, const Command& c, std::string& error)
     if (!prepare_comparison(s, c.args[0], c.modifier("channels"), reference, options, error))
         return false;
     options.trim = Strutil::stoi(c.modifier("trim", "0")) != 0;
-    std::string fmt = c.modifier("format", "text");
-    if (fmt != "text" && fmt != "json") {
-        error = format("--metrics:format={} is not text or json", fmt);
+    bool json = false;
+    if (!metrics_format_of(c, json, error))
         return false;
-    }
     mcdn::Metrics m;
     if (!mcdn::compute_metrics(m, s.image(), reference, options, error, {}, s.nthreads)) {
         error = format("{}: {}", c.args[0], error);
         return false;
     }
-    std::cout << mcdn::format_metrics(m, fmt == "json") << (fmt == "json" ? "\n" : "")
+    std::cout << mcdn::format_metrics(m, json) << (json ? "\n" : "")
               << std::flush;
     s.last_reference = c.args[0];
     return true;
@@ -249,21 +338,16 @@ bool run_heatmap(Session& s, const Command& c, std::string& error)
         error = "--heatmap needs a reference: give --metrics REF before it, or --heatmap:ref=REF";
         return false;
     }
-    static const std::map<std::string, mcdn::ErrorKind> kinds = {
-        { "relmse", mcdn::ErrorKind::RelMSE }, { "se", mcdn::ErrorKind::SquaredError },
-        { "ae", mcdn::ErrorKind::AbsoluteError }, { "smape", mcdn::ErrorKind::SMAPE } };
-    auto kind = kinds.find(c.modifier("metric", "relmse"));
-    if (kind == kinds.end()) {
-        error = format("--heatmap:metric={} is not relmse, se, ae or smape", c.modifier("metric"));
+    HeatmapSettings settings;
+    if (!heatmap_settings_of(c, settings, error))
         return false;
-    }
     ImageBuf reference, errors, picture;
     mcdn::MetricsOptions options;
     if (!prepare_comparison(s, ref_path, "", reference, options, error))
         return false;
-    if (!mcdn::error_map(errors, s.image(), reference, options, kind->second, {}, s.nthreads)
-        || !mcdn::heatmap(picture, errors, Strutil::stod(c.modifier("min", "-4")),
-                          Strutil::stod(c.modifier("max", "0")), {}, s.nthreads)) {
+    if (!mcdn::error_map(errors, s.image(), reference, options, settings.kind, {}, s.nthreads)
+        || !mcdn::heatmap(picture, errors, settings.log10_min, settings.log10_max, {},
+                          s.nthreads)) {
         error = format("{}: {}", c.args[0], errors.has_error() ? errors.geterror() : picture.geterror());
         return false;
     }
@@ -279,14 +363,8 @@ bool run_output(Session& s, const Command& c, std::string& error)
     if (!s.load(error))
         return false;
     mcdn::WriteOptions options;
-    std::string datatype = c.modifier("datatype", "float");
-    if (datatype == "half")
-        options.datatype = OIIO::TypeDesc::HALF;
-    else if (datatype != "float") {
-        error = format("-o:datatype={} is not half or float", datatype);
+    if (!write_options_of(c, options, error))
         return false;
-    }
-    options.compression = c.modifier("compression", "zip");
     options.channels = s.output_channels;
     return mcdn::write_image(s.image(), c.args[0], options, error);
 }

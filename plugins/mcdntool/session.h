@@ -76,7 +76,14 @@ bool run_info(Session&, const Command&, std::string& error);
 bool run_metrics(Session&, const Command&, std::string& error);
 bool run_heatmap(Session&, const Command&, std::string& error);
 
-/// Commands of the denoising stages (stages.cpp).
+/// Checks of the built-in commands' modifier values (session.cpp), run before any command.
+bool check_input(const Command&, std::string& error);
+bool check_aov(const Command&, std::string& error);
+bool check_metrics(const Command&, std::string& error);
+bool check_heatmap(const Command&, std::string& error);
+bool check_output(const Command&, std::string& error);
+
+/// Commands of the denoising stages, with their checks (stages.cpp).
 std::vector<CommandInfo> stage_commands();
 
 }  // namespace mcdntool

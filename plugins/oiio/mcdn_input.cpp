@@ -10,8 +10,6 @@
 // chain (prefilter,nfor,sure,mix), channels (output channels, default the render's own),
 // threads, and per-stage settings like nfor.window=19, sure.probes=4, mix.model=net.
 // Relative paths in a recipe file are relative to the recipe's folder.
-#include <cctype>
-#include <fstream>
 #include <map>
 #include <mutex>
 
@@ -20,124 +18,37 @@
 #include <OpenImageIO/imageio.h>
 #include <OpenImageIO/strutil.h>
 
-#include "mcdn/chain.h"
-#include "mcdn/io.h"
+#include "recipe.h"
 
 using namespace OIIO;
 
 namespace {
 
-using Recipe = std::map<std::string, std::string>;
-
-std::string url_decode(const std::string& s)
-{
-    std::string out;
-    for (size_t i = 0; i < s.size(); ++i) {
-        if (s[i] == '%' && i + 2 < s.size() && std::isxdigit(s[i + 1]) && std::isxdigit(s[i + 2])) {
-            out += char(std::stoi(s.substr(i + 1, 2), nullptr, 16));
-            i += 2;
-        } else
-            out += s[i];
-    }
-    return out;
-}
-
-// `name` is "file.mcdn", "file.mcdn?k=v&k2=v2" or "?k=v": the file's lines first, the query
-// on top.
-bool parse_recipe(const std::string& name, Recipe& recipe, std::string& error)
-{
-    size_t q = name.find('?');
-    std::string file = name.substr(0, q);
-    if (!file.empty() && Filesystem::is_regular(file)) {
-        std::string dir = Filesystem::parent_path(file);
-        std::ifstream in(file);
-        std::string line;
-        int number = 0;
-        while (std::getline(in, line)) {
-            ++number;
-            line = Strutil::strip(line.substr(0, line.find('#')));
-            if (line.empty())
-                continue;
-            size_t eq = line.find('=');
-            if (eq == std::string::npos) {
-                error = Strutil::fmt::format("{}:{}: expected key = value", file, number);
-                return false;
-            }
-            std::string key = Strutil::strip(line.substr(0, eq));
-            std::string value = Strutil::strip(line.substr(eq + 1));
-            bool is_path = key == "in" || key == "variance" || key == "halfA" || key == "halfB";
-            if (is_path && !value.empty() && value[0] != '/' && !dir.empty())
-                value = dir + "/" + value;
-            recipe[key] = value;
-        }
-    } else if (q == std::string::npos) {
-        error = Strutil::fmt::format("{}: no such recipe file, and no ?in=... query", name);
-        return false;
-    }
-    if (q != std::string::npos)
-        for (const auto& pair : Strutil::splits(name.substr(q + 1), "&")) {
-            size_t eq = pair.find('=');
-            if (eq == std::string::npos) {
-                error = Strutil::fmt::format("'{}': expected key=value in the query", pair);
-                return false;
-            }
-            recipe[url_decode(pair.substr(0, eq))] = url_decode(pair.substr(eq + 1));
-        }
-    return true;
-}
-
-const std::vector<std::string> kKeys = { "in", "variance", "halfA", "halfB", "preset", "layer",
-                                         "colorspace", "chain", "channels", "threads" };
+using mcdn_plugin::Recipe;
 
 // Reads the inputs and runs the chain the recipe describes.
 bool denoise(const Recipe& recipe, ImageBuf& result, std::string& error)
 {
-    for (const auto& [key, value] : recipe)
-        if (std::find(kKeys.begin(), kKeys.end(), key) == kKeys.end()
-            && key.find('.') == std::string::npos) {
-            error = Strutil::fmt::format("unknown key '{}' (keys: {}, stage.setting)", key,
-                                         Strutil::join(kKeys, ", "));
-            return false;
-        }
-    auto get = [&](const std::string& key, const std::string& fallback = "") {
-        auto it = recipe.find(key);
-        return it == recipe.end() ? fallback : it->second;
-    };
-    if (get("in").empty()) {
-        error = "no render given: add in=FILE";
+    mcdn_plugin::Job job;
+    if (!mcdn_plugin::job_from_recipe(recipe, job, error))
         return false;
-    }
-    std::vector<mcdn::InputFile> inputs = { { get("in"), mcdn::InputKind::Mean } };
-    for (auto [key, kind] : { std::pair { "variance", mcdn::InputKind::Variance },
-                              std::pair { "halfA", mcdn::InputKind::HalfA },
-                              std::pair { "halfB", mcdn::InputKind::HalfB } })
-        if (!get(key).empty())
-            inputs.push_back({ get(key), kind });
     ImageBuf merged;
-    if (!mcdn::read_inputs(merged, inputs)) {
+    if (!mcdn::read_inputs(merged, job.inputs)) {
         error = merged.geterror();
         return false;
     }
-    mcdn::ChainOptions options;
-    options.aovs.preset = get("preset", "cycles");
-    options.aovs.layer = get("layer");
-    options.aovs.colorspace = get("colorspace");
-    for (const auto& [key, value] : recipe)
-        if (key.find('.') != std::string::npos)
-            options.settings[key] = value;
     mcdn::AovSet aovs;
-    if (!mcdn::parse_chain(options.stages, get("chain", "prefilter,nfor"), error)
-        || !mcdn::resolve_aovs(aovs, options.aovs, merged.spec(), error)
+    if (!mcdn::resolve_aovs(aovs, job.chain.aovs, merged.spec(), error)
         || !aovs.require({ mcdn::Role::Color }, merged.spec(), error)
         || !mcdn::validate_inputs(merged, aovs, error))
         return false;
     ImageBuf chained;
-    if (!mcdn::run_chain(chained, merged, options, {}, Strutil::stoi(get("threads", "0")))) {
+    if (!mcdn::run_chain(chained, merged, job.chain, {}, job.threads)) {
         error = chained.geterror();
         return false;
     }
     // The render's own channels (results in place), or the ones asked for.
-    std::vector<std::string> names = Strutil::splits(get("channels"), ",");
+    std::vector<std::string> names = job.channels;
     if (names.empty())
         names = Strutil::splits(chained.spec().get_string_attribute("mcdn:output_channels"), "\n");
     std::vector<int> order;
@@ -165,7 +76,7 @@ public:
     {
         Recipe recipe;
         std::string error;
-        return is_recipe_name(filename) && parse_recipe(filename, recipe, error);
+        return is_recipe_name(filename) && mcdn_plugin::parse_recipe(filename, recipe, error);
     }
 
     // oiiotool (2.4) treats a procedural input whose open() fails as "file not found" and
@@ -220,7 +131,7 @@ private:
             std::string why;
             Recipe recipe;
             try {
-                if (parse_recipe(name, recipe, why))
+                if (mcdn_plugin::parse_recipe(name, recipe, why))
                     denoise(recipe, result, why);
             } catch (const std::exception& e) {
                 why = e.what();

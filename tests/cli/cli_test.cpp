@@ -2,6 +2,7 @@
 #include <fstream>
 #include <regex>
 
+#include "command_line.h"
 #include "mcdn_test.h"
 
 using mcdn_test::quote;
@@ -120,6 +121,51 @@ TEST(Cli, UnknownCommandsAndModifiersSuggestTheRightOne)
     run = run_mcdntool("-i:as=varience " + box("box_0016spp.exr") + " --info");
     EXPECT_NE(run.exit_code, 0);
     EXPECT_NE(run.output.find("is not one of mean, variance"), std::string::npos) << run.output;
+}
+
+// Values that used to abort (std::stoull, printf of a '%' in a file name) or to reach the
+// ops as NaN fail in the parser, before any file is read.
+TEST(Cli, BadModifierValuesFailInTheParser)
+{
+    auto parse = [](const std::string& text, std::string& error) {
+        std::vector<std::string> words = OIIO::Strutil::splits(text, " ");
+        std::vector<const char*> argv = { "mcdntool" };
+        for (const auto& w : words)
+            argv.push_back(w.c_str());
+        mcdntool::CommandLine line;
+        return mcdntool::parse_command_line(int(argv.size()), argv.data(), line, error);
+    };
+    std::string error;
+    EXPECT_TRUE(parse("x.exr --aov:preset=generic --threads 2 color=R,G,B --nfor:k=0.5,1 "
+                      "--sure:seed=7:eps=1e-3 --mix --frames 1-3 -o:datatype=half o.exr", error))
+        << error;
+    for (const char* bad : { "--sure:seed=abc", "--sure:seed=-1", "--sure:probes=0",
+                             "--sure:eps=nan", "--nfor:k=inf,1", "--nfor:k=", "--cnn:tile=x",
+                             "--prefilter:k=1e39", "--heatmap:min=abc h.png", "-o:datatype=doubel o.exr",
+                             "--threads many", "--parallel-frames 0", "--frames 1-2000000000",
+                             "--frames x", "--aov color=R,G" }) {
+        error.clear();
+        EXPECT_FALSE(parse(std::string("x.exr ") + bad, error)) << bad;
+        EXPECT_FALSE(error.empty()) << bad;
+    }
+    std::string normalized, framespec;
+    EXPECT_FALSE(mcdntool::is_sequence("x%s.#.exr", normalized, framespec));
+    EXPECT_TRUE(mcdntool::is_sequence("x.1-3#.exr", normalized, framespec));
+    EXPECT_EQ(mcdntool::frame_name(normalized, 2), "x.0002.exr");
+    EXPECT_EQ(framespec, "1-3");
+}
+
+TEST(Cli, BadModifierValueIsOneLineBeforeAnythingRuns)
+{
+    auto run = run_mcdntool("-i " + box("box_0016spp.exr") + " --prefilter --sure:seed=abc -o never.exr");
+    EXPECT_EQ(run.exit_code, 1);
+    EXPECT_NE(run.output.find("--sure:seed=abc is not a whole number"), std::string::npos) << run.output;
+    EXPECT_TRUE(one_line(run.output)) << run.output;
+    // A '%' besides the frame number: the name is taken literally, not as a printf format.
+    run = run_mcdntool("-i " + quote(mcdn_test::temp_dir("cli_percent") + "/x%s.#.exr") + " -o o.exr");
+    EXPECT_EQ(run.exit_code, 1);
+    EXPECT_NE(run.output.find("x%s.#.exr"), std::string::npos) << run.output;
+    EXPECT_TRUE(one_line(run.output)) << run.output;
 }
 
 TEST(Cli, BadInputsFailWithOneLineAndNoOutputFile)

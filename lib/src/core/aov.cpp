@@ -255,7 +255,15 @@ bool resolve_aovs(AovSet& set, const AovSpec& spec, const ImageSpec& merged,
     // Overrides first: they win, and a misspelt channel is an error rather than "absent".
     std::vector<bool> overridden(kRoleCount, false);
     for (const auto& [role_str, names] : spec.overrides) {
-        Role role = *role_from_name(role_str);
+        // AovSpec is a plain struct: overrides written without parse_override are checked too.
+        auto parsed = role_from_name(role_str);
+        if (!parsed || int(names.size()) != role_channel_count(*parsed)) {
+            error = OIIO::Strutil::fmt::format(
+                "aov override {}={}: not a role with {} channel(s)", role_str, join(names, ","),
+                parsed ? role_channel_count(*parsed) : 0);
+            return false;
+        }
+        Role role = *parsed;
         std::vector<int> indices = find_channels(merged, names);
         if (indices.empty()) {
             error = OIIO::Strutil::fmt::format(
@@ -293,10 +301,11 @@ bool resolve_aovs(AovSet& set, const AovSpec& spec, const ImageSpec& merged,
 
     for (const auto& [name, names] : spec.extras) {
         std::vector<int> indices = find_channels(merged, names);
-        if (indices.empty()) {
+        if (names.empty() || indices.empty()) {
             error = OIIO::Strutil::fmt::format(
                 "extra aov '{}' ({}): channel not found in {}; channels there: {}", name,
-                join(names, ","), channel_source(merged, names[0]), channel_list(merged));
+                join(names, ","), channel_source(merged, names.empty() ? "" : names[0]),
+                channel_list(merged));
             return false;
         }
         set.m_extras.push_back({ name, names, indices, {}, {}, {} });

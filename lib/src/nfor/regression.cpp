@@ -88,12 +88,14 @@ std::vector<std::vector<Plane>> collaborative_regression(const RegressionInputs&
             const size_t plane = size_t(r.stride) * (T + 2 * in.window_radius);
             for (int j = 0; j < NK; ++j)
                 for (int y = r.area.y0; y < r.area.y1; ++y) {
-                    const size_t local = size_t(y - r.origin_y) * r.stride - r.origin_x;
+                    // Index from the tile row's start: a pointer moved back by origin_x
+                    // first would wrap around (UB, found by UBSan).
+                    const size_t row = size_t(y - r.origin_y) * r.stride;
                     for (int c = 0; c < 4; ++c) {
-                        const float* src = r.sum.data() + plane * (4 * j + c) + local;
+                        const float* src = r.sum.data() + plane * (4 * j + c) + row;
                         float* dst = c < 3 ? out[j][c].row(y) : weight_sum[j].row(y);
                         for (int x = r.area.x0; x < r.area.x1; ++x)
-                            dst[x] += src[x];
+                            dst[x] += src[x - r.origin_x];
                     }
                 }
         }

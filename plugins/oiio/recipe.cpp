@@ -1,0 +1,127 @@
+// Parsing mcdn recipes (recipe.h).
+#include "recipe.h"
+
+#include <algorithm>
+#include <cctype>
+#include <fstream>
+
+#include <OpenImageIO/filesystem.h>
+#include <OpenImageIO/strutil.h>
+
+namespace mcdn_plugin {
+
+using OIIO::Strutil::fmt::format;
+namespace Filesystem = OIIO::Filesystem;
+namespace Strutil    = OIIO::Strutil;
+
+namespace {
+
+const std::vector<std::string> kKeys = { "in", "variance", "halfA", "halfB", "preset", "layer",
+                                         "colorspace", "chain", "channels", "threads" };
+
+bool is_hex(char c) { return std::isxdigit(static_cast<unsigned char>(c)) != 0; }
+
+}  // namespace
+
+std::string url_decode(const std::string& text)
+{
+    std::string out;
+    for (size_t i = 0; i < text.size(); ++i) {
+        if (text[i] == '%' && i + 2 < text.size() && is_hex(text[i + 1]) && is_hex(text[i + 2])) {
+            out += char(std::stoi(text.substr(i + 1, 2), nullptr, 16));
+            i += 2;
+        } else
+            out += text[i];
+    }
+    return out;
+}
+
+bool parse_recipe_lines(std::istream& in, const std::string& file, Recipe& recipe,
+                        std::string& error)
+{
+    std::string dir = Filesystem::parent_path(file);
+    std::string line;
+    int number = 0;
+    while (std::getline(in, line)) {
+        ++number;
+        line = Strutil::strip(line.substr(0, line.find('#')));
+        if (line.empty())
+            continue;
+        size_t eq = line.find('=');
+        if (eq == std::string::npos) {
+            error = format("{}:{}: expected key = value", file, number);
+            return false;
+        }
+        std::string key = Strutil::strip(line.substr(0, eq));
+        std::string value = Strutil::strip(line.substr(eq + 1));
+        bool is_path = key == "in" || key == "variance" || key == "halfA" || key == "halfB";
+        if (is_path && !value.empty() && value[0] != '/' && !dir.empty())
+            value = dir + "/" + value;
+        recipe[key] = value;
+    }
+    return true;
+}
+
+bool parse_query(const std::string& query, Recipe& recipe, std::string& error)
+{
+    for (const auto& pair : Strutil::splits(query, "&")) {
+        size_t eq = pair.find('=');
+        if (eq == std::string::npos) {
+            error = format("'{}': expected key=value in the query", pair);
+            return false;
+        }
+        recipe[url_decode(pair.substr(0, eq))] = url_decode(pair.substr(eq + 1));
+    }
+    return true;
+}
+
+bool parse_recipe(const std::string& name, Recipe& recipe, std::string& error)
+{
+    size_t q = name.find('?');
+    std::string file = name.substr(0, q);
+    if (!file.empty() && Filesystem::is_regular(file)) {
+        std::ifstream in(file);
+        if (!parse_recipe_lines(in, file, recipe, error))
+            return false;
+    } else if (q == std::string::npos) {
+        error = format("{}: no such recipe file, and no ?in=... query", name);
+        return false;
+    }
+    return q == std::string::npos || parse_query(name.substr(q + 1), recipe, error);
+}
+
+bool job_from_recipe(const Recipe& recipe, Job& job, std::string& error)
+{
+    for (const auto& [key, value] : recipe)
+        if (std::find(kKeys.begin(), kKeys.end(), key) == kKeys.end()
+            && key.find('.') == std::string::npos) {
+            error = format("unknown key '{}' (keys: {}, stage.setting)", key,
+                           Strutil::join(kKeys, ", "));
+            return false;
+        }
+    auto get = [&](const std::string& key, const std::string& fallback = "") {
+        auto it = recipe.find(key);
+        return it == recipe.end() ? fallback : it->second;
+    };
+    if (get("in").empty()) {
+        error = "no render given: add in=FILE";
+        return false;
+    }
+    job.inputs = { { get("in"), mcdn::InputKind::Mean } };
+    for (auto [key, kind] : { std::pair { "variance", mcdn::InputKind::Variance },
+                              std::pair { "halfA", mcdn::InputKind::HalfA },
+                              std::pair { "halfB", mcdn::InputKind::HalfB } })
+        if (!get(key).empty())
+            job.inputs.push_back({ get(key), kind });
+    job.chain.aovs.preset = get("preset", "cycles");
+    job.chain.aovs.layer = get("layer");
+    job.chain.aovs.colorspace = get("colorspace");
+    for (const auto& [key, value] : recipe)
+        if (key.find('.') != std::string::npos)
+            job.chain.settings[key] = value;
+    job.channels = Strutil::splits(get("channels"), ",");
+    job.threads = Strutil::stoi(get("threads", "0"));
+    return mcdn::parse_chain(job.chain.stages, get("chain", "prefilter,nfor"), error);
+}
+
+}  // namespace mcdn_plugin

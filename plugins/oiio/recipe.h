@@ -1,0 +1,46 @@
+// The recipe of the mcdn format plugin: `shot.mcdn?in=beauty.exr&chain=prefilter,nfor` or a
+// recipe file with the same keys, parsed into what to read and which chain to run. Nothing
+// here reads an image or runs a stage (the fuzz target in tests/fuzz drives it).
+#pragma once
+
+#include <istream>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "mcdn/chain.h"
+#include "mcdn/io.h"
+
+namespace mcdn_plugin {
+
+/// key -> value, as written.
+using Recipe = std::map<std::string, std::string>;
+
+/// `%41` -> `A`; a '%' not followed by two hex digits stays as it is.
+std::string url_decode(const std::string& text);
+
+/// `key = value` lines of a recipe file (`#` starts a comment). `file` names it in errors;
+/// relative paths of in/variance/halfA/halfB become relative to its folder.
+bool parse_recipe_lines(std::istream& in, const std::string& file, Recipe& recipe,
+                        std::string& error);
+
+/// `k=v&k2=v2` (URL-encoded), on top of what `recipe` holds.
+bool parse_query(const std::string& query, Recipe& recipe, std::string& error);
+
+/// `name` is "file.mcdn", "file.mcdn?k=v&k2=v2" or "?k=v": the file's lines first (when
+/// the file exists), the query on top.
+bool parse_recipe(const std::string& name, Recipe& recipe, std::string& error);
+
+/// What a recipe asks for.
+struct Job {
+    std::vector<mcdn::InputFile> inputs;  // the render first, then variance, halves
+    mcdn::ChainOptions chain;
+    std::vector<std::string> channels;    // output channels; empty = the render's own
+    int threads = 0;
+};
+
+/// Checks the keys (unknown ones are errors, `stage.setting` keys go to the chain) and the
+/// chain's stage names; false with `error` when the recipe cannot run.
+bool job_from_recipe(const Recipe& recipe, Job& job, std::string& error);
+
+}  // namespace mcdn_plugin

@@ -1,0 +1,26 @@
+// libFuzzer target: the mcdn format plugin's recipes. The first byte picks the form (a URI
+// query, or the lines of a recipe file); the rest is the text. A parsed recipe goes on to the
+// key checks and the chain's stage names, as the plugin does before it reads any image.
+#include <sstream>
+
+#include "recipe.h"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size)
+{
+    if (size == 0)
+        return 0;
+    const bool as_file = data[0] & 1;
+    const std::string text(reinterpret_cast<const char*>(data) + 1, size - 1);
+    mcdn_plugin::Recipe recipe;
+    std::string error;
+    bool ok;
+    if (as_file) {
+        std::istringstream in(text);
+        ok = mcdn_plugin::parse_recipe_lines(in, "shots/fuzz.mcdn", recipe, error);
+    } else
+        ok = mcdn_plugin::parse_query(text, recipe, error);
+    mcdn_plugin::Job job;
+    if (ok)
+        mcdn_plugin::job_from_recipe(recipe, job, error);
+    return 0;
+}
