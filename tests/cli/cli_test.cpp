@@ -150,6 +150,8 @@ TEST(Cli, BadModifierValuesFailInTheParser)
     }
     std::string normalized, framespec;
     EXPECT_FALSE(mcdntool::is_sequence("x%s.#.exr", normalized, framespec));
+    EXPECT_FALSE(mcdntool::is_sequence("x.%088888888884d.exr", normalized, framespec));  // fuzzer
+    EXPECT_TRUE(mcdntool::is_sequence("x.%04d.exr", normalized, framespec));
     EXPECT_TRUE(mcdntool::is_sequence("x.1-3#.exr", normalized, framespec));
     EXPECT_EQ(mcdntool::frame_name(normalized, 2), "x.0002.exr");
     EXPECT_EQ(framespec, "1-3");
