@@ -3,12 +3,14 @@
 // (§5.3), second pass on the averaged halves (§5.4).
 #include "mcdn/nfor.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
 
 #include <OpenImageIO/imagebufalgo.h>
 
+#include "core/channels.h"
 #include "core/extra_aovs.h"
 #include "core/feature_channels.h"
 #include "core/nl_means.h"
@@ -275,7 +277,6 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     }
 
     if (options.output_mse || options.output_selection) {
-        const ImageSpec& spec = dst.spec();
         std::vector<std::string> names;
         if (options.output_mse)
             for (const char* n : { "nfor.mse.R", "nfor.mse.G", "nfor.mse.B" })
@@ -283,34 +284,10 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
         if (options.output_selection)
             for (const char* n : { "nfor.selection.R", "nfor.selection.G", "nfor.selection.B" })
                 names.push_back(n);
-        std::vector<int> order;
-        std::vector<float> values;
-        std::vector<std::string> all_names = spec.channelnames;
-        std::vector<int> new_index;
-        for (int c = 0; c < spec.nchannels; ++c) {
-            order.push_back(c);
-            values.push_back(0.0f);
-        }
-        for (const std::string& n : names) {
-            int existing = spec.channelindex(n);
-            if (existing >= 0) {
-                new_index.push_back(existing);
-                continue;
-            }
-            new_index.push_back(int(order.size()));
-            order.push_back(-1);
-            values.push_back(0.0f);
-            all_names.push_back(n);
-        }
-        if (int(order.size()) > spec.nchannels) {
-            ImageBuf grown;
-            if (!OIIO::ImageBufAlgo::channels(grown, dst, int(order.size()), order, values,
-                                              all_names)) {
-                dst.errorfmt("nfor: could not add the nfor.* output channels: {}",
-                             grown.geterror());
-                return false;
-            }
-            dst = std::move(grown);
+        const std::vector<int> new_index = add_channels(dst, names);
+        if (std::find(new_index.begin(), new_index.end(), -1) != new_index.end()) {
+            dst.errorfmt("nfor: could not add the nfor.* output channels");
+            return false;
         }
         size_t n = 0;
         if (options.output_mse)

@@ -122,6 +122,7 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
     for (const auto* group : { sure_channels::kNoisy, sure_channels::kSure,
                                sure_channels::kDivergence, sure_channels::kResidual })
         names.insert(names.end(), group, group + 3);
+    const size_t first_extra = names.size();
     std::vector<int> extra_channels;  // x of the extras, so that mix can mix them too
     for (const AovSet::Extra& extra : aovs.extras())
         if (extra.channels.size() == 3)
@@ -132,7 +133,7 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
     std::vector<int> out = add_channels(dst, names);
     ROI where = output_roi(src, roi);
     for (size_t e = 0; e < extra_channels.size(); ++e)
-        write_plane(dst, out[12 + e], read_plane(noisy, extra_channels[e]), where);
+        write_plane(dst, out[first_extra + e], read_plane(noisy, extra_channels[e]), where);
     for (int c = 0; c < 3; ++c) {
         Plane residual(w, h), estimate(w, h);
         for (size_t i = 0; i < residual.size(); ++i) {
