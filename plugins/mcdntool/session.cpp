@@ -8,6 +8,7 @@
 #include <OpenImageIO/timer.h>
 
 #include "mcdn/metrics.h"
+#include "mcdn/settings.h"
 
 namespace mcdntool {
 
@@ -45,20 +46,13 @@ bool Session::take_denoiser_chain(mcdn::Denoiser& chain, ImageBuf& chain_input,
     }
     chain_input = m_applied.empty() ? m_image : m_chain_input;
     m_queue.clear();
-    int threads = nthreads;
-    chain = [stages, threads](ImageBuf& dst, const ImageBuf& src) {
-        ImageBuf current = src;
-        for (const auto& stage : stages) {
-            ImageBuf next;
-            if (!stage.op(next, current, threads)) {
-                dst.errorfmt("{}: {}", stage.name, next.geterror());
-                return false;
-            }
-            current = std::move(next);
-        }
-        dst = std::move(current);
-        return true;
-    };
+    std::vector<std::pair<std::string, mcdn::Denoiser>> denoisers;
+    for (const auto& stage : stages)
+        denoisers.emplace_back(stage.name, [op = stage.op, threads = nthreads](
+                                               ImageBuf& dst, const ImageBuf& src) {
+            return op(dst, src, threads);
+        });
+    chain = mcdn::compose(std::move(denoisers));
     return true;
 }
 
