@@ -6,6 +6,8 @@
 
 #include <OpenImageIO/imagebufalgo.h>
 
+#include "mcdn/color.h"
+
 namespace mcdn {
 
 bool run_in_bands(ImageBuf& dst, const ImageBuf& src, int halo, int64_t band_pixels,
@@ -57,6 +59,14 @@ bool run_in_bands(ImageBuf& dst, const ImageBuf& src, int halo, int64_t band_pix
     }
     dst = std::move(out);
     return true;
+}
+
+bool run_local_op(ImageBuf& dst, const ImageBuf& src, const AovSpec& aovs, const char* op_name,
+                  int halo, int64_t band_pixels, const BandOp& op)
+{
+    return run_in_bands(dst, src, halo, band_pixels, [&](ImageBuf& band_dst, const ImageBuf& band) {
+        return run_in_working_space(band_dst, band, aovs, op_name, op);
+    });
 }
 
 }  // namespace mcdn

@@ -8,6 +8,8 @@
 
 #include <OpenImageIO/imagebuf.h>
 
+#include "mcdn/aov.h"
+
 namespace mcdn {
 
 using OIIO::ImageBuf;
@@ -23,5 +25,10 @@ using BandOp = std::function<bool(ImageBuf& dst, const ImageBuf& src)>;
 /// result equals the whole-frame run. dst may be src. Errors go on dst.
 bool run_in_bands(ImageBuf& dst, const ImageBuf& src, int halo, int64_t band_pixels,
                   const BandOp& op);
+
+/// How a local op runs: in bands (above), each band converted to the working colour space
+/// and back (mcdn/color.h run_in_working_space).
+bool run_local_op(ImageBuf& dst, const ImageBuf& src, const AovSpec& aovs, const char* op_name,
+                  int halo, int64_t band_pixels, const BandOp& op);
 
 }  // namespace mcdn

@@ -330,13 +330,10 @@ int receptive_radius(const NforOptions& o, bool prefiltered)
 bool nfor(ImageBuf& dst, const ImageBuf& src, const NforOptions& options, ROI roi, int nthreads)
 {
     bool prefiltered = src.spec().get_int_attribute("mcdn:prefiltered", 0) == 1;
-    return run_in_bands(dst, src, receptive_radius(options, prefiltered), options.band_pixels,
-                        [&](ImageBuf& band_dst, const ImageBuf& band) {
-        return run_in_working_space(band_dst, band, options.aovs, "nfor",
-                                    [&](ImageBuf& d, const ImageBuf& s) {
-            return nfor_in_working_space(d, s, options, roi, nthreads);
-        });
-    });
+    return run_local_op(dst, src, options.aovs, "nfor", receptive_radius(options, prefiltered),
+                        options.band_pixels, [&](ImageBuf& d, const ImageBuf& s) {
+                            return nfor_in_working_space(d, s, options, roi, nthreads);
+                        });
 }
 
 ImageBuf nfor(const ImageBuf& src, const NforOptions& options, ROI roi, int nthreads)

@@ -71,13 +71,10 @@ int receptive_radius(const PrefilterOptions& o)
 
 bool prefilter(ImageBuf& dst, const ImageBuf& src, const PrefilterOptions& options, ROI roi, int nthreads)
 {
-    return run_in_bands(dst, src, receptive_radius(options), options.band_pixels,
-                        [&](ImageBuf& band_dst, const ImageBuf& band) {
-        return run_in_working_space(band_dst, band, options.aovs, "prefilter",
-                                    [&](ImageBuf& d, const ImageBuf& s) {
-            return prefilter_in_working_space(d, s, options, roi, nthreads);
-        });
-    });
+    return run_local_op(dst, src, options.aovs, "prefilter", receptive_radius(options),
+                        options.band_pixels, [&](ImageBuf& d, const ImageBuf& s) {
+                            return prefilter_in_working_space(d, s, options, roi, nthreads);
+                        });
 }
 
 ImageBuf prefilter(const ImageBuf& src, const PrefilterOptions& options, ROI roi, int nthreads)
