@@ -158,7 +158,7 @@ const std::vector<std::string>& setting_keys(const std::string& stage)
         { "nfor", { "window", "patch", "k", "mse", "selection", "features", "extras" } },
         { "cnn", { "weights", "tile", "extras" } },
         { "sure", { "probes", "eps", "seed" } },
-        { "mix", { "model", "weights", "ttest", "alpha" } },
+        { "mix", { "model", "weights", "ttest", "alpha", "outlier" } },
     };
     static const std::vector<std::string> none;
     auto it = keys.find(stage);
@@ -224,6 +224,7 @@ bool apply_settings(MixOptions& o, const Settings& s, std::string& error)
         .text("weights", o.weights)
         .flag("ttest", o.t_test)
         .flag("alpha", o.output_alpha)
+        .number("outlier", o.outlier_relative_variance)
         .ok();
 }
 
