@@ -64,6 +64,16 @@ inline Rect guide_area(Rect tile, int R, int F)
     return { tile.x0 - F - R, tile.y0 - F - R, tile.x0 - F + R + bws, tile.y1 + F + R };
 }
 
+/// The NL-means weight exp(-max(0, d²)) of 16 patch distances; +inf (a neighbour outside the
+/// image) gives 0, as exp_neg16 flushes every d >= 80. No explicit `d < inf` test: GCC 12
+/// compiles that vector compare against a scalar infinity lane by lane (16 vcomiss), which
+/// cost more than the exponential itself. d is never NaN (patch_distance clamps each term).
+MCDN_INLINE vfloat16 distance_weight(vfloat16 d)
+{
+    const vfloat16 zero = {};
+    return exp_neg16(d > zero ? d : zero);
+}
+
 /// Scratch space for patch_distance on one tile.
 struct DistanceScratch {
     std::vector<float> buffer, column_sum, inv_count_x, inv_count;
