@@ -103,12 +103,14 @@ struct DistanceScratch {
 /// width) writable floats); with `take_max` the result is max(out, d²) (the regression
 /// combines colour channels by their largest distance). Pixels whose neighbour falls outside
 /// the image get +inf: columns here, rows by the caller, who fills `out` with +inf first.
-MCDN_INLINE void patch_distance(float* out, int stride, const LocalPlane& guide,
-                                const LocalPlane& variance, int width, int height, Rect tile,
-                                int dx, int dy, int patch_radius, float k, float variance_scale,
-                                bool take_max, DistanceScratch& scratch)
+/// FT: the patch radius when known at compile time (sums unrolled), 0 for any.
+template<int FT>
+MCDN_INLINE void patch_distance_impl(float* out, int stride, const LocalPlane& guide,
+                                     const LocalPlane& variance, int width, int height,
+                                     Rect tile, int dx, int dy, int patch_radius, float k,
+                                     float variance_scale, bool take_max, DistanceScratch& scratch)
 {
-    const int F = patch_radius;
+    const int F = FT > 0 ? FT : patch_radius;
     const int bx0 = tile.x0 - F, by0 = tile.y0 - F;
     const int bw = tile.width() + 2 * F;
     const int bws = round_up_lanes(bw);
@@ -168,21 +170,30 @@ MCDN_INLINE void patch_distance(float* out, int stride, const LocalPlane& guide,
         // Vertical box sum, summed afresh per row (a running sum would leave rounding
         // residues where the exact sum is 0: identical patches must keep d = 0 exactly, or
         // constant features stop being exactly constant after the prefilter).
+        // Two vectors at a time: each sum is a chain of dependent adds, kept in row order.
         const float* top = buf + size_t(y - F - by0) * bws;
-        for (int i = 0; i < bws; i += kLanes) {
-            vfloat16 s = load16(top + i);
+        int i = 0;
+        for (; i + 2 * kLanes <= bws; i += 2 * kLanes) {
+            vfloat16 s0 = load16(top + i), s1 = load16(top + i + kLanes);
+#pragma GCC unroll 16
+            for (int j = 1; j <= 2 * F; ++j) {
+                s0 += load16(top + size_t(j) * bws + i);
+                s1 += load16(top + size_t(j) * bws + i + kLanes);
+            }
+            store16(colsum + i, s0);
+            store16(colsum + i + kLanes, s1);
+        }
+        for (; i < bws; i += kLanes) {
+            vfloat16 s0 = load16(top + i);
+#pragma GCC unroll 16
             for (int j = 1; j <= 2 * F; ++j)
-                s += load16(top + size_t(j) * bws + i);
-            store16(colsum + i, s);
+                s0 += load16(top + size_t(j) * bws + i);
+            store16(colsum + i, s0);
         }
         const int cy = std::min(y + F + 1, qy1) - std::max(y - F, qy0);
         const float inv_cy = inv_n[cy] * (x_border ? 1.0f : inv_n[2 * F + 1]);
         float* o = out + size_t(y - tile.y0) * stride;
-        for (int i = 0; i < nxv; i += kLanes) {
-            // colsum index i + j is image column tile.x0 + i + j - F.
-            vfloat16 s = load16(colsum + i);
-            for (int j = 1; j <= 2 * F; ++j)
-                s += load16(colsum + i + j);
+        auto finish = [&](int i, vfloat16 s) {
             vfloat16 d = s * inv_cy;
             if (x_border)
                 d *= load16(inv_cx + i);
@@ -191,6 +202,25 @@ MCDN_INLINE void patch_distance(float* out, int stride, const LocalPlane& guide,
                 d = d > old ? d : old;
             }
             store16(o + i, d);
+        };
+        // colsum index i + j is image column tile.x0 + i + j - F.
+        i = 0;
+        for (; i + 2 * kLanes <= nxv; i += 2 * kLanes) {
+            vfloat16 s0 = load16(colsum + i), s1 = load16(colsum + i + kLanes);
+#pragma GCC unroll 16
+            for (int j = 1; j <= 2 * F; ++j) {
+                s0 += load16(colsum + i + j);
+                s1 += load16(colsum + i + kLanes + j);
+            }
+            finish(i, s0);
+            finish(i + kLanes, s1);
+        }
+        for (; i < nxv; i += kLanes) {
+            vfloat16 s0 = load16(colsum + i);
+#pragma GCC unroll 16
+            for (int j = 1; j <= 2 * F; ++j)
+                s0 += load16(colsum + i + j);
+            finish(i, s0);
         }
         // Columns whose neighbour is outside the image, and lanes past the tile, stay +inf
         // (a per-lane mask in the loop above compiles to scalar code).
@@ -199,6 +229,23 @@ MCDN_INLINE void patch_distance(float* out, int stride, const LocalPlane& guide,
         for (int x = vx1; x < tile.x0 + nxv; ++x)
             o[x - tile.x0] = inf;
     }
+}
+
+/// patch_distance_impl unrolled for the patch radii the defaults use (3: 7×7, 1: 3×3).
+MCDN_INLINE void patch_distance(float* out, int stride, const LocalPlane& guide,
+                                const LocalPlane& variance, int width, int height, Rect tile,
+                                int dx, int dy, int patch_radius, float k, float variance_scale,
+                                bool take_max, DistanceScratch& scratch)
+{
+    if (patch_radius == 3)
+        patch_distance_impl<3>(out, stride, guide, variance, width, height, tile, dx, dy, 3, k,
+                               variance_scale, take_max, scratch);
+    else if (patch_radius == 1)
+        patch_distance_impl<1>(out, stride, guide, variance, width, height, tile, dx, dy, 1, k,
+                               variance_scale, take_max, scratch);
+    else
+        patch_distance_impl<0>(out, stride, guide, variance, width, height, tile, dx, dy,
+                               patch_radius, k, variance_scale, take_max, scratch);
 }
 
 }  // namespace nlm
