@@ -64,11 +64,8 @@ MCDN_INLINE void filter_tile_impl(const FilterJob& job, Rect tile, FilterScratch
                 std::fill(w, w + size_t(T) * T, inf);
                 nlm::patch_distance(w, T, s.guide, s.variance, width, height, tile, dx, dy, F,
                                     job.params.k, job.params.variance_scale, false, s.distance);
-                const vfloat16 zero = {};
-                for (int i = 0; i < T * T; i += kLanes) {
-                    vfloat16 d = load16(w + i);
-                    store16(w + i, d < inf ? exp_neg16(d > zero ? d : zero) : zero);
-                }
+                for (int i = 0; i < T * T; i += kLanes)
+                    store16(w + i, nlm::distance_weight(load16(w + i)));
                 if (dx == 0 && dy == 0)
                     for (int y = 0; y < th; ++y)
                         for (int x = 0; x < tw; ++x)

@@ -64,6 +64,19 @@ inline Rect guide_area(Rect tile, int R, int F)
     return { tile.x0 - F - R, tile.y0 - F - R, tile.x0 - F + R + bws, tile.y1 + F + R };
 }
 
+/// The NL-means weight exp(-max(0, d²)) of 16 patch distances; +inf (a neighbour outside the
+/// image) gives 0, as exp_neg16 flushes every d >= 80. No explicit `d < inf` test: GCC 12
+/// compiles that vector compare against a scalar infinity lane by lane (16 vcomiss), which
+/// cost more than the exponential itself. d is never NaN (patch_distance clamps each term).
+MCDN_INLINE vfloat16 distance_weight(vfloat16 d)
+{
+    const vfloat16 zero = {};
+    return exp_neg16(d > zero ? d : zero);
+}
+
+/// Output rows whose vertical box sums patch_distance computes together (shared loads).
+constexpr int kRowBlock = 4;
+
 /// Scratch space for patch_distance on one tile.
 struct DistanceScratch {
     std::vector<float> buffer, column_sum, inv_count_x, inv_count;
@@ -73,7 +86,7 @@ struct DistanceScratch {
         const int F = patch_radius;
         const size_t bws = size_t(round_up_lanes(tile_size + 2 * F));
         buffer.resize(bws * (tile_size + 2 * F));
-        column_sum.resize(bws + 2 * F + 2 * kLanes);
+        column_sum.resize(kRowBlock * (bws + 2 * F + 2 * kLanes));
         inv_count_x.resize(round_up_lanes(tile_size));
         if (reserved_f != F) {
             inv_count.resize(2 * F + 2);
@@ -85,6 +98,54 @@ struct DistanceScratch {
     }
 };
 
+/// Vertical box sum of one output row: out[i] = sum of top[j * bws + i] for j < n, added
+/// top to bottom, two vectors side by side (each sum is a chain of dependent adds).
+MCDN_INLINE void column_sums_row(float* out, const float* top, int bws, int n)
+{
+    int i = 0;
+    for (; i + 2 * kLanes <= bws; i += 2 * kLanes) {
+        vfloat16 s0 = load16(top + i), s1 = load16(top + i + kLanes);
+        for (int j = 1; j < n; ++j) {
+            s0 += load16(top + size_t(j) * bws + i);
+            s1 += load16(top + size_t(j) * bws + i + kLanes);
+        }
+        store16(out + i, s0);
+        store16(out + i + kLanes, s1);
+    }
+    for (; i < bws; i += kLanes) {
+        vfloat16 s0 = load16(top + i);
+        for (int j = 1; j < n; ++j)
+            s0 += load16(top + size_t(j) * bws + i);
+        store16(out + i, s0);
+    }
+}
+
+/// column_sums_row for kRowBlock consecutive output rows (row r's sum starts at buffer row
+/// r, written to out + r * out_stride), N rows each: every buffer row is loaded once for
+/// all the sums it enters, and every sum still adds its rows top to bottom (the same
+/// result as column_sums_row, with ~3x fewer loads for 7-row sums).
+template<int N>
+MCDN_INLINE void column_sums_block(float* out, size_t out_stride, const float* top, int bws)
+{
+    for (int i = 0; i < bws; i += kLanes) {
+        vfloat16 s[kRowBlock];
+#pragma GCC unroll 16
+        for (int j = 0; j < N + kRowBlock - 1; ++j) {
+            const vfloat16 v = load16(top + size_t(j) * bws + i);
+#pragma GCC unroll 4
+            for (int r = 0; r < kRowBlock; ++r) {
+                if (j == r)
+                    s[r] = v;
+                else if (j > r && j < r + N)
+                    s[r] += v;
+            }
+        }
+#pragma GCC unroll 4
+        for (int r = 0; r < kRowBlock; ++r)
+            store16(out + r * out_stride + i, s[r]);
+    }
+}
+
 /// Patch-averaged distance d²(p, p + (dx, dy)) for every p of `tile`, one channel: the mean
 /// over the part of p's patch where both pixels lie inside the image (the box filter of
 /// the reference implementation, normalised by the pixel count at the borders).
@@ -93,12 +154,14 @@ struct DistanceScratch {
 /// width) writable floats); with `take_max` the result is max(out, d²) (the regression
 /// combines colour channels by their largest distance). Pixels whose neighbour falls outside
 /// the image get +inf: columns here, rows by the caller, who fills `out` with +inf first.
-MCDN_INLINE void patch_distance(float* out, int stride, const LocalPlane& guide,
-                                const LocalPlane& variance, int width, int height, Rect tile,
-                                int dx, int dy, int patch_radius, float k, float variance_scale,
-                                bool take_max, DistanceScratch& scratch)
+/// FT: the patch radius when known at compile time (sums unrolled), 0 for any.
+template<int FT>
+MCDN_INLINE void patch_distance_impl(float* out, int stride, const LocalPlane& guide,
+                                     const LocalPlane& variance, int width, int height,
+                                     Rect tile, int dx, int dy, int patch_radius, float k,
+                                     float variance_scale, bool take_max, DistanceScratch& scratch)
 {
-    const int F = patch_radius;
+    const int F = FT > 0 ? FT : patch_radius;
     const int bx0 = tile.x0 - F, by0 = tile.y0 - F;
     const int bw = tile.width() + 2 * F;
     const int bws = round_up_lanes(bw);
@@ -152,43 +215,78 @@ MCDN_INLINE void patch_distance(float* out, int stride, const LocalPlane& guide,
             inv_cx[i] = n > 0 ? inv_n[n] : 0.0f;
         }
 
-    float* colsum = scratch.column_sum.data();
+    const size_t cs_stride = size_t(bws + 2 * F + 2 * kLanes);
     const float inf = std::numeric_limits<float>::infinity();
-    for (int y = vy0; y < vy1; ++y) {
-        // Vertical box sum, summed afresh per row (a running sum would leave rounding
-        // residues where the exact sum is 0: identical patches must keep d = 0 exactly, or
-        // constant features stop being exactly constant after the prefilter).
-        const float* top = buf + size_t(y - F - by0) * bws;
-        for (int i = 0; i < bws; i += kLanes) {
-            vfloat16 s = load16(top + i);
-            for (int j = 1; j <= 2 * F; ++j)
-                s += load16(top + size_t(j) * bws + i);
-            store16(colsum + i, s);
-        }
-        const int cy = std::min(y + F + 1, qy1) - std::max(y - F, qy0);
-        const float inv_cy = inv_n[cy] * (x_border ? 1.0f : inv_n[2 * F + 1]);
-        float* o = out + size_t(y - tile.y0) * stride;
-        for (int i = 0; i < nxv; i += kLanes) {
+    for (int y0 = vy0; y0 < vy1; y0 += kRowBlock) {
+        // Vertical box sums, summed afresh per row (a running sum would leave rounding residues
+        // where the exact sum is 0: identical patches must keep d = 0 exactly, or constant
+        // features stop being exactly constant after the prefilter).
+        const bool blocked = FT > 0 && y0 + kRowBlock <= vy1;
+        if constexpr (FT > 0)
+            if (blocked)
+                column_sums_block<2 * FT + 1>(scratch.column_sum.data(), cs_stride,
+                                              buf + size_t(y0 - F - by0) * bws, bws);
+        for (int y = y0; y < std::min(y0 + kRowBlock, vy1); ++y) {
+            float* colsum = scratch.column_sum.data() + (blocked ? (y - y0) * cs_stride : 0);
+            if (!blocked)
+                column_sums_row(colsum, buf + size_t(y - F - by0) * bws, bws, 2 * F + 1);
+            const int cy = std::min(y + F + 1, qy1) - std::max(y - F, qy0);
+            const float inv_cy = inv_n[cy] * (x_border ? 1.0f : inv_n[2 * F + 1]);
+            float* o = out + size_t(y - tile.y0) * stride;
+            auto finish = [&](int i, vfloat16 s) {
+                vfloat16 d = s * inv_cy;
+                if (x_border)
+                    d *= load16(inv_cx + i);
+                if (take_max) {
+                    vfloat16 old = load16(o + i);
+                    d = d > old ? d : old;
+                }
+                store16(o + i, d);
+            };
             // colsum index i + j is image column tile.x0 + i + j - F.
-            vfloat16 s = load16(colsum + i);
-            for (int j = 1; j <= 2 * F; ++j)
-                s += load16(colsum + i + j);
-            vfloat16 d = s * inv_cy;
-            if (x_border)
-                d *= load16(inv_cx + i);
-            if (take_max) {
-                vfloat16 old = load16(o + i);
-                d = d > old ? d : old;
+            int i = 0;
+            for (; i + 2 * kLanes <= nxv; i += 2 * kLanes) {
+                vfloat16 s0 = load16(colsum + i), s1 = load16(colsum + i + kLanes);
+#pragma GCC unroll 16
+                for (int j = 1; j <= 2 * F; ++j) {
+                    s0 += load16(colsum + i + j);
+                    s1 += load16(colsum + i + kLanes + j);
+                }
+                finish(i, s0);
+                finish(i + kLanes, s1);
             }
-            store16(o + i, d);
+            for (; i < nxv; i += kLanes) {
+                vfloat16 s0 = load16(colsum + i);
+#pragma GCC unroll 16
+                for (int j = 1; j <= 2 * F; ++j)
+                    s0 += load16(colsum + i + j);
+                finish(i, s0);
+            }
+            // Columns whose neighbour is outside the image, and lanes past the tile, stay +inf
+            // (a per-lane mask in the loop above compiles to scalar code).
+            for (int x = tile.x0; x < vx0; ++x)
+                o[x - tile.x0] = inf;
+            for (int x = vx1; x < tile.x0 + nxv; ++x)
+                o[x - tile.x0] = inf;
         }
-        // Columns whose neighbour is outside the image, and lanes past the tile, stay +inf
-        // (a per-lane mask in the loop above compiles to scalar code).
-        for (int x = tile.x0; x < vx0; ++x)
-            o[x - tile.x0] = inf;
-        for (int x = vx1; x < tile.x0 + nxv; ++x)
-            o[x - tile.x0] = inf;
     }
+}
+
+/// patch_distance_impl unrolled for the patch radii the defaults use (3: 7×7, 1: 3×3).
+MCDN_INLINE void patch_distance(float* out, int stride, const LocalPlane& guide,
+                                const LocalPlane& variance, int width, int height, Rect tile,
+                                int dx, int dy, int patch_radius, float k, float variance_scale,
+                                bool take_max, DistanceScratch& scratch)
+{
+    if (patch_radius == 3)
+        patch_distance_impl<3>(out, stride, guide, variance, width, height, tile, dx, dy, 3, k,
+                               variance_scale, take_max, scratch);
+    else if (patch_radius == 1)
+        patch_distance_impl<1>(out, stride, guide, variance, width, height, tile, dx, dy, 1, k,
+                               variance_scale, take_max, scratch);
+    else
+        patch_distance_impl<0>(out, stride, guide, variance, width, height, tile, dx, dy,
+                               patch_radius, k, variance_scale, take_max, scratch);
 }
 
 }  // namespace nlm

@@ -51,7 +51,8 @@ bool prepare_op(ImageBuf& dst, const ImageBuf& src, const AovSpec& spec, AovSet&
     if (src.localpixels() && src.spec().format == OIIO::TypeDesc::FLOAT
         && src.pixel_stride() == OIIO::stride_t(src.spec().pixel_bytes())
         && src.scanline_stride() == OIIO::stride_t(src.spec().scanline_bytes())) {
-        dst.reset(src.spec());
+        // Not zero-filled: zeroing would fault every 4 KB page before the advice.
+        dst.reset(src.spec(), OIIO::InitializePixels::No);
         advise_huge_pages(dst.localpixels(), src.spec().image_bytes());
         std::memcpy(dst.localpixels(), src.localpixels(), src.spec().image_bytes());
         return true;

@@ -8,6 +8,8 @@
 #include <cstdio>
 #include <cstdlib>
 
+#include <sys/resource.h>
+
 #include <OpenImageIO/imagebufalgo.h>
 
 #include "core/channels.h"
@@ -38,16 +40,28 @@ bool check_options(ImageBuf& dst, const NforOptions& o)
     return ok;
 }
 
-/// MCDN_TRACE=1 prints the time of each stage to stderr (for the benchmark).
+/// Process CPU seconds, all threads (the stage times on a shared machine).
+double process_cpu_seconds()
+{
+    rusage u {};
+    getrusage(RUSAGE_SELF, &u);
+    return u.ru_utime.tv_sec + u.ru_stime.tv_sec + 1e-6 * (u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
+
+/// MCDN_TRACE=1 prints the wall and CPU time of each stage to stderr (for the benchmark).
 struct StageTimer {
     bool on = std::getenv("MCDN_TRACE") != nullptr;
     std::chrono::steady_clock::time_point last = std::chrono::steady_clock::now();
+    double last_cpu = on ? process_cpu_seconds() : 0.0;
     void operator()(const char* stage)
     {
         auto now = std::chrono::steady_clock::now();
-        if (on)
-            std::fprintf(stderr, "nfor: %-28s %7.3f s\n", stage,
-                         std::chrono::duration<double>(now - last).count());
+        if (on) {
+            double cpu = process_cpu_seconds();
+            std::fprintf(stderr, "nfor: %-28s %7.3f s wall %7.3f s CPU\n", stage,
+                         std::chrono::duration<double>(now - last).count(), cpu - last_cpu);
+            last_cpu = cpu;
+        }
         last = now;
     }
 };

@@ -209,13 +209,11 @@ MCDN_INLINE void regression_tile_impl(const RegressionInputs& in, Rect tile, Til
                 if (source[j] >= 0)
                     continue;
                 float* wj = s.weights.data() + wsize * slot[j] + size_t(o) * T;
-                const vfloat16 zero = {}, k = splat16(inv_k2[j]);
+                const vfloat16 k = splat16(inv_k2[j]);
                 for (int y = 0; y < th; ++y)
-                    for (int i = 0; i < T; i += kLanes) {
-                        vfloat16 di = load16(d + y * T + i);
+                    for (int i = 0; i < T; i += kLanes)
                         store16(wj + size_t(y) * noff * T + i,
-                                di < inf ? exp_neg16((di > zero ? di : zero) * k) : zero);
-                    }
+                                nlm::distance_weight(load16(d + y * T + i) * k));
                 if (dx == 0 && dy == 0)
                     for (int y = 0; y < th; ++y)
                         for (int x = 0; x < tw; ++x) {
