@@ -4,7 +4,7 @@
 // the generated crops training/cnn holds out (datasets/eval if rendered, else the `full`
 // crops whose number % 6 == 4) at 16 and 64 spp.
 //
-//   bench_cnn [--no-quality] [--no-speed] [--size WxH] [weights.mcdnw]
+//   bench_cnn [--no-quality] [--no-speed] [--size WxH] [--tile N] [weights.mcdnw]
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -99,6 +99,7 @@ void speed(kpcn::Model& model, int w, int h, int tile)
             in[1] = std::move(image);
             if (!nn::run_tiled(*net, in, out, error, tiles))
                 std::fprintf(stderr, "%s\n", error.c_str());
+            model.diffuse.give_buffers(model.specular);  // as the op does
         }
     });
     std::printf("%dx%d, tile %d (halo %d): %.2f s wall, %.2f CPU-s for both branches, %.1f GFLOP "
@@ -228,12 +229,15 @@ int main(int argc, char** argv)
 {
     bool do_quality = true, do_speed = true;
     int w = 1920, h = 1080;
+    std::vector<int> tiles = { 256, 512 };
     std::string weights = default_cnn_weights();
     for (int i = 1; i < argc; ++i) {
         if (!std::strcmp(argv[i], "--no-quality"))
             do_quality = false;
         else if (!std::strcmp(argv[i], "--no-speed"))
             do_speed = false;
+        else if (!std::strcmp(argv[i], "--tile") && i + 1 < argc)
+            tiles = { std::atoi(argv[++i]) };
         else if (!std::strcmp(argv[i], "--size") && i + 1 < argc)
             std::sscanf(argv[++i], "%dx%d", &w, &h);
         else
@@ -251,7 +255,7 @@ int main(int argc, char** argv)
                 model.diffuse.receptive_radius());
     if (do_speed) {
         plain_conv(w, h, per_pixel * w * h / 1e9);
-        for (int tile : { 256, 512 })
+        for (int tile : tiles)
             speed(model, w, h, tile);
     }
     if (do_quality)

@@ -220,7 +220,7 @@ std::vector<CommandInfo> stage_commands()
           queue_nfor, false, check<mcdn::NforOptions, nfor_options> },
         { "--cnn", "", { "weights", "tile", "extras" },
           "Kernel-predicting CNN denoiser (KPCN): diffuse/specular split, our trained weights "
-          "(models/kpcn.mcdnw; weights=FILE), tiled (tile=256). Extra AOVs take their share "
+          "(models/kpcn.mcdnw; weights=FILE), tiled (tile=512). Extra AOVs take their share "
           "of the beauty's denoised light through its kernels (extras=0: keep them).",
           queue_cnn, false, check<mcdn::CnnOptions, cnn_options> },
         { "--sure", "", { "probes", "eps", "seed" },

@@ -110,8 +110,10 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
         return true;
     };
     const bool ran = with_threads(nthreads, [&] {
-        return (!raw.split || run_branch(model.diffuse, kpcn::Branch::diffuse, irradiance))
-               && run_branch(model.specular, kpcn::Branch::specular, log_specular);
+        if (raw.split && !run_branch(model.diffuse, kpcn::Branch::diffuse, irradiance))
+            return false;
+        model.diffuse.give_buffers(model.specular);  // same shapes: no new memory
+        return run_branch(model.specular, kpcn::Branch::specular, log_specular);
     });
     if (!ran) {
         dst.errorfmt("{}", error);

@@ -7,11 +7,9 @@
 #include <algorithm>
 #include <vector>
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-
 #include "core/simd.h"
 #include "nn/ops.h"
+#include "nn/parallel.h"
 
 namespace mcdn {
 namespace nn {
@@ -39,8 +37,8 @@ void make_planes(const Tensor& image, int pad, PaddedPlanes& planes)
     planes.rows = image.height + 2 * pad;
     planes.channels = image.channels;
     planes.values.resize(size_t(planes.channels) * planes.rows * planes.stride);
-    tbb::parallel_for(tbb::blocked_range<int>(0, planes.rows), [&](const tbb::blocked_range<int>& r) {
-        for (int py = r.begin(); py != r.end(); ++py) {
+    parallel_row_blocks(planes.rows, [&](int first, int last) {
+        for (int py = first; py != last; ++py) {
             const int y = std::clamp(py - pad, 0, image.height - 1);  // edge clamp
             for (int c = 0; c < planes.channels; ++c) {
                 float* out = planes.values.data() + (size_t(c) * planes.rows + py) * planes.stride;
@@ -130,9 +128,9 @@ void apply_kernel(const Tensor& logits, int first_channel, const Tensor& image, 
     const Job job { &logits, first_channel, &planes, kernel, &out };
     const Isa isa = detect_isa();
     auto row = isa == Isa::Avx512 ? row_avx512 : isa == Isa::Avx2 ? row_avx2 : row_baseline;
-    tbb::parallel_for(tbb::blocked_range<int>(0, image.height), [&](const tbb::blocked_range<int>& r) {
+    parallel_row_blocks(image.height, [&](int first, int last) {
         RowScratch scratch;
-        for (int y = r.begin(); y != r.end(); ++y)
+        for (int y = first; y != last; ++y)
             row(job, y, scratch);
     });
 }

@@ -363,6 +363,29 @@ void give_back(std::vector<std::vector<float>>& spare, Tensor& t)
 
 }  // namespace
 
+void Net::make_state()
+{
+    state_ = std::make_unique<NetState>();
+    for (size_t id = 0; id < nodes_.size(); ++id)
+        if (nodes_[id].op == Op::conv)
+            state_->convs.emplace(
+                std::piecewise_construct, std::forward_as_tuple(int(id)),
+                std::forward_as_tuple(nodes_[nodes_[id].inputs[0]].channels, nodes_[id].channels,
+                                      nodes_[id].kernel, nodes_[id].activation, weights_[id],
+                                      biases_[id]));
+}
+
+void Net::give_buffers(Net& other)
+{
+    if (!state_ || &other == this || !other.loaded_)
+        return;
+    if (!other.state_)
+        other.make_state();
+    for (std::vector<float>& buffer : state_->spare)
+        other.state_->spare.push_back(std::move(buffer));
+    state_->spare.clear();
+}
+
 bool Net::run(const std::vector<Tensor>& inputs, std::vector<Tensor>& outputs, std::string& error,
               Backend backend)
 {
@@ -398,16 +421,8 @@ bool Net::run(const std::vector<Tensor>& inputs, std::vector<Tensor>& outputs, s
             return false;
         }
     }
-    if (!state_) {
-        state_ = std::make_unique<NetState>();
-        for (size_t id = 0; id < nodes_.size(); ++id)
-            if (nodes_[id].op == Op::conv)
-                state_->convs.emplace(
-                    std::piecewise_construct, std::forward_as_tuple(int(id)),
-                    std::forward_as_tuple(nodes_[nodes_[id].inputs[0]].channels, nodes_[id].channels,
-                                          nodes_[id].kernel, nodes_[id].activation, weights_[id],
-                                          biases_[id]));
-    }
+    if (!state_)
+        make_state();
 
     const int count = int(nodes_.size());
     const bool fast = backend == Backend::onednn;

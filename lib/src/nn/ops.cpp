@@ -1,18 +1,30 @@
-// The parameter-free ops run() uses: each a loop over output rows handed to TBB. NHWC keeps
+// The parameter-free ops run() uses: each a loop over output rows (nn/parallel.h). NHWC keeps
 // a pixel's channels contiguous, so inner loops are memcpy or short vectorisable runs.
 // Every output value is computed by one thread from its inputs alone: no cross-thread
 // reductions, so the result does not depend on the number of threads.
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
+#include <sys/mman.h>
 
 #include "nn/ops.h"
+#include "nn/parallel.h"
 
 namespace mcdn {
 namespace nn {
+void advise_huge_pages(void* data, size_t bytes)
+{
+#ifdef MADV_HUGEPAGE
+    constexpr uintptr_t huge = uintptr_t(2) << 20;
+    const uintptr_t first = (reinterpret_cast<uintptr_t>(data) + huge - 1) / huge * huge;
+    const uintptr_t last = (reinterpret_cast<uintptr_t>(data) + bytes) / huge * huge;
+    if (last > first)
+        madvise(reinterpret_cast<void*>(first), last - first, MADV_HUGEPAGE);  // a hint: errors are harmless
+#endif
+}
+
 void reshape(Tensor& t, int height, int width, int channels)
 {
     t.height = height;
@@ -20,25 +32,15 @@ void reshape(Tensor& t, int height, int width, int channels)
     t.channels = channels;
     if (t.size() <= t.data.size())
         return;  // never shrunk: a larger value may come back to this storage
-    if (t.size() > t.data.capacity())
+    if (t.size() > t.data.capacity()) {
         t.data = std::vector<float>();  // grown without copying values nobody reads
+        t.data.reserve(t.size());
+        advise_huge_pages(t.data.data(), t.size() * sizeof(float));
+    }
     t.data.resize(t.size());
 }
 
 namespace ops {
-
-namespace {
-
-/// Runs row(y) for every y in [0, height) on TBB's threads.
-template<class RowFunction> void parallel_rows(int height, RowFunction row)
-{
-    tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& r) {
-        for (int y = r.begin(); y != r.end(); ++y)
-            row(y);
-    });
-}
-
-}  // namespace
 
 void add(const Tensor& a, const Tensor& b, Activation activation, Tensor& out)
 {

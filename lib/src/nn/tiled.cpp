@@ -7,6 +7,7 @@
 
 #include "mcdn/nn.h"
 #include "nn/ops.h"
+#include "nn/parallel.h"
 
 namespace mcdn {
 namespace nn {
@@ -21,14 +22,13 @@ int round_up(int value, int multiple) { return (value + multiple - 1) / multiple
 void extract_window(const Tensor& image, int y0, int y1, int x0, int x1, Tensor& window)
 {
     reshape(window, y1 - y0, x1 - x0, image.channels);
-    for (int y = y0; y < y1; ++y) {
+    parallel_rows(y1 - y0, [&](int wy) {
+        const int y = std::min(y0 + wy, image.height - 1);
         const int inside = std::max(std::min(x1, image.width) - x0, 0);
-        const float* row = image.pixel(std::min(y, image.height - 1), x0);
-        std::copy_n(row, size_t(inside) * image.channels, window.pixel(y - y0, 0));
+        std::copy_n(image.pixel(y, x0), size_t(inside) * image.channels, window.pixel(wy, 0));
         for (int x = x0 + inside; x < x1; ++x)
-            std::copy_n(image.pixel(std::min(y, image.height - 1), image.width - 1),
-                        image.channels, window.pixel(y - y0, x - x0));
-    }
+            std::copy_n(image.pixel(y, image.width - 1), image.channels, window.pixel(wy, x - x0));
+    });
 }
 
 }  // namespace
