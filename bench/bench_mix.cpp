@@ -1,10 +1,14 @@
-// Progressive mix (PD §4, Table 4): errors of the render, our NFOR and four mixes — the
-// network (§4.3) and the analytic eq. 9, each with and without the t-test (eq. 18) — on the
+// Progressive mix (PD §4, Table 4): errors of the render, our NFOR and five mixes — the
+// network (§4.3) and the analytic eq. 9, each with and without the t-test (eq. 18), and the
+// network + t-test without its outlier floor (lib/src/mix/outlier_floor.cpp) — on the
 // shared evaluation data and the held-out generated crops; the properties of issue 5 item 4
 // checked on them; and the speed of a 1920x1080 mix pass (without the denoiser runs) as a
 // ratio to one plain oneDNN 3x3 48->48 convolution of the same size, timed in the same run.
 //
-//   bench_mix [--no-speed | --only-speed] [--no-generated] [weights.mcdnw]
+//   bench_mix [--no-speed | --only-speed] [--no-generated] [--crop DIR]... [weights.mcdnw]
+//
+// --crop DIR adds every level of one generated crop (DIR/<name>_00NNspp*.exr, DIR/<name>_ref.exr),
+// e.g. a training crop where a mix went wrong (datasets/small/0001_exterior).
 //
 // Generated crops: $MCDN_CACHE (~/.cache/mcdenoise)/datasets/eval/* if rendered, else the
 // crops of datasets/full that training/mix holds out (crop number % 6 == 4).
@@ -51,7 +55,22 @@ std::vector<InputFile> level_files(const std::string& stem)
              { stem + "_A.exr", InputKind::HalfA }, { stem + "_B.exr", InputKind::HalfB } };
 }
 
-std::vector<Input> inputs(bool generated)
+void add_crop_levels(std::vector<Input>& list, const fs::path& dir, const std::string& label)
+{
+    const std::string crop = dir.filename().string();
+    const std::string ref = (dir / (crop + "_ref.exr")).string();
+    if (!fs::exists(ref))
+        return;
+    for (int spp : { 4, 16, 64, 256, 1024 }) {
+        char level[32];
+        std::snprintf(level, sizeof level, "_%04dspp", spp);
+        const std::string stem = (dir / (crop + level)).string();
+        if (fs::exists(stem + "_B.exr"))
+            list.push_back({ label, spp, level_files(stem), "cycles", ref });
+    }
+}
+
+std::vector<Input> inputs(bool generated, const std::vector<std::string>& extra_crops)
 {
     std::vector<Input> list;
     for (int spp : { 16, 64, 256 }) {
@@ -62,6 +81,10 @@ std::vector<Input> inputs(bool generated)
     for (const char* scene : { "cornell20", "materialtest" })
         list.push_back({ scene, 16, { { shared(std::string("tungsten/") + scene), InputKind::Mean } },
                          "tungsten", shared(std::string("tungsten/") + scene + "/ref.pfm") });
+    for (const std::string& dir : extra_crops) {
+        const fs::path path = fs::path(dir).lexically_normal();
+        add_crop_levels(list, path, path.parent_path().filename().string() + "/" + path.filename().string());
+    }
     if (!generated)
         return list;
     bool eval = false;
@@ -77,16 +100,7 @@ std::vector<Input> inputs(bool generated)
         const std::string crop = dir.filename().string();
         if (!eval && (crop.size() < 4 || std::atoi(crop.substr(0, 4).c_str()) % 6 != 4))
             continue;  // a training crop
-        const std::string ref = (dir / (crop + "_ref.exr")).string();
-        if (!fs::exists(ref))
-            continue;
-        for (int spp : { 4, 16, 64, 256, 1024 }) {
-            char level[32];
-            std::snprintf(level, sizeof level, "_%04dspp", spp);
-            const std::string stem = (dir / (crop + level)).string();
-            if (fs::exists(stem + "_B.exr"))
-                list.push_back({ (eval ? "eval/" : "full/") + crop, spp, level_files(stem), "cycles", ref });
-        }
+        add_crop_levels(list, dir, (eval ? "eval/" : "full/") + crop);
     }
     return list;
 }
@@ -147,12 +161,13 @@ ImageBuf synthetic_frame(int width, int height)
     return buf;
 }
 
+constexpr int kMixes = 5;
+const char* kMixNames[kMixes] = { "net+t", "net", "analytic+t", "analytic", "net+t nofloor" };
 struct Row {
     Input in;
-    Metrics render, nfor, mix[4];
-    double alpha[4];
+    Metrics render, nfor, mix[kMixes];
+    double alpha[kMixes];
 };
-const char* kMixNames[4] = { "net+t", "net", "analytic+t", "analytic" };
 
 }  // namespace
 
@@ -160,9 +175,12 @@ int main(int argc, char** argv)
 {
     bool speed = true, generated = true, accuracy = true;
     std::string weights;
+    std::vector<std::string> extra_crops;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
-        if (a == "--no-speed")
+        if (a == "--crop" && i + 1 < argc)
+            extra_crops.push_back(argv[++i]);
+        else if (a == "--no-speed")
             speed = false;
         else if (a == "--only-speed")
             accuracy = false;
@@ -176,7 +194,7 @@ int main(int argc, char** argv)
     std::printf("mcdenoise progressive mix benchmark (PD §4, Table 4); network %s\n\n", weights.c_str());
 
     std::vector<Row> rows;
-    for (const Input& in : accuracy ? inputs(generated) : std::vector<Input>()) {
+    for (const Input& in : accuracy ? inputs(generated, extra_crops) : std::vector<Input>()) {
         ImageBuf src, ref;
         if (!read_inputs(src, in.files) || !read_image(ref, in.reference)) {
             std::fprintf(stderr, "%s %d spp: %s%s (skipped)\n", in.scene.c_str(), in.spp,
@@ -197,12 +215,14 @@ int main(int argc, char** argv)
         }
         Row row { in, {}, {}, {}, {} };
         bool ok = metrics_of(row.render, src, ref) && metrics_of(row.nfor, with_sure, ref);
-        for (int m = 0; m < 4 && ok; ++m) {
+        for (int m = 0; m < kMixes && ok; ++m) {
             MixOptions mo;
             mo.aovs = aovs;
-            mo.model = m < 2 ? MixOptions::Model::Net : MixOptions::Model::Analytic;
+            mo.model = m < 2 || m == 4 ? MixOptions::Model::Net : MixOptions::Model::Analytic;
             mo.weights = weights;
             mo.t_test = m % 2 == 0;
+            if (m == 4)
+                mo.outlier_relative_variance = 0;
             mo.output_alpha = true;
             ImageBuf z;
             if (!mix(z, with_sure, mo)) {
@@ -221,8 +241,9 @@ int main(int argc, char** argv)
 
     if (accuracy) {
         std::printf("| input | spp | RMSE render | RMSE NFOR | RMSE net+t | net | analytic+t | analytic "
-                    "| relMSE render | NFOR | net+t | net | analytic+t | analytic | mean alpha' net+t | analytic+t |\n");
-        std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+                    "| net+t nofloor | relMSE render | NFOR | net+t | net | analytic+t | analytic "
+                    "| net+t nofloor | mean alpha' net+t | analytic+t |\n");
+        std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
         for (const Row& r : rows) {
             std::printf("| %s | %d | %.4f | %.4f", r.in.scene.c_str(), r.in.spp, r.render.rmse, r.nfor.rmse);
             for (const Metrics& m : r.mix)
@@ -252,7 +273,8 @@ int main(int argc, char** argv)
         };
         const std::pair<const char*, int> models[] = { { "mc-render", -2 }, { "NFOR", -1 },
                                                       { "mix net + t-test", 0 }, { "mix net, no t-test", 1 },
-                                                      { "mix analytic + t-test", 2 }, { "mix analytic, no t-test", 3 } };
+                                                      { "mix analytic + t-test", 2 }, { "mix analytic, no t-test", 3 },
+                                                      { "mix net + t-test, no outlier floor", 4 } };
         for (auto [name, which] : models) {
             std::printf("| %s |", name);
             for (const auto& [spp, list] : by_spp)
@@ -262,7 +284,7 @@ int main(int argc, char** argv)
 
         // Issue 5 item 4, per mix model.
         std::printf("\nProperties (issue 5 item 4), RMSE:\n");
-        for (int m = 0; m < 4; ++m) {
+        for (int m = 0; m < kMixes; ++m) {
             int within = 0;
             std::string misses;
             for (const Row& r : rows) {
@@ -273,7 +295,7 @@ int main(int argc, char** argv)
                     misses += " " + r.in.scene + "@" + std::to_string(r.in.spp) + "("
                               + std::to_string(int(std::round(100 * (r.mix[m].rmse / better - 1)))) + "%)";
             }
-            std::printf("  %-11s mix <= min(render, NFOR) + 2%%: %d of %zu inputs;%s\n", kMixNames[m],
+            std::printf("  %-13s mix <= min(render, NFOR) + 2%%: %d of %zu inputs;%s\n", kMixNames[m],
                         within, rows.size(), misses.empty() ? " all" : (" over:" + misses).c_str());
         }
         // Scenes with several levels: alpha' trend and the averaged-over-spp gain where NFOR is
@@ -288,15 +310,15 @@ int main(int argc, char** argv)
             std::printf("  %s: alpha'(net+t) by spp:", scene.c_str());
             for (const Row* r : list)
                 std::printf(" %d:%.3f", r->in.spp, r->alpha[0]);
-            double nfor_mean = 0, mix_mean[4] = {};
+            double nfor_mean = 0, mix_mean[kMixes] = {};
             for (const Row* r : list) {
                 nfor_mean += r->nfor.rmse / list.size();
-                for (int m = 0; m < 4; ++m)
+                for (int m = 0; m < kMixes; ++m)
                     mix_mean[m] += r->mix[m].rmse / list.size();
             }
             if (top->nfor.rmse > top->render.rmse) {
                 std::printf("; NFOR worse than render at %d spp: mean-over-spp RMSE gain vs NFOR", top->in.spp);
-                for (int m = 0; m < 4; ++m)
+                for (int m = 0; m < kMixes; ++m)
                     std::printf(" %s %.0f%%%s", kMixNames[m], 100 * (1 - mix_mean[m] / nfor_mean),
                                 mix_mean[m] <= 0.8 * nfor_mean ? "" : " (<20%)");
             }

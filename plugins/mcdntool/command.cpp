@@ -2,10 +2,10 @@
 #include "command.h"
 
 #include <algorithm>
-#include <cmath>
-#include <limits>
 
 #include <OpenImageIO/strutil.h>
+
+#include "mcdn/settings.h"
 
 #include "command_line.h"
 #include "session.h"
@@ -21,17 +21,9 @@ std::string Command::modifier(const std::string& key, const std::string& fallbac
     return it == modifiers.end() ? fallback : it->second;
 }
 
-bool parse_finite(const std::string& text, double& value)
-{
-    if (!Strutil::string_is_float(text))
-        return false;
-    value = Strutil::stod(text);
-    return std::abs(value) <= std::numeric_limits<float>::max();  // false for nan too
-}
-
 bool Command::number(const std::string& key, double& value, std::string& error) const
 {
-    if (has(key) && !parse_finite(modifier(key), value)) {
+    if (has(key) && !mcdn::parse_finite(modifier(key), value)) {
         error = format("{}:{}={} is not a number", name, key, modifier(key));
         return false;
     }

@@ -40,10 +40,6 @@ struct CommandInfo {
     CommandCheck check;                  // null when any value is accepted
 };
 
-/// True when `text` is a number within float range (nan and inf would reach the ops as NaN
-/// outputs; every option is a float or double).
-bool parse_finite(const std::string& text, double& value);
-
 /// Every command mcdntool knows, in --help order (built-ins, then the stages).
 const std::vector<CommandInfo>& command_table();
 const CommandInfo* find_command(const std::string& name);

@@ -8,6 +8,7 @@
 #include <OpenImageIO/timer.h>
 
 #include "mcdn/metrics.h"
+#include "mcdn/settings.h"
 
 namespace mcdntool {
 
@@ -23,11 +24,14 @@ bool Session::load(std::string& error)
     std::vector<Queued> queue;
     std::swap(queue, m_queue);
     for (const auto& stage : queue) {
-        if (m_applied.empty())
-            m_chain_input = m_image;
-        if (!apply(stage.name, stage.op, error))
+        // The first denoiser's input is kept for a later --sure, which reruns the chain: moved
+        // there, not copied (an 8K frame of 40 channels is 5.3 GB).
+        bool first = m_applied.empty();
+        if (first)
+            m_chain_input = std::move(m_image);
+        if (!apply_to(stage.name, first ? m_chain_input : m_image, stage.op, error))
             return false;
-        m_applied.push_back(stage);  // after apply(), which starts a new chain
+        m_applied.push_back(stage);  // after apply_to(), which starts a new chain
     }
     return true;
 }
@@ -43,22 +47,18 @@ bool Session::take_denoiser_chain(mcdn::Denoiser& chain, ImageBuf& chain_input,
         error = "--sure needs a denoiser before it to estimate the error of (e.g. --nfor --sure)";
         return false;
     }
-    chain_input = m_applied.empty() ? m_image : m_chain_input;
+    // Moved out, not copied: the caller's result replaces the current image, which SURE
+    // recomputes anyway (y = F(x)).
+    chain_input = std::move(m_applied.empty() ? m_image : m_chain_input);
+    m_image = ImageBuf();
     m_queue.clear();
-    int threads = nthreads;
-    chain = [stages, threads](ImageBuf& dst, const ImageBuf& src) {
-        ImageBuf current = src;
-        for (const auto& stage : stages) {
-            ImageBuf next;
-            if (!stage.op(next, current, threads)) {
-                dst.errorfmt("{}: {}", stage.name, next.geterror());
-                return false;
-            }
-            current = std::move(next);
-        }
-        dst = std::move(current);
-        return true;
-    };
+    std::vector<std::pair<std::string, mcdn::Denoiser>> denoisers;
+    for (const auto& stage : stages)
+        denoisers.emplace_back(stage.name, [op = stage.op, threads = nthreads](
+                                               ImageBuf& dst, const ImageBuf& src) {
+            return op(dst, src, threads);
+        });
+    chain = mcdn::compose(std::move(denoisers));
     return true;
 }
 

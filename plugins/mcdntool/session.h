@@ -36,8 +36,9 @@ public:
     /// Queues a denoiser (--prefilter, --nfor) to run at the next load().
     void queue(const std::string& name, StageOp op) { m_queue.push_back({ name, std::move(op) }); }
     /// The denoisers run (or queued) since the inputs were read, as one Denoiser for SURE,
-    /// and the image they started from; an error if there is none. Denoisers that already
-    /// ran (an --info or --metrics came between) run again inside SURE.
+    /// and the image they started from, moved out of the session: the caller replaces the
+    /// current image (apply_to); an error if there is none. Denoisers that already ran (an
+    /// --info or --metrics came between) run again inside SURE.
     bool take_denoiser_chain(mcdn::Denoiser& chain, OIIO::ImageBuf& chain_input,
                              std::string& error);
     /// Loads, then replaces the current image by op(current image).

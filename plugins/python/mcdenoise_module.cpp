@@ -12,6 +12,7 @@
 #include "mcdn/mix.h"
 #include "mcdn/nfor.h"
 #include "mcdn/prefilter.h"
+#include "mcdn/settings.h"
 #include "mcdn/sure.h"
 
 namespace py = pybind11;
@@ -32,6 +33,24 @@ mcdn::AovSpec aov_spec(const std::string& preset, const std::map<std::string, st
             throw std::runtime_error(error);
     return spec;
 }
+
+// A stage's Options from its keyword arguments, through the library's settings parser, so
+// Python checks values exactly as mcdntool and the recipe do ("nfor: window=4 must be ...").
+template <class Options>
+Options stage_options(const std::string& stage, const mcdn::AovSpec& aovs,
+                      const mcdn::Settings& settings)
+{
+    Options o;
+    o.aovs = aovs;
+    std::string error;
+    if (!mcdn::apply_settings(o, settings, error))
+        throw std::runtime_error(stage + ": " + error);
+    return o;
+}
+
+std::string text(int value) { return std::to_string(value); }
+std::string text(bool value) { return value ? "1" : "0"; }
+std::string text(float value) { return OIIO::Strutil::fmt::format("{}", value); }
 
 // Runs an op in OIIO's shape, without the GIL; its error becomes a RuntimeError.
 template<class Op> ImageBuf run(const ImageBuf& src, Op op)
@@ -134,11 +153,9 @@ PYBIND11_MODULE(mcdenoise, m)
           [](const ImageBuf& src, const std::string& preset,
              const std::map<std::string, std::string>& aovs, const std::string& colorspace,
              int window, int patch, float k, int nthreads) {
-              mcdn::PrefilterOptions o;
-              o.aovs = aov_spec(preset, aovs, colorspace);
-              o.window_radius = window / 2;
-              o.patch_radius = patch / 2;
-              o.k = k;
+              auto o = stage_options<mcdn::PrefilterOptions>(
+                  "prefilter", aov_spec(preset, aovs, colorspace),
+                  { { "window", text(window) }, { "patch", text(patch) }, { "k", text(k) } });
               return run(src, [&](ImageBuf& d, const ImageBuf& s) {
                   return mcdn::prefilter(d, s, o, {}, nthreads);
               });
@@ -152,14 +169,11 @@ PYBIND11_MODULE(mcdenoise, m)
           [](const ImageBuf& src, const std::string& preset,
              const std::map<std::string, std::string>& aovs, const std::string& colorspace,
              int window, int patch, bool mse, bool selection, bool extras, int nthreads) {
-              mcdn::NforOptions o;
-              o.denoise_extras = extras;
-              o.aovs = aov_spec(preset, aovs, colorspace);
+              auto o = stage_options<mcdn::NforOptions>(
+                  "nfor", aov_spec(preset, aovs, colorspace),
+                  { { "window", text(window) }, { "patch", text(patch) }, { "mse", text(mse) },
+                    { "selection", text(selection) }, { "extras", text(extras) } });
               o.prefilter.aovs = o.aovs;
-              o.window_radius = o.second_window_radius = window / 2;
-              o.patch_radius = patch / 2;
-              o.output_mse = mse;
-              o.output_selection = selection;
               return run(src, [&](ImageBuf& d, const ImageBuf& s) {
                   return mcdn::nfor(d, s, o, {}, nthreads);
               });
@@ -175,10 +189,9 @@ PYBIND11_MODULE(mcdenoise, m)
           [](const ImageBuf& src, const std::string& preset,
              const std::map<std::string, std::string>& aovs, const std::string& colorspace,
              const std::string& weights, bool extras, int nthreads) {
-              mcdn::CnnOptions o;
-              o.aovs = aov_spec(preset, aovs, colorspace);
-              o.weights = weights;
-              o.denoise_extras = extras;
+              auto o = stage_options<mcdn::CnnOptions>(
+                  "cnn", aov_spec(preset, aovs, colorspace),
+                  { { "weights", weights }, { "extras", text(extras) } });
               return run(src, [&](ImageBuf& d, const ImageBuf& s) {
                   return mcdn::cnn(d, s, o, {}, nthreads);
               });
@@ -193,10 +206,9 @@ PYBIND11_MODULE(mcdenoise, m)
           [](const ImageBuf& src, py::object denoiser, const std::string& preset,
              const std::map<std::string, std::string>& aovs, const std::string& colorspace,
              int probes, float eps, int nthreads) {
-              mcdn::SureOptions o;
-              o.aovs = aov_spec(preset, aovs, colorspace);
-              o.probes = probes;
-              o.epsilon_relative = eps;
+              auto o = stage_options<mcdn::SureOptions>(
+                  "sure", aov_spec(preset, aovs, colorspace),
+                  { { "probes", text(probes) }, { "eps", text(eps) } });
               mcdn::Denoiser f;
               if (py::isinstance<py::str>(denoiser))
                   f = named_denoiser(denoiser.cast<std::string>(), o.aovs, nthreads);
@@ -230,15 +242,10 @@ PYBIND11_MODULE(mcdenoise, m)
              bool t_test, bool alpha, const std::string& preset,
              const std::map<std::string, std::string>& aovs, const std::string& colorspace,
              int nthreads) {
-              mcdn::MixOptions o;
-              o.aovs = aov_spec(preset, aovs, colorspace);
-              if (model == "net")
-                  o.model = mcdn::MixOptions::Model::Net;
-              else if (model != "analytic")
-                  throw std::runtime_error("mix: model '" + model + "' is not net or analytic");
-              o.weights = weights;
-              o.t_test = t_test;
-              o.output_alpha = alpha;
+              auto o = stage_options<mcdn::MixOptions>(
+                  "mix", aov_spec(preset, aovs, colorspace),
+                  { { "model", model }, { "weights", weights }, { "ttest", text(t_test) },
+                    { "alpha", text(alpha) } });
               return run(src, [&](ImageBuf& d, const ImageBuf& s) {
                   return mcdn::mix(d, s, o, {}, nthreads);
               });

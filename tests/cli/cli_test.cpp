@@ -143,7 +143,8 @@ TEST(Cli, BadModifierValuesFailInTheParser)
                              "--sure:eps=nan", "--nfor:k=inf,1", "--nfor:k=", "--cnn:tile=x",
                              "--prefilter:k=1e39", "--heatmap:min=abc h.png", "-o:datatype=doubel o.exr",
                              "--threads many", "--parallel-frames 0", "--frames 1-2000000000",
-                             "--frames x", "--aov color=R,G" }) {
+                             "--frames x", "--aov color=R,G", "--nfor:mse=yes", "--nfor:window=4",
+                             "--mix:model=neural" }) {
         error.clear();
         EXPECT_FALSE(parse(std::string("x.exr ") + bad, error)) << bad;
         EXPECT_FALSE(error.empty()) << bad;

@@ -70,6 +70,9 @@ class OpsTakeAndReturnImageBufs(unittest.TestCase):
             mcdenoise.nfor(self.render, preset="generic")
         self.assertIn("color", str(caught.exception))
         with self.assertRaises(RuntimeError) as caught:
+            mcdenoise.nfor(self.render, window=4)
+        self.assertIn("nfor: window=4 must be an odd width", str(caught.exception))
+        with self.assertRaises(RuntimeError) as caught:
             mcdenoise.mix(self.render)
         self.assertIn("run sure first", str(caught.exception))
 

@@ -524,7 +524,7 @@ def stage_city(rng, family):
     pitch = rng.uniform(6, 12)
     for i in range(-n, n + 1):
         for j in range(-n, n + 1):
-            if abs(i) <= 0 and abs(j) <= 0:
+            if i == 0 and j == 0:
                 continue  # a plaza in the middle for the content
             if rng.random() < 0.15:
                 continue
@@ -549,7 +549,7 @@ def stage_terrain(rng, family):
     amp = rng.uniform(0.3, 2.0)
     for k in range(6):
         f = (0.05 + 0.08 * rng.random()) * (2 ** k)
-        ph = rng.uniform(0, 6.3, ) if False else rng.uniform(0, 6.3)
+        ph = rng.uniform(0, 6.3)
         ang = rng.uniform(0, 6.3)
         Z += amp / (2 ** k) * np.sin(f * (X * math.cos(ang) + Y * math.sin(ang)) + ph)
     Z -= Z[n // 2, n // 2]

@@ -67,6 +67,17 @@ def write_fixture(net, state, sample_path, out_path, y0=40, x0=30, h=24, w=32):
         "weights_checksum": weights_checksum(state), "torch": torch.__version__})
 
 
+def loss_description(cycles):
+    """The loss of each cycle: SMAPE, plus the log-L1 term from the cycle that added it."""
+    parts = []
+    for c in cycles:
+        w = c.get("log_l1_weight", 0)
+        parts.append("steps %d-%d: SMAPE(z, r), eps 0.01%s" % (
+            c["start"], c["start"] + c["steps"],
+            " + %g mean|slog1p(z) - slog1p(r)|" % w if w else ""))
+    return "; ".join(parts) or "SMAPE(z, reference), eps 0.01"
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--run-dir", default=os.path.join(CACHE, "mix", "run"))
@@ -104,13 +115,14 @@ def main():
                      "patches": st["patches"], "seconds": round(st["seconds"]),
                      "batch": targs["batch"], "patch": targs["patch"], "max_lr": targs["max_lr"],
                      "schedule": "one-cycle (torch OneCycleLR defaults), Adam",
-                     "loss": "SMAPE(z, reference), eps 0.01", "swap": "HDR<->DEN, VAR<->SURE p=0.5",
+                     "loss": loss_description(st.get("cycles", [])),
+                     "swap": "HDR<->DEN, VAR<->SURE p=0.5",
                      "augmentation": "8 flips/rotations", "cycles": st.get("cycles", []),
                      "note": args.note},
         "final": {"train_smape_last200": round(float(np.mean(recent)), 5),
-                  "val_smape": float(last_val["val_smape"]),
-                  "val_render_smape": float(last_val["val_render_smape"]),
-                  "val_denoised_smape": float(last_val["val_denoised_smape"])},
+                  **{k: float(last_val[k]) for k in ("val_smape", "val_render_smape",
+                     "val_denoised_smape", "val_relmse", "val_render_relmse",
+                     "val_denoised_relmse") if last_val.get(k)}},
         "torch": torch.__version__,
     }
     os.makedirs(os.path.dirname(args.out), exist_ok=True)

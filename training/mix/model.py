@@ -112,6 +112,21 @@ def smape(z, reference):
     return (torch.abs(z - reference) / (torch.abs(z) + torch.abs(reference) + 0.01)).mean()
 
 
+def log_l1(z, reference):
+    """mean |slog(z) - slog(r)|, slog = signed_log1p. Added to SMAPE in training because
+    SMAPE's gradient vanishes on fireflies: d/dz of |z - r| / (|z| + |r|) is ~2r / z^2, so a
+    kept render firefly of z = 50 over r = 0.1 pulls on alpha 10^4 times less than an
+    ordinary pixel, while this term pulls with (y - x) / (1 + z), ~1 there and at most 1 per
+    unit of y - x everywhere (it grows like log, so the references' own fireflies do not
+    swamp a batch as a relMSE term would)."""
+    return torch.abs(signed_log1p(z) - signed_log1p(reference)).mean()
+
+
+def relmse(z, reference):
+    """relMSE as in ../shared/data/README.md: mean (z - r)^2 / (r^2 + 0.01) (reporting only)."""
+    return ((z - reference) ** 2 / (reference * reference + 0.01)).mean()
+
+
 PLANES = ("x", "y", "variance", "sure", "divergence", "residual", "reference")
 
 

@@ -12,7 +12,9 @@ DIR (default $CACHE/mix/run) also gets loss.csv and loss.png (the loss curve).
 Per step: a batch of 12 random 64x64 patches (whole crop if smaller) of random files, each
 with a random flip/rotation (8 symmetries of the square) and, with probability 1/2, HDR<->DEN
 and VAR<->SURE swapped (§4.3; the network then predicts beta = 1 - alpha of
-z = y + beta (x - y)). Loss: SMAPE of z against the reference. Adam, one-cycle schedule.
+z = y + beta (x - y)). Loss: SMAPE of z against the reference, plus --log-l1-weight times
+the L1 distance of their signed log1p (model.log_l1: SMAPE alone lets render fireflies
+through, its gradient vanishes on them). Adam, one-cycle schedule.
 An "epoch" is as many patches as there are training files.
 
 Validation: whole crops of the held-out generated crops (crop number % 6 == 4 in
@@ -31,7 +33,7 @@ import numpy as np
 import torch
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from model import PLANES, MixNet, load_sample, mix, smape  # noqa: E402
+from model import PLANES, MixNet, load_sample, log_l1, mix, relmse, smape  # noqa: E402
 
 CACHE = os.environ.get("MCDN_CACHE", os.path.expanduser("~/.cache/mcdenoise"))
 PREPARED = os.path.join(CACHE, "mix", "prepared")
@@ -76,16 +78,40 @@ def random_batch(samples, batch, patch, rng):
 
 @torch.no_grad()
 def validate(net, samples):
-    """Mean SMAPE over the validation files of the mix, the render and the denoised image."""
+    """Mean over the validation files of SMAPE and of relMSE of the mix, the render and the
+    denoised image (in that order)."""
     net.eval()
-    totals = np.zeros(3)
+    totals = np.zeros(6)
     for s in samples:
         b = {k: v.unsqueeze(0) for k, v in s.items()}
         z, _ = mix(net, *(b[k] for k in INPUT_PLANES))
-        totals += [smape(z, b["reference"]).item(), smape(b["x"], b["reference"]).item(),
-                   smape(b["y"], b["reference"]).item()]
+        r = b["reference"]
+        totals += [metric(image, r).item() for metric in (smape, relmse)
+                   for image in (z, b["x"], b["y"])]
     net.train()
     return totals / max(len(samples), 1)
+
+
+# loss.csv's columns; the last four came with the log-L1 term (a run's older rows lack them).
+CSV_COLUMNS = ["step", "epoch", "lr", "train_smape", "val_smape", "val_render_smape",
+               "val_denoised_smape", "seconds", "train_files", "train_log_l1", "val_relmse",
+               "val_render_relmse", "val_denoised_relmse"]
+
+
+def open_log(csv_path):
+    """loss.csv for appending, with the header of CSV_COLUMNS (an older file's header is
+    rewritten; its rows keep their values)."""
+    if os.path.exists(csv_path):
+        rows = list(csv.reader(open(csv_path)))
+        if rows and rows[0] != CSV_COLUMNS:
+            with open(csv_path + ".tmp", "w", newline="") as f:
+                csv.writer(f).writerows([CSV_COLUMNS] + rows[1:])
+            os.replace(csv_path + ".tmp", csv_path)
+    new = not os.path.exists(csv_path)
+    log = open(csv_path, "a", newline="")
+    if new:
+        csv.writer(log).writerow(CSV_COLUMNS)
+    return log
 
 
 def plot_png(csv_path, png_path, width=640, height=360):
@@ -134,6 +160,9 @@ def main():
     ap.add_argument("--extend", type=int, default=0,
                     help="after a finished run: another one-cycle of this many steps")
     ap.add_argument("--max-lr", type=float, default=5e-4)
+    ap.add_argument("--log-l1-weight", type=float, default=1.0,
+                    help="weight of the log-domain L1 term added to SMAPE (model.log_l1); "
+                         "0 = SMAPE alone, as the paper")
     ap.add_argument("--leak", type=float, default=0.0,
                     help="surrogate gradient where f_act's clip is active (model.f_act); 0 = exact")
     ap.add_argument("--batch", type=int, default=12)
@@ -187,7 +216,7 @@ def main():
     if not cycles or cycles[-1]["start"] != state["cycle_start"]:
         cycles.append({"start": state["cycle_start"], "steps": state["cycle_steps"],
                        "max_lr": args.max_lr, "patch": args.patch, "batch": args.batch,
-                       "leak": args.leak})
+                       "leak": args.leak, "log_l1_weight": args.log_l1_weight})
     done_in_cycle = state["step"] - state["cycle_start"]
     if sched_state is not None and args.steps and args.steps != state["cycle_steps"] \
             and not args.extend:
@@ -213,19 +242,17 @@ def main():
                     "val_files": [os.path.relpath(f, PREPARED) for f in val_files]}, tmp)
         os.replace(tmp, ckpt_path)
 
-    new_csv = not os.path.exists(csv_path)
-    log = open(csv_path, "a", newline="")
+    log = open_log(csv_path)
     writer = csv.writer(log)
-    if new_csv:
-        writer.writerow(["step", "epoch", "lr", "train_smape", "val_smape", "val_render_smape",
-                         "val_denoised_smape", "seconds", "train_files"])
     end = state["cycle_start"] + state["cycle_steps"]
-    running, count, t0 = 0.0, 0, time.time()
+    running, running_log, count, t0 = 0.0, 0.0, 0, time.time()
     train_files, val_files = list(train_files), list(val_files)
     while state["step"] < end:
         batch, swap = random_batch(train, args.batch, args.patch, rng)
         z, _ = mix(net, *(batch[k] for k in INPUT_PLANES), swap=swap, leak=args.leak)
-        loss = smape(z, batch["reference"])
+        smape_term = smape(z, batch["reference"])
+        log_term = log_l1(z, batch["reference"])
+        loss = smape_term + args.log_l1_weight * log_term
         opt.zero_grad()
         loss.backward()
         opt.step()
@@ -233,25 +260,29 @@ def main():
         state["step"] += 1
         state["patches"] += args.batch
         state["epochs"] = state.get("epochs", state["patches"] / len(train)) + args.batch / len(train)
-        running += loss.item()
+        running += smape_term.item()
+        running_log += log_term.item()
         count += 1
         last = state["step"] == end
         if state["step"] % args.log_every == 0 or last:
             now = time.time()
             state["seconds"] += now - t0
             t0 = now
-            row_val = ["", "", ""]
+            row_val = [""] * 6
             if state["step"] % args.checkpoint_every == 0 or last:
-                row_val = ["%.6f" % v for v in validate(net, val)] if val else row_val
+                row_val = ["%.6g" % v for v in validate(net, val)] if val else row_val
             epoch = state["epochs"]
             writer.writerow([state["step"], "%.2f" % epoch, "%.3g" % opt.param_groups[0]["lr"],
-                             "%.6f" % (running / count)] + row_val
-                            + ["%.0f" % state["seconds"], len(train)])
+                             "%.6f" % (running / count)] + row_val[:3]
+                            + ["%.0f" % state["seconds"], len(train), "%.6f" % (running_log / count)]
+                            + row_val[3:])
             log.flush()
-            print("step %d  epoch %.1f  lr %.2g  train SMAPE %.5f  val %s  %.0f s" % (
-                state["step"], epoch, opt.param_groups[0]["lr"], running / count,
-                "/".join(row_val), state["seconds"]), flush=True)
-            running, count = 0.0, 0
+            print("step %d  epoch %.1f  lr %.2g  train SMAPE %.5f log-L1 %.5f  val SMAPE %s "
+                  "relMSE %s  %.0f s" % (
+                      state["step"], epoch, opt.param_groups[0]["lr"], running / count,
+                      running_log / count, "/".join(row_val[:3]), "/".join(row_val[3:]),
+                      state["seconds"]), flush=True)
+            running, running_log, count = 0.0, 0.0, 0
             if row_val[0]:
                 save()
                 # Crops the generator and prepare.py finished meanwhile join the training set.

@@ -35,6 +35,11 @@ struct MixOptions {
     /// noise of <||y - x||^2> (~13%) pulls alpha below 1 on smooth regions and costs ~15%
     /// MSE against the denoiser alone; 21x21 halves that (tests/mix).
     int analytic_radius = 10;
+    /// Model::Net: where the render's variance exceeds this many times y^2 + 0.01 (an
+    /// outlier of its own variance; the network's arctan error inputs read such pixels as
+    /// saturated), alpha is at least the pixel's own eq. 9 (lib/src/mix/outlier_floor.cpp).
+    /// 0 disables the bound.
+    float outlier_relative_variance = 10.0f;
 
     // The t-test bound, eq. 12-18.
     bool t_test = true;

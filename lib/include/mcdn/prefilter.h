@@ -34,6 +34,11 @@ struct PrefilterOptions {
     int second_window_radius = 2;
     int second_patch_radius = 3;
     float second_k = 0.5f;
+
+    /// Frames with more pixels run in horizontal bands of at most this many pixels (with
+    /// the filter's radius of extra rows each side), so memory follows the band: same
+    /// output, a little more time. 0: always the whole frame.
+    int64_t band_pixels = int64_t(1) << 22;
 };
 
 /// Prefilters every feature channel. dst = src with the features' mean, half A and half B

@@ -9,6 +9,7 @@
 #include "mcdn/mix.h"
 #include "mcdn/nfor.h"
 #include "mcdn/prefilter.h"
+#include "mcdn/settings.h"
 #include "mcdn/sure.h"
 
 namespace mcdn {
@@ -20,46 +21,65 @@ namespace {
 
 const std::vector<std::string> kStages = { "prefilter", "nfor", "cnn", "sure", "mix" };
 
-std::string setting(const ChainOptions& o, const std::string& key, const std::string& fallback)
+// One stage's Options from the "stage.key" settings; the error names the setting as given.
+template <class Options>
+bool stage_options(Options& options, const ChainOptions& o, const std::string& stage,
+                   std::string& error)
 {
-    auto it = o.settings.find(key);
-    return it == o.settings.end() ? fallback : it->second;
+    options.aovs = o.aovs;
+    if (apply_settings(options, stage_settings(o.settings, stage), error))
+        return true;
+    error = stage + "." + error;  // "nfor.window=4 must be ..."
+    return false;
 }
 
-// A width setting (odd pixels) as a radius, or the default radius.
-int radius(const ChainOptions& o, const std::string& key, int fallback)
+// Every setting belongs to a stage and passes its checks, also for stages not in the chain:
+// a misspelt key is an error, not silently the default.
+bool check_settings(const ChainOptions& o, std::string& error)
 {
-    std::string value = setting(o, key, "");
-    return value.empty() ? fallback : std::max(0, Strutil::stoi(value) / 2);
+    for (const auto& [key, value] : o.settings) {
+        std::string stage = key.substr(0, key.find('.'));
+        if (key.find('.') == std::string::npos
+            || std::find(kStages.begin(), kStages.end(), stage) == kStages.end()) {
+            error = format("{}={}: not a stage setting (stage.key, stages: {})", key, value,
+                           Strutil::join(kStages, ", "));
+            return false;
+        }
+    }
+    PrefilterOptions p;
+    NforOptions n;
+    CnnOptions c;
+    SureOptions s;
+    MixOptions m;
+    return stage_options(p, o, "prefilter", error) && stage_options(n, o, "nfor", error)
+           && stage_options(c, o, "cnn", error) && stage_options(s, o, "sure", error)
+           && stage_options(m, o, "mix", error);
 }
 
-Denoiser denoiser_stage(const std::string& name, const ChainOptions& o, int nthreads)
+std::pair<std::string, Denoiser> denoiser_stage(const std::string& name, const ChainOptions& o,
+                                                int nthreads)
 {
+    std::string unused;  // check_settings has checked them
     if (name == "prefilter") {
         PrefilterOptions p;
-        p.aovs = o.aovs;
-        p.window_radius = radius(o, "prefilter.window", p.window_radius);
-        p.patch_radius = radius(o, "prefilter.patch", p.patch_radius);
-        p.k = Strutil::stof(setting(o, "prefilter.k", std::to_string(p.k)));
-        return [p, nthreads](ImageBuf& dst, const ImageBuf& src) {
-            return prefilter(dst, src, p, {}, nthreads);
-        };
+        stage_options(p, o, name, unused);
+        return { name, [p, nthreads](ImageBuf& dst, const ImageBuf& src) {
+                    return prefilter(dst, src, p, {}, nthreads);
+                } };
     }
     if (name == "cnn") {
         CnnOptions c;
-        c.aovs = o.aovs;
-        c.weights = setting(o, "cnn.weights", "");
-        c.denoise_extras = setting(o, "cnn.extras", "1") != "0";
-        return [c, nthreads](ImageBuf& dst, const ImageBuf& src) { return cnn(dst, src, c, {}, nthreads); };
+        stage_options(c, o, name, unused);
+        return { name, [c, nthreads](ImageBuf& dst, const ImageBuf& src) {
+                    return cnn(dst, src, c, {}, nthreads);
+                } };
     }
     NforOptions n;
-    n.aovs = n.prefilter.aovs = o.aovs;
-    n.window_radius = n.second_window_radius = radius(o, "nfor.window", n.window_radius);
-    n.patch_radius = radius(o, "nfor.patch", n.patch_radius);
-    n.output_mse = setting(o, "nfor.mse", "0") == "1";
-    n.output_selection = setting(o, "nfor.selection", "0") == "1";
-    n.denoise_extras = setting(o, "nfor.extras", "1") != "0";
-    return [n, nthreads](ImageBuf& dst, const ImageBuf& src) { return nfor(dst, src, n, {}, nthreads); };
+    stage_options(n, o, name, unused);
+    n.prefilter.aovs = o.aovs;
+    return { name, [n, nthreads](ImageBuf& dst, const ImageBuf& src) {
+                return nfor(dst, src, n, {}, nthreads);
+            } };
 }
 
 }  // namespace
@@ -91,52 +111,29 @@ bool run_chain(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, ROI ro
 {
     std::vector<std::string> check;
     std::string error;
-    if (!parse_chain(check, Strutil::join(o.stages, ","), error)) {
+    if (!parse_chain(check, Strutil::join(o.stages, ","), error) || !check_settings(o, error)) {
         dst.errorfmt("{}", error);
         return false;
     }
     ImageBuf current = src;
-    std::vector<Denoiser> pending;  // denoisers since the last sure/mix
-    auto compose = [](std::vector<Denoiser> stages) -> Denoiser {
-        return [stages](ImageBuf& out, const ImageBuf& in) {
-            ImageBuf x = in;
-            for (const auto& stage : stages) {
-                ImageBuf next;
-                if (!stage(next, x)) {
-                    out.errorfmt("{}", next.geterror());
-                    return false;
-                }
-                x = std::move(next);
-            }
-            out = std::move(x);
-            return true;
-        };
-    };
-    for (size_t i = 0; i < o.stages.size(); ++i) {
-        const std::string& name = o.stages[i];
-        ImageBuf next;
-        bool ok = true;
+    std::vector<std::pair<std::string, Denoiser>> pending;  // denoisers since the last sure/mix
+    for (const std::string& name : o.stages) {
         if (name == "prefilter" || name == "nfor" || name == "cnn") {
             // Denoisers wait: a sure after them runs them itself (K + 1 times), else they
             // run at the end.
             pending.push_back(denoiser_stage(name, o, nthreads));
             continue;
         }
+        ImageBuf next;
+        bool ok;
         if (name == "sure") {
             SureOptions s;
-            s.aovs = o.aovs;
-            s.probes = Strutil::stoi(setting(o, "sure.probes", "1"));
-            s.epsilon_relative = Strutil::stof(setting(o, "sure.eps", "0.001"));
-            ok = sure(next, current, compose(pending), s, roi, nthreads);
+            stage_options(s, o, name, error);
+            ok = sure(next, current, compose(std::move(pending)), s, roi, nthreads);
             pending.clear();
         } else {  // mix
             MixOptions m;
-            m.aovs = o.aovs;
-            m.model = setting(o, "mix.model", "analytic") == "net" ? MixOptions::Model::Net
-                                                                   : MixOptions::Model::Analytic;
-            m.weights = setting(o, "mix.weights", "");
-            m.t_test = setting(o, "mix.ttest", "1") != "0";
-            m.output_alpha = setting(o, "mix.alpha", "0") == "1";
+            stage_options(m, o, name, error);
             ok = mix(next, current, m, roi, nthreads);
         }
         if (!ok) {
@@ -145,11 +142,11 @@ bool run_chain(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, ROI ro
         }
         current = std::move(next);
     }
-    if (!pending.empty() && !compose(pending)(dst, current))
-        return false;
-    if (pending.empty())
+    if (pending.empty()) {
         dst = std::move(current);
-    return true;
+        return true;
+    }
+    return compose(std::move(pending))(dst, current);
 }
 
 }  // namespace mcdn

@@ -60,6 +60,10 @@ bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options, ROI roi,
             dst.errorfmt("{}", error);
             return false;
         }
+        if (options.outlier_relative_variance > 0)
+            for (int c = 0; c < 3; ++c)
+                outlier_floor(alpha[c], in.variance[c], in.y[c], in.divergence[c],
+                              in.residual[c], options.outlier_relative_variance);
     } else {
         analytic_alpha(alpha, in, options.analytic_radius);
     }

@@ -30,6 +30,12 @@ nn::Tensor net_features(const MixInputs& in);
 bool net_alpha(Plane alpha[3], const MixInputs& in, nn::Net& net, std::string& error,
                nn::Tensor* raw = nullptr);
 
+/// Where variance > relative_variance * (y^2 + 0.01) (the render is an outlier of its own
+/// variance, past where the network's arctan inputs saturate), alpha >= the pixel's eq. 9,
+/// clipped to [0, 1]; elsewhere alpha is left alone (outlier_floor.cpp says why).
+void outlier_floor(Plane& alpha, const Plane& variance, const Plane& y, const Plane& divergence,
+                   const Plane& residual, float relative_variance);
+
 /// sigma_s of eq. 15: min(sqrt(spatial variance of x), 1) * scale.
 float t_test_sigma(const MixInputs& in, float scale);
 

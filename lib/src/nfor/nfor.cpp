@@ -14,6 +14,7 @@
 #include "core/extra_aovs.h"
 #include "core/feature_channels.h"
 #include "core/nl_means.h"
+#include "core/bands.h"
 #include "core/op_prepare.h"
 #include "mcdn/color.h"
 #include "nfor/extras.h"
@@ -306,11 +307,33 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
 
 }  // namespace
 
+namespace {
+
+// How far NFOR reaches, stage by stage: the feature prefilter (two NL-means steps, unless it
+// ran already); a collaborative pass (an output pixel averages the fits of every window that
+// holds it, each fit weighted by patches around its window: 2 windows + 1 patch); the two
+// NL-means filters of the MSE and selection maps (§5.3); the second collaborative pass.
+int receptive_radius(const NforOptions& o, bool prefiltered)
+{
+    const PrefilterOptions& p = o.prefilter;
+    int prefilter = prefiltered || !o.prefilter_features
+                        ? 0
+                        : p.window_radius + p.patch_radius + p.second_window_radius
+                              + p.second_patch_radius;
+    return prefilter + 2 * o.window_radius + o.patch_radius
+           + 2 * (o.map_window_radius + o.map_patch_radius) + 2 * o.second_window_radius
+           + o.second_patch_radius;
+}
+
+}  // namespace
+
 bool nfor(ImageBuf& dst, const ImageBuf& src, const NforOptions& options, ROI roi, int nthreads)
 {
-    return run_in_working_space(dst, src, options.aovs, "nfor", [&](ImageBuf& d, const ImageBuf& s) {
-        return nfor_in_working_space(d, s, options, roi, nthreads);
-    });
+    bool prefiltered = src.spec().get_int_attribute("mcdn:prefiltered", 0) == 1;
+    return run_local_op(dst, src, options.aovs, "nfor", receptive_radius(options, prefiltered),
+                        options.band_pixels, [&](ImageBuf& d, const ImageBuf& s) {
+                            return nfor_in_working_space(d, s, options, roi, nthreads);
+                        });
 }
 
 ImageBuf nfor(const ImageBuf& src, const NforOptions& options, ROI roi, int nthreads)

@@ -2,6 +2,7 @@
 #include "mcdn/prefilter.h"
 
 #include "core/feature_channels.h"
+#include "core/bands.h"
 #include "core/op_prepare.h"
 #include "mcdn/color.h"
 #include "prefilter/feature_prefilter.h"
@@ -58,11 +59,22 @@ bool prefilter_in_working_space(ImageBuf& dst, const ImageBuf& src,
 
 }  // namespace
 
+namespace {
+
+// How far the two NL-means steps reach: window plus patch, twice.
+int receptive_radius(const PrefilterOptions& o)
+{
+    return o.window_radius + o.patch_radius + o.second_window_radius + o.second_patch_radius;
+}
+
+}  // namespace
+
 bool prefilter(ImageBuf& dst, const ImageBuf& src, const PrefilterOptions& options, ROI roi, int nthreads)
 {
-    return run_in_working_space(dst, src, options.aovs, "prefilter", [&](ImageBuf& d, const ImageBuf& s) {
-        return prefilter_in_working_space(d, s, options, roi, nthreads);
-    });
+    return run_local_op(dst, src, options.aovs, "prefilter", receptive_radius(options),
+                        options.band_pixels, [&](ImageBuf& d, const ImageBuf& s) {
+                            return prefilter_in_working_space(d, s, options, roi, nthreads);
+                        });
 }
 
 ImageBuf prefilter(const ImageBuf& src, const PrefilterOptions& options, ROI roi, int nthreads)

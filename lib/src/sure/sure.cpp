@@ -2,6 +2,7 @@
 // denoise once, choose the probe step, probe K times, assemble SURE per pixel and channel.
 #include "mcdn/sure.h"
 
+#include <array>
 #include <cmath>
 
 #include "core/channels.h"
@@ -73,32 +74,25 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
         p.variance[c] = read_plane(noisy, aovs.channels(Role::ColorVariance)[c], true);
     }
 
-    // y = F(x): the result we report SURE for.
-    ImageBuf denoised;
-    if (!denoiser(denoised, noisy)) {
-        dst.errorfmt("sure: the denoiser failed: {}", denoised.geterror());
-        return false;
-    }
-    Plane y[3];
-    for (int c = 0; c < 3; ++c)
-        y[c] = read_plane(denoised, color[c]);
-
-    // Eq. 2: probe with b ~ N(0, Sigma); the render and both halves move together.
+    // Eq. 2: probe with b ~ N(0, Sigma); the render and both halves move together. The
+    // probes run before y = F(x) and keep only their colour, so at most three full frames
+    // (render, probed render, response) are alive at once.
     const double eps = probe_step(p, options.epsilon_relative);
     const int w = p.x[0].width, h = p.x[0].height;
-    Plane divergence[3] = { Plane(w, h), Plane(w, h), Plane(w, h) };
+    auto probe = [&](int k, int c) {
+        Plane b(w, h);
+        for (size_t i = 0; i < b.size(); ++i)
+            b.px[i] = std::sqrt(p.variance[c].px[i]) * standard_normal(options.seed, uint64_t(k), i * 3 + c);
+        return b;
+    };
     std::vector<int> moved = color;
     for (Role half : { Role::ColorA, Role::ColorB })
         if (aovs.has(half))
             moved.insert(moved.end(), aovs.channels(half).begin(), aovs.channels(half).end());
-    for (int k = 0; eps > 0 && k < options.probes; ++k) {
-        Plane b[3];
-        for (int c = 0; c < 3; ++c) {
-            b[c] = Plane(w, h);
-            for (size_t i = 0; i < b[c].size(); ++i)
-                b[c].px[i] = std::sqrt(p.variance[c].px[i])
-                             * standard_normal(options.seed, uint64_t(k), i * 3 + c);
-        }
+    const int probes = eps > 0 ? options.probes : 0;
+    std::vector<std::array<Plane, 3>> responses(probes);  // F(x + eps b_k), colour only
+    for (int k = 0; k < probes; ++k) {
+        Plane b[3] = { probe(k, 0), probe(k, 1), probe(k, 2) };
         ImageBuf probed = noisy.copy(OIIO::TypeDesc::FLOAT);
         probed.specmod().attribute(sure_channels::kProbeAttribute, 1);
         for (size_t g = 0; g < moved.size(); g += 3)
@@ -108,13 +102,29 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
             dst.errorfmt("sure: the denoiser failed on probe {}: {}", k, response.geterror());
             return false;
         }
-        for (int c = 0; c < 3; ++c) {
-            Plane f = read_plane(response, color[c]);
-            for (size_t i = 0; i < f.size(); ++i)
-                divergence[c].px[i] += float(b[c].px[i] * (double(f.px[i]) - y[c].px[i])
-                                             / (eps * options.probes));
-        }
+        for (int c = 0; c < 3; ++c)
+            responses[k][c] = read_plane(response, color[c]);
     }
+
+    // y = F(x): the result we report SURE for.
+    ImageBuf denoised;
+    if (!denoiser(denoised, noisy)) {
+        dst.errorfmt("sure: the denoiser failed: {}", denoised.geterror());
+        return false;
+    }
+    Plane y[3];
+    for (int c = 0; c < 3; ++c)
+        y[c] = read_plane(denoised, color[c]);
+    Plane divergence[3] = { Plane(w, h), Plane(w, h), Plane(w, h) };
+    for (int k = 0; k < probes; ++k)
+        for (int c = 0; c < 3; ++c) {
+            Plane b = probe(k, c);
+            const Plane& f = responses[k][c];
+            for (size_t i = 0; i < f.size(); ++i)
+                divergence[c].px[i] += float(b.px[i] * (double(f.px[i]) - y[c].px[i])
+                                             / (eps * options.probes));
+            responses[k][c] = Plane();
+        }
 
     // Eq. 1 per pixel and channel (d = 1): SURE = (y - x)^2 + 2 sigma^2 f'(x) - sigma^2.
     dst = std::move(denoised);

@@ -1,0 +1,72 @@
+// Large frames in bands (bands.h).
+#include "core/bands.h"
+
+#include <algorithm>
+#include <cstring>
+
+#include <OpenImageIO/imagebufalgo.h>
+
+#include "mcdn/color.h"
+
+namespace mcdn {
+
+bool run_in_bands(ImageBuf& dst, const ImageBuf& src, int halo, int64_t band_pixels,
+                  const BandOp& op)
+{
+    const ROI whole = src.roi();
+    const int64_t width = std::max<int64_t>(1, whole.width());
+    const int height = whole.height();
+    if (band_pixels <= 0 || int64_t(whole.npixels()) <= band_pixels)
+        return op(dst, src);
+    // Equal bands: as many as band_pixels needs, the rows spread evenly between them.
+    const int max_rows = int(std::max<int64_t>(1, band_pixels / width));
+    const int nbands = (height + max_rows - 1) / max_rows;
+    const int rows = (height + nbands - 1) / nbands;
+
+    ImageBuf out;
+    for (int y0 = whole.ybegin; y0 < whole.yend; y0 += rows) {
+        const int y1 = std::min(y0 + rows, whole.yend);
+        ROI cut = whole;
+        cut.ybegin = std::max(whole.ybegin, y0 - halo);
+        cut.yend = std::min(whole.yend, y1 + halo);
+        ImageBuf band_out;
+        {
+            ImageBuf band = OIIO::ImageBufAlgo::copy(src, OIIO::TypeUnknown, cut);
+            if (!op(band_out, band)) {
+                dst.errorfmt("{}", band_out.geterror());
+                return false;
+            }
+        }
+        const ImageSpec& band_spec = band_out.spec();
+        if (!out.initialized()) {
+            ImageSpec spec = band_spec;
+            spec.y = whole.ybegin;
+            spec.height = height;
+            out.reset(spec, OIIO::InitializePixels::No);
+        }
+        if (band_spec.format != OIIO::TypeFloat || !band_spec.channelformats.empty()
+            || band_spec.nchannels != out.nchannels() || band_spec.width != whole.width()
+            || band_spec.x != whole.xbegin || !band_out.localpixels()) {
+            dst.errorfmt("bands: a band's result is not a float frame of the band's window");
+            return false;
+        }
+        // The band's own rows, contiguous in both buffers (whole rows of all channels).
+        const size_t row_floats = size_t(width) * size_t(out.nchannels());
+        const float* from = static_cast<const float*>(band_out.localpixels())
+                            + size_t(y0 - band_spec.y) * row_floats;
+        float* to = static_cast<float*>(out.localpixels()) + size_t(y0 - whole.ybegin) * row_floats;
+        std::memcpy(to, from, size_t(y1 - y0) * row_floats * sizeof(float));
+    }
+    dst = std::move(out);
+    return true;
+}
+
+bool run_local_op(ImageBuf& dst, const ImageBuf& src, const AovSpec& aovs, const char* op_name,
+                  int halo, int64_t band_pixels, const BandOp& op)
+{
+    return run_in_bands(dst, src, halo, band_pixels, [&](ImageBuf& band_dst, const ImageBuf& band) {
+        return run_in_working_space(band_dst, band, aovs, op_name, op);
+    });
+}
+
+}  // namespace mcdn

@@ -1,0 +1,34 @@
+// Large frames in bands. A local op — each output pixel depends on the input within a known
+// radius — runs on overlapping horizontal bands, so its working memory follows the band, not
+// the frame: NFOR holds ~70 full-frame float planes (9 GB at 7680×4320) when run whole.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+
+#include <OpenImageIO/imagebuf.h>
+
+#include "mcdn/aov.h"
+
+namespace mcdn {
+
+using OIIO::ImageBuf;
+using OIIO::ImageSpec;
+using OIIO::ROI;
+
+using BandOp = std::function<bool(ImageBuf& dst, const ImageBuf& src)>;
+
+/// Runs `op` on src whole when src has at most `band_pixels` pixels (or band_pixels <= 0).
+/// Otherwise cuts src into horizontal bands of at most band_pixels pixels, each with `halo`
+/// more rows above and below (its own data window inside src's), runs `op` on each and
+/// assembles dst from the bands' own rows. When `halo` covers the op's receptive radius the
+/// result equals the whole-frame run. dst may be src. Errors go on dst.
+bool run_in_bands(ImageBuf& dst, const ImageBuf& src, int halo, int64_t band_pixels,
+                  const BandOp& op);
+
+/// How a local op runs: in bands (above), each band converted to the working colour space
+/// and back (mcdn/color.h run_in_working_space).
+bool run_local_op(ImageBuf& dst, const ImageBuf& src, const AovSpec& aovs, const char* op_name,
+                  int halo, int64_t band_pixels, const BandOp& op);
+
+}  // namespace mcdn

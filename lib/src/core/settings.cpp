@@ -1,0 +1,258 @@
+// Stage options from text settings (mcdn/settings.h).
+#include "mcdn/settings.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <OpenImageIO/strutil.h>
+
+namespace mcdn {
+
+using OIIO::Strutil::fmt::format;
+namespace Strutil = OIIO::Strutil;
+
+bool parse_finite(const std::string& text, double& value)
+{
+    if (!Strutil::string_is_float(text))
+        return false;
+    value = Strutil::stod(text);
+    return std::abs(value) <= std::numeric_limits<float>::max();  // false for nan too
+}
+
+namespace {
+
+// Reads typed values out of one stage's settings; the first bad value or unknown key leaves
+// its message in `error` and every later read fails too, so a parser is one && chain.
+class SettingsReader {
+public:
+    SettingsReader(const Settings& settings, const std::string& stage, std::string& error)
+        : m_settings(settings), m_error(error)
+    {
+        const auto& keys = setting_keys(stage);
+        for (const auto& [key, value] : settings)
+            if (std::find(keys.begin(), keys.end(), key) == keys.end())
+                fail(format("{}={}: unknown setting of {} (settings: {})", key, value, stage,
+                            Strutil::join(keys, ", ")));
+    }
+
+    bool ok() const { return m_ok; }
+
+    // A window or patch width (odd, like the papers' 19×19) into the Options' radius.
+    SettingsReader& width(const std::string& key, int& radius)
+    {
+        if (const std::string* v = find(key)) {
+            int w = Strutil::string_is_int(*v) ? Strutil::stoi(*v) : 0;
+            if (w < 1 || w % 2 == 0 || w > 101)
+                fail(format("{}={} must be an odd width between 1 and 101", key, *v));
+            else
+                radius = (w - 1) / 2;
+        }
+        return *this;
+    }
+
+    SettingsReader& number(const std::string& key, float& value)
+    {
+        double d;
+        if (const std::string* v = find(key)) {
+            if (!parse_finite(*v, d))
+                fail(format("{}={} is not a number", key, *v));
+            else
+                value = float(d);
+        }
+        return *this;
+    }
+
+    SettingsReader& positive_int(const std::string& key, int& value)
+    {
+        if (const std::string* v = find(key)) {
+            if (!Strutil::string_is_int(*v) || Strutil::stoi(*v) < 1)
+                fail(format("{}={} is not a positive whole number", key, *v));
+            else
+                value = Strutil::stoi(*v);
+        }
+        return *this;
+    }
+
+    // 0 or 1 (mcdntool's bare ":alpha" arrives as 1).
+    SettingsReader& flag(const std::string& key, bool& value)
+    {
+        if (const std::string* v = find(key)) {
+            if (*v != "0" && *v != "1")
+                fail(format("{}={} must be 0 or 1", key, *v));
+            else
+                value = *v == "1";
+        }
+        return *this;
+    }
+
+    SettingsReader& text(const std::string& key, std::string& value)
+    {
+        if (const std::string* v = find(key))
+            value = *v;
+        return *this;
+    }
+
+    SettingsReader& list(const std::string& key, std::vector<std::string>& value)
+    {
+        if (const std::string* v = find(key))
+            value = Strutil::splits(*v, ",");
+        return *this;
+    }
+
+    // A value the typed readers do not cover: `parse` sets the option and says whether the
+    // text was valid; `requirement` completes the message when it was not.
+    template <class Parse>
+    SettingsReader& custom(const std::string& key, const char* requirement, Parse parse)
+    {
+        if (const std::string* v = find(key); v && !parse(*v))
+            fail(format("{}={} {}", key, *v, requirement));
+        return *this;
+    }
+
+private:
+    const std::string* find(const std::string& key) const
+    {
+        auto it = m_settings.find(key);
+        return m_ok && it != m_settings.end() ? &it->second : nullptr;
+    }
+
+    void fail(const std::string& message)
+    {
+        if (m_ok)
+            m_error = message;
+        m_ok = false;
+    }
+
+    const Settings& m_settings;
+    std::string& m_error;
+    bool m_ok = true;
+};
+
+// "0.5,1.0": NFOR's two candidate bandwidths (the op rejects k <= 0); k is set only when valid.
+bool parse_bandwidths(const std::string& text, std::array<float, 2>& k)
+{
+    auto parts = Strutil::splits(text, ",");
+    double k0 = 0, k1 = 0;
+    if (parts.size() != 2 || !parse_finite(parts[0], k0) || !parse_finite(parts[1], k1))
+        return false;
+    k = { float(k0), float(k1) };
+    return true;
+}
+
+// Digits only: std::stoull would throw on "abc" and wrap "-1" around.
+bool parse_seed(const std::string& text, uint64_t& seed)
+{
+    if (text.empty() || text.size() > 19 || text.find_first_not_of("0123456789") != std::string::npos)
+        return false;
+    seed = std::stoull(text);
+    return true;
+}
+
+}  // namespace
+
+const std::vector<std::string>& setting_keys(const std::string& stage)
+{
+    static const std::map<std::string, std::vector<std::string>> keys = {
+        { "prefilter", { "window", "patch", "k", "features" } },
+        { "nfor", { "window", "patch", "k", "mse", "selection", "features", "extras" } },
+        { "cnn", { "weights", "tile", "extras" } },
+        { "sure", { "probes", "eps", "seed" } },
+        { "mix", { "model", "weights", "ttest", "alpha", "outlier" } },
+    };
+    static const std::vector<std::string> none;
+    auto it = keys.find(stage);
+    return it == keys.end() ? none : it->second;
+}
+
+bool apply_settings(PrefilterOptions& o, const Settings& s, std::string& error)
+{
+    return SettingsReader(s, "prefilter", error)
+        .width("window", o.window_radius)
+        .width("patch", o.patch_radius)
+        .number("k", o.k)
+        .list("features", o.extra_features)
+        .ok();
+}
+
+bool apply_settings(NforOptions& o, const Settings& s, std::string& error)
+{
+    bool ok = SettingsReader(s, "nfor", error)
+                  .width("window", o.window_radius)
+                  .width("patch", o.patch_radius)
+                  .custom("k", "must be two bandwidths, e.g. k=0.5,1.0",
+                          [&](const std::string& v) { return parse_bandwidths(v, o.candidate_k); })
+                  .flag("mse", o.output_mse)
+                  .flag("selection", o.output_selection)
+                  .flag("extras", o.denoise_extras)
+                  .list("features", o.extra_features)
+                  .ok();
+    // The second pass (§5.4) filters with the first pass's window.
+    o.second_window_radius = o.window_radius;
+    return ok;
+}
+
+bool apply_settings(CnnOptions& o, const Settings& s, std::string& error)
+{
+    return SettingsReader(s, "cnn", error)
+        .text("weights", o.weights)
+        .positive_int("tile", o.tile_size)
+        .flag("extras", o.denoise_extras)
+        .ok();
+}
+
+bool apply_settings(SureOptions& o, const Settings& s, std::string& error)
+{
+    return SettingsReader(s, "sure", error)
+        .positive_int("probes", o.probes)
+        .number("eps", o.epsilon_relative)
+        .custom("seed", "is not a whole number below 10^19",
+                [&](const std::string& v) { return parse_seed(v, o.seed); })
+        .ok();
+}
+
+bool apply_settings(MixOptions& o, const Settings& s, std::string& error)
+{
+    return SettingsReader(s, "mix", error)
+        .custom("model", "is not net or analytic",
+                [&](const std::string& v) {
+                    if (v != "net" && v != "analytic")
+                        return false;
+                    o.model = v == "net" ? MixOptions::Model::Net : MixOptions::Model::Analytic;
+                    return true;
+                })
+        .text("weights", o.weights)
+        .flag("ttest", o.t_test)
+        .flag("alpha", o.output_alpha)
+        .number("outlier", o.outlier_relative_variance)
+        .ok();
+}
+
+Settings stage_settings(const std::map<std::string, std::string>& all, const std::string& stage)
+{
+    Settings settings;
+    const std::string prefix = stage + ".";
+    for (const auto& [key, value] : all)
+        if (Strutil::starts_with(key, prefix))
+            settings[key.substr(prefix.size())] = value;
+    return settings;
+}
+
+Denoiser compose(std::vector<std::pair<std::string, Denoiser>> stages)
+{
+    return [stages = std::move(stages)](ImageBuf& dst, const ImageBuf& src) {
+        ImageBuf current = src;
+        for (const auto& [name, stage] : stages) {
+            ImageBuf next;
+            if (!stage(next, current)) {
+                dst.errorfmt("{}: {}", name, next.geterror());
+                return false;
+            }
+            current = std::move(next);
+        }
+        dst = std::move(current);
+        return true;
+    };
+}
+
+}  // namespace mcdn

@@ -1,0 +1,93 @@
+// The outlier floor of the network's alpha (lib/src/mix/outlier_floor.cpp): where the render
+// pixel is an outlier of its own variance, alpha >= the pixel's PD eq. 9; nowhere else.
+#include <cmath>
+#include <limits>
+
+#include "mix/mix_steps.h"
+
+#include <gtest/gtest.h>
+
+using namespace mcdn;
+
+namespace {
+
+// A flat 0.5 image with a render firefly of `spike` at (8, 8) whose variance says so (one
+// sample of ~16 x spike among 16: Var of the mean ~ spike^2), and a network alpha of `net`.
+struct Scene {
+    Plane alpha, x, y, variance, divergence, residual;
+    Scene(float net, float spike, float spike_variance)
+        : alpha(16, 16, net), x(16, 16, 0.5f), y(16, 16, 0.5f), variance(16, 16, 1e-3f),
+          divergence(16, 16, 1e-4f), residual(16, 16, 0.0f)
+    {
+        x(8, 8) = spike;
+        variance(8, 8) = spike_variance;
+        divergence(8, 8) = 0.02f * spike_variance;
+        for (size_t i = 0; i < x.size(); ++i)
+            residual.px[i] = (y.px[i] - x.px[i]) * (y.px[i] - x.px[i]);
+    }
+    void apply(float threshold = 10.0f)
+    {
+        outlier_floor(alpha, variance, y, divergence, residual, threshold);
+    }
+};
+
+}  // namespace
+
+TEST(MixOutlierFloor, AFireflyTheNetworkKeptGoesToTheDenoised)
+{
+    // As small/0001_exterior at 16 spp (x = 47, y = 0.69, Var = 2159, sigma^2 f' = 49, eq. 9
+    // = 1.0): here ||y - x||^2 = 2162, Var = 2300, sigma^2 f' = 46 -> eq. 9 = 1.04, clipped.
+    Scene s(0.0f, 47.0f, 2300.0f);
+    s.apply();
+    EXPECT_NEAR(s.alpha(8, 8), 1.0f, 1e-6);
+    for (int y = 0; y < 16; ++y)
+        for (int x = 0; x < 16; ++x)
+            if (x != 8 || y != 8)
+                EXPECT_EQ(s.alpha(x, y), 0.0f) << x << "," << y;  // ordinary pixels untouched
+}
+
+TEST(MixOutlierFloor, NeverLowersAlpha)
+{
+    Scene s(0.8f, 47.0f, 2300.0f);
+    s.apply();
+    EXPECT_NEAR(s.alpha(8, 8), 1.0f, 1e-6);
+    Scene low_eq9(0.8f, 47.0f, 300.0f);  // eq. 9 = (300 - 6) / 2162 = 0.14 < 0.8
+    low_eq9.apply();
+    EXPECT_EQ(low_eq9.alpha(8, 8), 0.8f);
+}
+
+TEST(MixOutlierFloor, ABrightFeatureTheDenoiserBlurredKeepsTheRender)
+{
+    // The same bright pixel with a variance that explains only a little of ||y - x||^2: the
+    // denoiser is biased there, eq. 9 is small, and the network's alpha = 0 stays near 0.
+    Scene s(0.0f, 47.0f, 100.0f);
+    s.apply();
+    EXPECT_NEAR(s.alpha(8, 8), (100.0f - 2.0f) / (46.5f * 46.5f), 1e-4);
+    EXPECT_LT(s.alpha(8, 8), 0.05f);
+}
+
+TEST(MixOutlierFloor, SwitchesOffAsTheVarianceFalls)
+{
+    // Relative variance below the threshold (here 2 / (0.25 + 0.01) = 7.7 < 10): untouched,
+    // so the floor cannot stop the mix from converging to the render; threshold 0: never.
+    Scene s(0.0f, 3.0f, 2.0f);
+    s.apply();
+    EXPECT_EQ(s.alpha(8, 8), 0.0f);
+    Scene off(0.0f, 47.0f, 2159.0f);
+    off.apply(std::numeric_limits<float>::infinity());
+    EXPECT_EQ(off.alpha(8, 8), 0.0f);
+}
+
+TEST(MixOutlierFloor, NonFiniteInputsLeaveAlphaAlone)
+{
+    Scene s(0.3f, 47.0f, 2159.0f);
+    s.divergence(8, 8) = std::numeric_limits<float>::quiet_NaN();
+    s.variance(9, 9) = std::numeric_limits<float>::infinity();
+    s.residual(10, 10) = 0.0f;
+    s.variance(10, 10) = 1e6f;
+    s.apply();
+    for (float a : s.alpha.px)
+        EXPECT_TRUE(std::isfinite(a));
+    EXPECT_EQ(s.alpha(8, 8), 0.3f);
+    EXPECT_EQ(s.alpha(10, 10), 0.3f);
+}
