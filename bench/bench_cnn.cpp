@@ -4,7 +4,7 @@
 // the generated crops training/cnn holds out (datasets/eval if rendered, else the `full`
 // crops whose number % 6 == 4) at 16 and 64 spp.
 //
-//   bench_cnn [--no-quality] [--no-speed] [--size WxH] [weights.mcdnw]
+//   bench_cnn [--no-quality] [--no-speed] [--size WxH] [--tile N] [weights.mcdnw]
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -22,6 +22,7 @@
 #include "mcdn/nfor.h"
 
 #include "bench_data.h"
+#include "plain_conv.h"
 
 using namespace mcdn;
 using Clock = std::chrono::steady_clock;
@@ -87,21 +88,33 @@ void speed(kpcn::Model& model, int w, int h, int tile)
     tiles.tile_size = tile;
     const double gflop = (flops_per_pixel(model.diffuse) + flops_per_pixel(model.specular))
                          * double(w) * h / 1e9;
-    const auto t0 = Clock::now();
     std::string error;
-    for (auto [net, branch] : { std::pair{ &model.diffuse, kpcn::Branch::diffuse },
-                                std::pair{ &model.specular, kpcn::Branch::specular } }) {
-        nn::Tensor features, image;
-        kpcn::branch_inputs(raw, branch, features, image);
-        std::vector<nn::Tensor> out;
-        if (!nn::run_tiled(*net, { features, image }, out, error, tiles)) {
-            std::fprintf(stderr, "%s\n", error.c_str());
-            return;
+    const mcdn_bench::Timing t = mcdn_bench::timed([&] {
+        for (auto [net, branch] : { std::pair{ &model.diffuse, kpcn::Branch::diffuse },
+                                    std::pair{ &model.specular, kpcn::Branch::specular } }) {
+            nn::Tensor features, image;
+            kpcn::branch_inputs(raw, branch, features, image);
+            std::vector<nn::Tensor> in(2), out;  // moved, as the op does
+            in[0] = std::move(features);
+            in[1] = std::move(image);
+            if (!nn::run_tiled(*net, in, out, error, tiles))
+                std::fprintf(stderr, "%s\n", error.c_str());
+            model.diffuse.give_buffers(model.specular);  // as the op does
         }
-    }
-    const double s = seconds_since(t0);
-    std::printf("%dx%d, tile %d (halo %d): %.2f s for both branches, %.1f GFLOP (nominal), "
-                "%.1f GFLOP/s\n", w, h, tile, model.diffuse.receptive_radius(), s, gflop, gflop / s);
+    });
+    std::printf("%dx%d, tile %d (halo %d): %.2f s wall, %.2f CPU-s for both branches, %.1f GFLOP "
+                "(nominal): %.1f GFLOP/s, %.1f GFLOP per CPU-s\n", w, h, tile,
+                model.diffuse.receptive_radius(), t.wall, t.cpu, gflop, gflop / t.wall, gflop / t.cpu);
+}
+
+/// The yardstick timed in the same run: one plain oneDNN 3x3 48->48 conv of the frame's size.
+void plain_conv(int w, int h, double frame_gflop)
+{
+    double flops = 0;
+    const mcdn_bench::Timing t = mcdn_bench::plain_onednn_conv(h, w, 48, 48, 3, 2, &flops);
+    std::printf("yardstick: one plain oneDNN 3x3 48->48 conv + ReLU on %dx%d: %.2f s wall, %.2f "
+                "CPU-s, %.1f GFLOP: %.1f GFLOP per CPU-s (the frame is %.1f such convs in FLOPs)\n",
+                w, h, t.wall, t.cpu, flops / 1e9, flops / 1e9 / t.cpu, frame_gflop * 1e9 / flops);
 }
 
 std::string shared(const std::string& rel) { return std::string(MCDN_SHARED_DATA) + "/" + rel; }
@@ -216,12 +229,15 @@ int main(int argc, char** argv)
 {
     bool do_quality = true, do_speed = true;
     int w = 1920, h = 1080;
+    std::vector<int> tiles = { 256, 512 };
     std::string weights = default_cnn_weights();
     for (int i = 1; i < argc; ++i) {
         if (!std::strcmp(argv[i], "--no-quality"))
             do_quality = false;
         else if (!std::strcmp(argv[i], "--no-speed"))
             do_speed = false;
+        else if (!std::strcmp(argv[i], "--tile") && i + 1 < argc)
+            tiles = { std::atoi(argv[++i]) };
         else if (!std::strcmp(argv[i], "--size") && i + 1 < argc)
             std::sscanf(argv[++i], "%dx%d", &w, &h);
         else
@@ -238,8 +254,9 @@ int main(int argc, char** argv)
                 "receptive radius %d px\n", weights.c_str(), per_pixel / 1e3, per_pixel * 1920 * 1080 / 1e9,
                 model.diffuse.receptive_radius());
     if (do_speed) {
-        speed(model, w, h, 256);
-        speed(model, w, h, 512);
+        plain_conv(w, h, per_pixel * w * h / 1e9);
+        for (int tile : tiles)
+            speed(model, w, h, tile);
     }
     if (do_quality)
         quality(weights);

@@ -33,9 +33,9 @@
 #include "mix/mix_steps.h"
 
 #include "bench_data.h"
+#include "plain_conv.h"
 
 using namespace mcdn;
-using Clock = std::chrono::steady_clock;
 namespace fs = std::filesystem;
 
 namespace {
@@ -140,54 +140,6 @@ double mean_of_channels(const ImageBuf& b, const char* const names[3])
             sum += it[ch];
     }
     return n ? sum / n : 0;
-}
-
-double seconds_since(Clock::time_point t0)
-{
-    return std::chrono::duration<double>(Clock::now() - t0).count();
-}
-
-template<class F> double fastest(int repeats, F f)
-{
-    f();
-    double best = 1e30;
-    for (int r = 0; r < repeats; ++r) {
-        const auto t0 = Clock::now();
-        f();
-        best = std::min(best, seconds_since(t0));
-    }
-    return best;
-}
-
-/// One 3x3 48->48 conv + ReLU on height x width, nhwc, as oneDNN's examples run it.
-double plain_conv_seconds(int height, int width, int repeats)
-{
-    using tag = dnnl::memory::format_tag;
-    using dt = dnnl::memory::data_type;
-    const int c = 48;
-    dnnl::engine engine(dnnl::engine::kind::cpu, 0);
-    dnnl::stream stream(engine);
-    dnnl::memory::desc src_md({ 1, c, height, width }, dt::f32, tag::nhwc);
-    dnnl::memory::desc dst_md({ 1, c, height, width }, dt::f32, tag::nhwc);
-    dnnl::memory::desc w_md({ c, c, 3, 3 }, dt::f32, tag::any);
-    dnnl::memory::desc b_md({ c }, dt::f32, tag::x);
-    dnnl::convolution_forward::desc desc(dnnl::prop_kind::forward_inference,
-                                         dnnl::algorithm::convolution_direct, src_md, w_md, b_md,
-                                         dst_md, { 1, 1 }, { 1, 1 }, { 1, 1 });
-    dnnl::post_ops post_ops;
-    post_ops.append_eltwise(1.0f, dnnl::algorithm::eltwise_relu, 0.0f, 0.0f);
-    dnnl::primitive_attr attr;
-    attr.set_post_ops(post_ops);
-    dnnl::convolution_forward::primitive_desc pd(desc, attr, engine);
-    dnnl::memory src(src_md, engine), dst(dst_md, engine), weights(pd.weights_desc(), engine),
-        bias(b_md, engine);
-    std::fill_n(static_cast<float*>(src.get_data_handle()), size_t(height) * width * c, 0.1f);
-    dnnl::convolution_forward conv(pd);
-    return fastest(repeats, [&] {
-        conv.execute(stream, { { DNNL_ARG_SRC, src }, { DNNL_ARG_WEIGHTS, weights },
-                               { DNNL_ARG_BIAS, bias }, { DNNL_ARG_DST, dst } });
-        stream.wait();
-    });
 }
 
 /// A 1920x1080 buffer with everything mix reads (generic channel names), noise-like values.
@@ -382,17 +334,24 @@ int main(int argc, char** argv)
         mo.model = MixOptions::Model::Net;
         mo.weights = weights;
         ImageBuf z;
-        const double mix_s = fastest(2, [&] {
+        const mcdn_bench::Timing mix_t = mcdn_bench::fastest_of(2, [&] {
             if (!mix(z, frame, mo))
                 std::fprintf(stderr, "%s\n", z.geterror().c_str());
         });
         mo.t_test = false;
-        const double net_only_s = fastest(2, [&] { mix(z, frame, mo); });
-        const double conv_s = plain_conv_seconds(height, width, 3);
-        std::printf("\n1920x1080 mix pass (net + t-test, without denoiser runs): %.3f s (%.3f s without "
-                    "the t-test); one plain oneDNN 3x3 48->48 conv of the same size: %.3f s; ratio %.1fx "
-                    "(the network is 4.7 such convs in FLOPs)\n",
-                    mix_s, net_only_s, conv_s, mix_s / conv_s);
+        const mcdn_bench::Timing net_t = mcdn_bench::fastest_of(2, [&] { mix(z, frame, mo); });
+        double conv_flops = 0;
+        const mcdn_bench::Timing conv_t = mcdn_bench::plain_onednn_conv(height, width, 48, 48, 3, 3, &conv_flops);
+        // The mixing network's FLOPs: 5x5 18->48, four 3x3 48->48, 3x3 48->9.
+        const double net_flops = 2.0 * width * height * (25 * 18 * 48 + 4 * 9 * 48 * 48 + 9 * 48 * 9);
+        std::printf("\n1920x1080 mix pass (net + t-test, without denoiser runs): %.3f s wall, %.2f CPU-s "
+                    "(%.3f s, %.2f CPU-s without the t-test); one plain oneDNN 3x3 48->48 conv + ReLU of "
+                    "the same size: %.3f s, %.2f CPU-s; ratio %.1fx wall, %.1fx CPU (the network is %.1f "
+                    "such convs in FLOPs); network %.1f GFLOP: %.1f GFLOP per CPU-s with t-test, conv "
+                    "%.1f GFLOP per CPU-s\n",
+                    mix_t.wall, mix_t.cpu, net_t.wall, net_t.cpu, conv_t.wall, conv_t.cpu,
+                    mix_t.wall / conv_t.wall, mix_t.cpu / conv_t.cpu, net_flops / conv_flops,
+                    net_flops / 1e9, net_flops / 1e9 / mix_t.cpu, conv_flops / 1e9 / conv_t.cpu);
     }
     return 0;
 }

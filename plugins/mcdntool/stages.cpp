@@ -120,7 +120,7 @@ std::vector<CommandInfo> stage_commands()
           queue_nfor, false, check<mcdn::NforOptions> },
         { "--cnn", "", mcdn::setting_keys("cnn"),
           "Kernel-predicting CNN denoiser (KPCN): diffuse/specular split, our trained weights "
-          "(models/kpcn.mcdnw; weights=FILE), tiled (tile=256). Extra AOVs take their share "
+          "(models/kpcn.mcdnw; weights=FILE), tiled (tile=512). Extra AOVs take their share "
           "of the beauty's denoised light through its kernels (extras=0: keep them).",
           queue_cnn, false, check<mcdn::CnnOptions> },
         { "--sure", "", mcdn::setting_keys("sure"),

@@ -175,10 +175,14 @@ public:
     /// Runs on whole tensors, one per input(), all of one size (a multiple of alignment()).
     bool run(const std::vector<Tensor>& inputs, std::vector<Tensor>& outputs,
              std::string& error, Backend backend = Backend::onednn);
+    /// Hands the buffers this network keeps between runs to `other`, which runs next (the
+    /// two branches of KPCN): fresh memory is costly to touch (page faults), reused is not.
+    void give_buffers(Net& other);
 
 private:
     Value add_node(Node node);
     bool check(Value x, const char* op);
+    void make_state();
     void fail(const std::string& message);
 
     std::string name_;
@@ -197,8 +201,9 @@ private:
 
 struct TileOptions {
     /// Output tile side in pixels (rounded up to alignment()); memory grows with
-    /// (tile_size + 2 × halo)² × widest layer.
-    int tile_size = 256;
+    /// (tile_size + 2 × halo)² × widest layer; every tile recomputes its halo, and a
+    /// tile's buffers are reused by the next (Net::run), so fewer, larger tiles are faster.
+    int tile_size = 512;
     Backend backend = Backend::onednn;
 };
 

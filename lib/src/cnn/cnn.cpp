@@ -99,8 +99,10 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
         kpcn::branch_inputs(raw, branch, features, image);
         if (!extras.empty())
             image = kpcn::with_extra_parts(image, raw, extras, branch);
-        std::vector<nn::Tensor> outputs;
-        if (!nn::run_tiled(net, { features, image }, outputs, error, tiles)) {
+        std::vector<nn::Tensor> inputs(2), outputs;  // moved in: a frame's features are ~300 MB
+        inputs[0] = std::move(features);
+        inputs[1] = std::move(image);
+        if (!nn::run_tiled(net, inputs, outputs, error, tiles)) {
             error = "cnn: '" + path + "': " + error;
             return false;
         }
@@ -108,8 +110,10 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
         return true;
     };
     const bool ran = with_threads(nthreads, [&] {
-        return (!raw.split || run_branch(model.diffuse, kpcn::Branch::diffuse, irradiance))
-               && run_branch(model.specular, kpcn::Branch::specular, log_specular);
+        if (raw.split && !run_branch(model.diffuse, kpcn::Branch::diffuse, irradiance))
+            return false;
+        model.diffuse.give_buffers(model.specular);  // same shapes: no new memory
+        return run_branch(model.specular, kpcn::Branch::specular, log_specular);
     });
     if (!ran) {
         dst.errorfmt("{}", error);

@@ -5,8 +5,11 @@
 #include <cmath>
 
 #include <OpenImageIO/strutil.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include "cnn/cnn_steps.h"
+#include "nn/ops.h"
 
 namespace mcdn {
 namespace kpcn {
@@ -250,47 +253,61 @@ void branch_inputs(const RawPlanes& raw, Branch branch, nn::Tensor& features, nn
     // Colour in the network domain (0-2), its variance there (3), and the image the kernels
     // filter. Variances move by the Taylor rule of §5.1: Var h(X) ~ h'(mu)² Var X.
     constexpr int kGuides = 10;  // colour 3, albedo 3, normal 3, depth 1: their gradients
-    std::vector<float> guides(n * kGuides);
-    features = nn::Tensor(h, w, kInputChannels);
+    std::vector<float> guides;
+    guides.reserve(n * kGuides);
+    nn::advise_huge_pages(guides.data(), n * kGuides * sizeof(float));  // a frame: ~80 MB
+    guides.resize(n * kGuides);
+    features = nn::Tensor();
+    nn::reshape(features, h, w, kInputChannels);  // on 2 MB pages: ~300 MB for a frame
     image = nn::Tensor(h, w, 3);
-    for (size_t i = 0; i < n; ++i) {
-        float* f = features.data.data() + i * kInputChannels;
-        float* g = guides.data() + i * kGuides;
-        float colour_var_sum = 0;
-        for (int c = 0; c < 3; ++c) {
-            float colour, variance;
-            if (branch == Branch::diffuse) {
-                const float demod = relu(raw.demod[c].px[i]) + kAlbedoEpsilon;
-                const float irradiance = relu(raw.diffuse[c].px[i]) / demod;
-                const float irradiance_var = raw.diffuse_var[c].px[i] / (demod * demod);
-                colour = std::log1p(irradiance);
-                variance = irradiance_var / ((1 + irradiance) * (1 + irradiance));
-                image.data[i * 3 + c] = irradiance;
-            } else {
-                const float specular = relu(raw.specular[c].px[i]);
-                colour = std::log1p(specular);
-                variance = raw.specular_var[c].px[i] / ((1 + specular) * (1 + specular));
-                image.data[i * 3 + c] = colour;
+    // Threaded over rows (a frame is ~2M pixels); each value is one thread's, so the result
+    // does not depend on the thread count.
+    auto for_rows = [h](auto row) {
+        tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& r) {
+            for (int y = r.begin(); y != r.end(); ++y)
+                row(y);
+        });
+    };
+    for_rows([&](int y) {
+        for (size_t i = size_t(y) * w; i < size_t(y + 1) * w; ++i) {
+            float* f = features.data.data() + i * kInputChannels;
+            float* g = guides.data() + i * kGuides;
+            float colour_var_sum = 0;
+            for (int c = 0; c < 3; ++c) {
+                float colour, variance;
+                if (branch == Branch::diffuse) {
+                    const float demod = relu(raw.demod[c].px[i]) + kAlbedoEpsilon;
+                    const float irradiance = relu(raw.diffuse[c].px[i]) / demod;
+                    const float irradiance_var = raw.diffuse_var[c].px[i] / (demod * demod);
+                    colour = std::log1p(irradiance);
+                    variance = irradiance_var / ((1 + irradiance) * (1 + irradiance));
+                    image.data[i * 3 + c] = irradiance;
+                } else {
+                    const float specular = relu(raw.specular[c].px[i]);
+                    colour = std::log1p(specular);
+                    variance = raw.specular_var[c].px[i] / ((1 + specular) * (1 + specular));
+                    image.data[i * 3 + c] = colour;
+                }
+                f[c] = colour;
+                g[c] = colour;
+                colour_var_sum += variance;
             }
-            f[c] = colour;
-            g[c] = colour;
-            colour_var_sum += variance;
+            f[3] = std::log1p(relu(colour_var_sum / 3));
+            float albedo_var = 0, normal_var = 0;
+            for (int c = 0; c < 3; ++c) {
+                f[4 + c] = g[3 + c] = std::log1p(relu(raw.albedo[c].px[i]));
+                f[7 + c] = g[6 + c] = raw.normal[c].px[i];
+                albedo_var += raw.albedo_var[c].px[i];
+                normal_var += raw.normal_var[c].px[i];
+            }
+            f[10] = g[9] = raw.depth.px[i];
+            f[11] = std::log1p(relu(albedo_var / 3));
+            f[12] = std::log1p(relu(normal_var / 3));
+            f[13] = std::log1p(relu(raw.depth_var.px[i]));
         }
-        f[3] = std::log1p(relu(colour_var_sum / 3));
-        float albedo_var = 0, normal_var = 0;
-        for (int c = 0; c < 3; ++c) {
-            f[4 + c] = g[3 + c] = std::log1p(relu(raw.albedo[c].px[i]));
-            f[7 + c] = g[6 + c] = raw.normal[c].px[i];
-            albedo_var += raw.albedo_var[c].px[i];
-            normal_var += raw.normal_var[c].px[i];
-        }
-        f[10] = g[9] = raw.depth.px[i];
-        f[11] = std::log1p(relu(albedo_var / 3));
-        f[12] = std::log1p(relu(normal_var / 3));
-        f[13] = std::log1p(relu(raw.depth_var.px[i]));
-    }
+    });
     // Gradients (§5.1): forward differences, zero in the last column / row.
-    for (int y = 0; y < h; ++y)
+    for_rows([&](int y) {
         for (int x = 0; x < w; ++x) {
             const size_t i = size_t(y) * w + x;
             float* f = features.data.data() + i * kInputChannels;
@@ -299,9 +316,10 @@ void branch_inputs(const RawPlanes& raw, Branch branch, nn::Tensor& features, nn
                 f[14 + k] = x + 1 < w ? g[kGuides + k] - g[k] : 0.0f;
                 f[24 + k] = y + 1 < h ? g[size_t(w) * kGuides + k] - g[k] : 0.0f;
             }
+            for (int k = 0; k < kInputChannels; ++k)
+                f[k] = finite_input(f[k]);
         }
-    for (float& v : features.data)
-        v = finite_input(v);
+    });
 }
 
 }  // namespace kpcn

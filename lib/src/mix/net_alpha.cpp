@@ -10,6 +10,8 @@
 #include <cstdlib>
 
 #include <OpenImageIO/strutil.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include "mix/mix_steps.h"
 
@@ -84,26 +86,30 @@ nn::Tensor net_features(const MixInputs& in)
 {
     const int w = in.x[0].width, h = in.x[0].height;
     nn::Tensor f(h, w, kInputs);
-    for (int c = 0; c < 3; ++c)
-        for (size_t i = 0; i < in.x[c].size(); ++i) {
-            float* px = f.data.data() + i * kInputs;
-            const float y = in.y[c].px[i];
-            const float scale = 1.0f / (y * y + kErrorDenominatorOffset);
-            px[0 + c] = signed_log1p(in.x[c].px[i]);
-            px[3 + c] = signed_log1p(y);
-            px[6 + c] = std::atan(in.variance[c].px[i] * scale);
-            px[9 + c] = std::atan(in.sure[c].px[i] * scale);
-            px[12 + c] = std::atan(in.divergence[c].px[i] * scale);
-            px[15 + c] = std::atan(in.residual[c].px[i] * scale);
-        }
+    // Threaded over rows (18 log/atan per pixel: a second at 1920x1080 on one core).
+    tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& rows) {
+        for (int c = 0; c < 3; ++c)
+            for (size_t i = size_t(rows.begin()) * w; i < size_t(rows.end()) * w; ++i) {
+                float* px = f.data.data() + i * kInputs;
+                const float y = in.y[c].px[i];
+                const float scale = 1.0f / (y * y + kErrorDenominatorOffset);
+                px[0 + c] = signed_log1p(in.x[c].px[i]);
+                px[3 + c] = signed_log1p(y);
+                px[6 + c] = std::atan(in.variance[c].px[i] * scale);
+                px[9 + c] = std::atan(in.sure[c].px[i] * scale);
+                px[12 + c] = std::atan(in.divergence[c].px[i] * scale);
+                px[15 + c] = std::atan(in.residual[c].px[i] * scale);
+            }
+    });
     return f;
 }
 
 bool net_alpha(Plane alpha[3], const MixInputs& in, nn::Net& net, std::string& error,
                nn::Tensor* raw_out)
 {
-    std::vector<nn::Tensor> outputs;
-    if (!nn::run_tiled(net, { net_features(in) }, outputs, error)) {
+    std::vector<nn::Tensor> inputs(1), outputs;
+    inputs[0] = net_features(in);  // moved in, not copied from an initializer list
+    if (!nn::run_tiled(net, inputs, outputs, error)) {
         error = "mix: model=net: " + error;
         return false;
     }

@@ -7,9 +7,13 @@
 //   Var[x-bar]    = Var_M + sum kappa^2 Var_q
 //   t = (z-bar - x-bar) / (sqrt(Var[x-bar]) + eps);  alpha' = (1 - Phi(a (|t| - c))) alpha
 // kappa (eq. 15) is the paper's unnormalised 1/(sigma_s sqrt(2 pi)) exp(-|p-q|^2 / 2 sigma_s^2).
-// It is separable, so each sum is a row pass and a column pass.
+// It is separable, so each sum is a row pass and a column pass. Every pass is threaded
+// over rows, each value computed by one thread: the result does not depend on the count.
 #include <cmath>
 #include <vector>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include "mix/mix_steps.h"
 
@@ -17,12 +21,21 @@ namespace mcdn {
 
 namespace {
 
+/// row(y) for every y in [0, height), on TBB's threads.
+template <class Row> void for_rows(int height, Row row)
+{
+    tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& r) {
+        for (int y = r.begin(); y != r.end(); ++y)
+            row(y);
+    });
+}
+
 // sum over the clipped (2r+1)^2 window of taps[dx] * taps[dy] * in(q).
 Plane separable_sum(const Plane& in, const std::vector<double>& taps, int radius)
 {
     const int w = in.width, h = in.height;
     Plane rows(w, h), out(w, h);
-    for (int y = 0; y < h; ++y)
+    for_rows(h, [&](int y) {
         for (int x = 0; x < w; ++x) {
             double s = 0;
             for (int i = -radius; i <= radius; ++i)
@@ -30,7 +43,8 @@ Plane separable_sum(const Plane& in, const std::vector<double>& taps, int radius
                     s += taps[i + radius] * in(x + i, y);
             rows(x, y) = float(s);
         }
-    for (int y = 0; y < h; ++y)
+    });
+    for_rows(h, [&](int y) {
         for (int x = 0; x < w; ++x) {
             double s = 0;
             for (int j = -radius; j <= radius; ++j)
@@ -38,6 +52,7 @@ Plane separable_sum(const Plane& in, const std::vector<double>& taps, int radius
                     s += taps[j + radius] * rows(x, y + j);
             out(x, y) = float(s);
         }
+    });
     return out;
 }
 
@@ -47,7 +62,7 @@ std::vector<size_t> highest_variance_neighbour(const Plane& variance, int radius
 {
     const int w = variance.width, h = variance.height;
     std::vector<int> row_best(size_t(w) * h);
-    for (int y = 0; y < h; ++y)
+    for_rows(h, [&](int y) {
         for (int x = 0; x < w; ++x) {
             int best = std::max(0, x - radius);
             for (int i = best + 1; i <= std::min(w - 1, x + radius); ++i)
@@ -55,8 +70,9 @@ std::vector<size_t> highest_variance_neighbour(const Plane& variance, int radius
                     best = i;
             row_best[size_t(y) * w + x] = best;
         }
+    });
     std::vector<size_t> best(size_t(w) * h);
-    for (int y = 0; y < h; ++y)
+    for_rows(h, [&](int y) {
         for (int x = 0; x < w; ++x) {
             int by = std::max(0, y - radius);
             for (int j = by + 1; j <= std::min(h - 1, y + radius); ++j)
@@ -65,6 +81,7 @@ std::vector<size_t> highest_variance_neighbour(const Plane& variance, int radius
                     by = j;
             best[size_t(y) * w + x] = size_t(by) * w + row_best[size_t(by) * w + x];
         }
+    });
     return best;
 }
 
@@ -105,14 +122,16 @@ void t_test_bound(Plane& alpha, const Plane& x, const Plane& y, const Plane& var
     Plane d_sum = separable_sum(d, kappa, r);
     Plane var_sum = separable_sum(variance, kappa2, r);
     std::vector<size_t> m = highest_variance_neighbour(variance, r);
-    for (size_t i = 0; i < d.size(); ++i) {
-        double difference = double(d.px[m[i]]) + d_sum.px[i];
-        double var = double(variance.px[m[i]]) + var_sum.px[i];
-        double t = difference / (std::sqrt(std::max(var, 0.0)) + o.t_epsilon);
-        double u = o.t_strength * (std::fabs(t) - o.t_shift);
-        double phi = 0.5 * std::erfc(-u / std::sqrt(2.0));  // standard normal CDF
-        alpha.px[i] = float((1.0 - phi) * alpha.px[i]);
-    }
+    for_rows(x.height, [&](int row) {
+        for (size_t i = size_t(row) * x.width; i < size_t(row + 1) * x.width; ++i) {
+            double difference = double(d.px[m[i]]) + d_sum.px[i];
+            double var = double(variance.px[m[i]]) + var_sum.px[i];
+            double t = difference / (std::sqrt(std::max(var, 0.0)) + o.t_epsilon);
+            double u = o.t_strength * (std::fabs(t) - o.t_shift);
+            double phi = 0.5 * std::erfc(-u / std::sqrt(2.0));  // standard normal CDF
+            alpha.px[i] = float((1.0 - phi) * alpha.px[i]);
+        }
+    });
 }
 
 }  // namespace mcdn

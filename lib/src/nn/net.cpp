@@ -279,33 +279,49 @@ bool reads(const std::vector<Net::Node>& nodes, int v, int first, int last)
     return false;
 }
 
-/// When each value can be freed, and which convs carry the add that follows them.
+/// When each value can be freed, which convs carry the add that follows them, and which
+/// slices are only views.
 struct Schedule {
     /// The last node reading each value (node count for outputs): each value is freed after
     /// it, so memory holds the widest few layers, not all of them.
     std::vector<int> last_reader;
+    /// The values whose storage is free once node id has run (the inverse of last_reader).
+    std::vector<std::vector<int>> free_after;
     /// Residual fusion: a conv whose only reader is add(s, conv), with s computed earlier,
     /// accumulates into a copy of s (or into s itself, when nothing else reads it) through
     /// oneDNN's sum post-op; the add then hands the result on. fused_add[conv] = the add.
     std::vector<int> fused_add;
+    /// A slice read only as the logits of apply_kernel is never copied out: apply_kernel
+    /// reads its channels in place. view_of[slice] = the sliced value, else -1.
+    std::vector<int> view_of;
 };
 
 Schedule make_schedule(const std::vector<Net::Node>& nodes, const std::vector<int>& outputs,
                        bool fuse)
 {
     const int count = int(nodes.size());
-    Schedule schedule { std::vector<int>(count, -1), std::vector<int>(count, -1) };
-    std::vector<int> readers(count, 0);
+    Schedule schedule { std::vector<int>(count, -1), std::vector<std::vector<int>>(count),
+                        std::vector<int>(count, -1), std::vector<int>(count, -1) };
+    std::vector<int> readers(count, 0), kernel_readers(count, 0);
     for (int id = 0; id < count; ++id)
-        for (int in : nodes[id].inputs) {
+        for (size_t k = 0; k < nodes[id].inputs.size(); ++k) {
+            const int in = nodes[id].inputs[k];
             schedule.last_reader[in] = id;
             ++readers[in];
+            if (nodes[id].op == Net::Op::apply_kernel && k == 0)
+                ++kernel_readers[in];
         }
     for (int id : outputs) {
         schedule.last_reader[id] = count;  // kept to the end
         ++readers[id];
     }
     for (int id = 0; fuse && id < count; ++id) {
+        if (nodes[id].op == Net::Op::slice && readers[id] > 0 && readers[id] == kernel_readers[id]) {
+            const int source = nodes[id].inputs[0];
+            schedule.view_of[id] = source;
+            schedule.last_reader[source] = std::max(schedule.last_reader[source],
+                                                    schedule.last_reader[id]);
+        }
         if (nodes[id].op != Net::Op::add)
             continue;
         const int a = nodes[id].inputs[0], b = nodes[id].inputs[1];
@@ -314,10 +330,61 @@ Schedule make_schedule(const std::vector<Net::Node>& nodes, const std::vector<in
         if (nodes[conv].op == Net::Op::conv && readers[conv] == 1 && residual < conv)
             schedule.fused_add[conv] = id;
     }
+    for (int id = 0; id < count; ++id)
+        if (schedule.last_reader[id] >= 0 && schedule.last_reader[id] < count)
+            schedule.free_after[schedule.last_reader[id]].push_back(id);
     return schedule;
 }
 
+/// Storage for `size` floats: the smallest spare buffer that holds it, or none (then the
+/// op allocates). A buffer is never grown, as two values could then trade buffers and grow
+/// them at every tile; run_tiled runs its largest tiles first, so every value of the later
+/// tiles finds a buffer.
+std::vector<float> take_storage(std::vector<std::vector<float>>& spare, size_t size)
+{
+    size_t best = spare.size();
+    for (size_t i = 0; i < spare.size(); ++i)
+        if (spare[i].capacity() >= size
+            && (best == spare.size() || spare[i].capacity() < spare[best].capacity()))
+            best = i;
+    if (best == spare.size())
+        return {};
+    std::vector<float> storage = std::move(spare[best]);
+    spare.erase(spare.begin() + best);
+    return storage;
+}
+
+void give_back(std::vector<std::vector<float>>& spare, Tensor& t)
+{
+    if (t.data.capacity() > 0)
+        spare.push_back(std::move(t.data));
+    t = Tensor();
+}
+
 }  // namespace
+
+void Net::make_state()
+{
+    state_ = std::make_unique<NetState>();
+    for (size_t id = 0; id < nodes_.size(); ++id)
+        if (nodes_[id].op == Op::conv)
+            state_->convs.emplace(
+                std::piecewise_construct, std::forward_as_tuple(int(id)),
+                std::forward_as_tuple(nodes_[nodes_[id].inputs[0]].channels, nodes_[id].channels,
+                                      nodes_[id].kernel, nodes_[id].activation, weights_[id],
+                                      biases_[id]));
+}
+
+void Net::give_buffers(Net& other)
+{
+    if (!state_ || &other == this || !other.loaded_)
+        return;
+    if (!other.state_)
+        other.make_state();
+    for (std::vector<float>& buffer : state_->spare)
+        other.state_->spare.push_back(std::move(buffer));
+    state_->spare.clear();
+}
 
 bool Net::run(const std::vector<Tensor>& inputs, std::vector<Tensor>& outputs, std::string& error,
               Backend backend)
@@ -341,7 +408,7 @@ bool Net::run(const std::vector<Tensor>& inputs, std::vector<Tensor>& outputs, s
         const Node& node = nodes_[input_ids_[i]];
         const Tensor& t = inputs[i];
         if (t.channels != node.channels || t.height != inputs[0].height
-            || t.width != inputs[0].width || t.data.size() != t.size()) {
+            || t.width != inputs[0].width || t.data.size() < t.size()) {
             error = prefix + "input '" + node.name + "' is " + std::to_string(t.width) + "x"
                     + std::to_string(t.height) + "x" + std::to_string(t.channels) + ", expected "
                     + std::to_string(node.channels) + " channels and the size of the first input";
@@ -354,30 +421,33 @@ bool Net::run(const std::vector<Tensor>& inputs, std::vector<Tensor>& outputs, s
             return false;
         }
     }
-    if (backend == Backend::onednn && !state_) {
-        state_ = std::make_unique<NetState>();
-        for (size_t id = 0; id < nodes_.size(); ++id)
-            if (nodes_[id].op == Op::conv)
-                state_->convs.emplace(
-                    std::piecewise_construct, std::forward_as_tuple(int(id)),
-                    std::forward_as_tuple(nodes_[nodes_[id].inputs[0]].channels, nodes_[id].channels,
-                                          nodes_[id].kernel, nodes_[id].activation, weights_[id],
-                                          biases_[id]));
-    }
+    if (!state_)
+        make_state();
 
     const int count = int(nodes_.size());
-    const Schedule schedule = make_schedule(nodes_, output_ids_, backend == Backend::onednn);
+    const bool fast = backend == Backend::onednn;
+    const Schedule schedule = make_schedule(nodes_, output_ids_, fast);
     const std::vector<int>&last_reader = schedule.last_reader, &fused_add = schedule.fused_add;
     std::vector<Tensor> owned(count);
     std::vector<const Tensor*> value(count, nullptr);
     for (size_t i = 0; i < inputs.size(); ++i)
         value[input_ids_[i]] = &inputs[i];
+    // Storage comes from values freed earlier, this run or the last (whose outputs the
+    // caller hands back in `outputs`): a tiled run allocates for its first tile only.
+    std::vector<std::vector<float>>& spare = state_->spare;
+    for (Tensor& t : outputs)
+        give_back(spare, t);
+    outputs.clear();
+    const int height = inputs[0].height, width = inputs[0].width;
 
-    const bool fast = backend == Backend::onednn;
     for (int id = 0; id < count; ++id) {
         const Node& node = nodes_[id];
         auto in = [&](int k) -> const Tensor& { return *value[node.inputs[k]]; };
         Tensor& out = owned[id];
+        auto fresh = [&] {  // out gets storage for its values, reshaped by the op
+            out.data = take_storage(spare, size_t(height / node.scale) * (width / node.scale)
+                                               * node.channels);
+        };
         switch (node.op) {
         case Op::input: continue;
         case Op::conv:
@@ -387,13 +457,20 @@ bool Net::run(const std::vector<Tensor>& inputs, std::vector<Tensor>& outputs, s
                 if (value[residual] == &owned[residual] && last_reader[residual] == fused_add[id]
                     && !reads(nodes_, residual, id, fused_add[id]))
                     out = std::move(owned[residual]);  // nobody else reads it any more
-                else
-                    out = *value[residual];
+                else {
+                    fresh();
+                    out.height = value[residual]->height;
+                    out.width = value[residual]->width;
+                    out.channels = value[residual]->channels;
+                    out.data.assign(value[residual]->data.begin(),
+                                    value[residual]->data.begin() + value[residual]->size());
+                }
                 state_->convs.at(id).run_accumulate(state_->engine, state_->stream, in(0), out,
                                                     add.activation);
-            } else if (fast)
+            } else if (fast) {
+                fresh();
                 state_->convs.at(id).run(state_->engine, state_->stream, in(0), out);
-            else
+            } else
                 reference::conv(in(0), weights_[id], biases_[id], node.kernel, node.activation, out);
             break;
         case Op::add:
@@ -402,38 +479,52 @@ bool Net::run(const std::vector<Tensor>& inputs, std::vector<Tensor>& outputs, s
                 out = std::move(owned[conv]);  // computed, summed and activated by the conv
                 break;
             }
+            fresh();
             fast ? ops::add(in(0), in(1), node.activation, out)
                  : reference::add(in(0), in(1), node.activation, out);
             break;
         case Op::max_pool2:
+            fresh();
             fast ? ops::max_pool2(in(0), out) : reference::max_pool2(in(0), out);
             break;
         case Op::upsample2:
+            fresh();
             fast ? ops::upsample2(in(0), out) : reference::upsample2(in(0), out);
             break;
         case Op::concat: {
             std::vector<const Tensor*> parts;
             for (int k = 0; k < int(node.inputs.size()); ++k)
                 parts.push_back(&in(k));
+            fresh();
             fast ? ops::concat(parts, out) : reference::concat(parts, out);
             break;
         }
         case Op::slice:
+            if (schedule.view_of[id] >= 0) {
+                value[id] = &in(0);  // apply_kernel reads the channels where they are
+                continue;
+            }
+            fresh();
             fast ? ops::slice(in(0), node.first_channel, node.channels, out)
                  : reference::slice(in(0), node.first_channel, node.channels, out);
             break;
         case Op::apply_kernel:
-            fast ? ops::apply_kernel(in(0), in(1), node.kernel, out)
-                 : reference::apply_kernel(in(0), in(1), node.kernel, out);
+            fresh();
+            if (!fast)
+                reference::apply_kernel(in(0), in(1), node.kernel, out);
+            else
+                ops::apply_kernel(in(0),
+                                  schedule.view_of[node.inputs[0]] >= 0
+                                      ? nodes_[node.inputs[0]].first_channel : 0,
+                                  in(1), node.kernel, out);
             break;
         }
         value[id] = &out;
-        for (int k : node.inputs)
-            if (last_reader[k] == id)
-                owned[k] = Tensor();
+        for (int k : schedule.free_after[id])
+            if (value[k] == &owned[k])
+                give_back(spare, owned[k]);
     }
 
-    outputs.clear();
     for (size_t i = 0; i < output_ids_.size(); ++i) {
         const int id = output_ids_[i];
         const bool output_again = std::find(output_ids_.begin() + i + 1, output_ids_.end(), id)
@@ -442,7 +533,10 @@ bool Net::run(const std::vector<Tensor>& inputs, std::vector<Tensor>& outputs, s
             outputs.push_back(std::move(owned[id]));
         else
             outputs.push_back(*value[id]);  // an input, or a value output twice
+        outputs.back().data.resize(outputs.back().size());  // exact, as the caller expects
     }
+    for (Tensor& t : owned)  // values nobody read
+        give_back(spare, t);
     return true;
 }
 

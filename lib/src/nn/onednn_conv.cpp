@@ -1,6 +1,7 @@
 // oneDNN 2.6 convolutions (onednn_conv.h). Direct algorithm, forward inference, NHWC
 // activations, weights in whatever blocked layout the chosen kernel wants.
 #include "nn/onednn_conv.h"
+#include "nn/ops.h"
 
 namespace mcdn {
 namespace nn {
@@ -65,7 +66,7 @@ ConvLayer::Prepared& ConvLayer::prepare(dnnl::engine& engine, dnnl::stream& stre
 void ConvLayer::run(dnnl::engine& engine, dnnl::stream& stream, const Tensor& x, Tensor& out)
 {
     Prepared& prepared = prepare(engine, stream, x.height, x.width, Tail::none);
-    out = Tensor(x.height, x.width, out_channels_);
+    reshape(out, x.height, x.width, out_channels_);
     execute(engine, stream, prepared, x, out);
 }
 

@@ -20,7 +20,8 @@ class ConvLayer {
 public:
     ConvLayer(int in_channels, int out_channels, int kernel, Activation activation,
               const std::vector<float>& weights_oihw, const std::vector<float>& bias);
-    /// out = activation(conv(x) + bias); x must have in_channels channels.
+    /// out = activation(conv(x) + bias); x must have in_channels channels. out keeps its
+    /// storage when it is big enough (ops.h reshape).
     void run(dnnl::engine& engine, dnnl::stream& stream, const Tensor& x, Tensor& out);
     /// A residual connection fused into the convolution (oneDNN's sum post-op):
     /// residual = after_sum(residual + activation(conv(x) + bias)), in place, so the
@@ -49,11 +50,13 @@ private:
     std::string last_implementation_;
 };
 
-/// What Net keeps between runs: the engine, a stream, one ConvLayer per conv node.
+/// What Net keeps between runs: the engine, a stream, one ConvLayer per conv node, and the
+/// storage of freed values (reused by the next values and the next tiles).
 struct NetState {
     dnnl::engine engine { dnnl::engine::kind::cpu, 0 };
     dnnl::stream stream { engine };
     std::map<int, ConvLayer> convs;  // by node id
+    std::vector<std::vector<float>> spare;
 };
 
 }  // namespace nn

@@ -1,36 +1,50 @@
-// The parameter-free ops run() uses: each a loop over output rows handed to TBB. NHWC keeps
+// The parameter-free ops run() uses: each a loop over output rows (nn/parallel.h). NHWC keeps
 // a pixel's channels contiguous, so inner loops are memcpy or short vectorisable runs.
 // Every output value is computed by one thread from its inputs alone: no cross-thread
 // reductions, so the result does not depend on the number of threads.
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
+#include <sys/mman.h>
 
 #include "nn/ops.h"
+#include "nn/parallel.h"
 
 namespace mcdn {
 namespace nn {
-namespace ops {
-
-namespace {
-
-/// Runs row(y) for every y in [0, height) on TBB's threads.
-template<class RowFunction> void parallel_rows(int height, RowFunction row)
+void advise_huge_pages(void* data, size_t bytes)
 {
-    tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& r) {
-        for (int y = r.begin(); y != r.end(); ++y)
-            row(y);
-    });
+#ifdef MADV_HUGEPAGE
+    constexpr uintptr_t huge = uintptr_t(2) << 20;
+    const uintptr_t first = (reinterpret_cast<uintptr_t>(data) + huge - 1) / huge * huge;
+    const uintptr_t last = (reinterpret_cast<uintptr_t>(data) + bytes) / huge * huge;
+    if (last > first)
+        madvise(reinterpret_cast<void*>(first), last - first, MADV_HUGEPAGE);  // a hint: errors are harmless
+#endif
 }
 
-}  // namespace
+void reshape(Tensor& t, int height, int width, int channels)
+{
+    t.height = height;
+    t.width = width;
+    t.channels = channels;
+    if (t.size() <= t.data.size())
+        return;  // never shrunk: a larger value may come back to this storage
+    if (t.size() > t.data.capacity()) {
+        t.data = std::vector<float>();  // grown without copying values nobody reads
+        t.data.reserve(t.size());
+        advise_huge_pages(t.data.data(), t.size() * sizeof(float));
+    }
+    t.data.resize(t.size());
+}
+
+namespace ops {
 
 void add(const Tensor& a, const Tensor& b, Activation activation, Tensor& out)
 {
-    out = Tensor(a.height, a.width, a.channels);
+    reshape(out, a.height, a.width, a.channels);
     const size_t row_size = size_t(a.width) * a.channels;
     const bool relu = activation == Activation::relu;
     parallel_rows(a.height, [&](int y) {
@@ -44,7 +58,7 @@ void add(const Tensor& a, const Tensor& b, Activation activation, Tensor& out)
 
 void max_pool2(const Tensor& x, Tensor& out)
 {
-    out = Tensor(x.height / 2, x.width / 2, x.channels);
+    reshape(out, x.height / 2, x.width / 2, x.channels);
     const int channels = x.channels;
     parallel_rows(out.height, [&](int y) {
         for (int px = 0; px < out.width; ++px) {
@@ -61,7 +75,7 @@ void max_pool2(const Tensor& x, Tensor& out)
 
 void upsample2(const Tensor& x, Tensor& out)
 {
-    out = Tensor(x.height * 2, x.width * 2, x.channels);
+    reshape(out, x.height * 2, x.width * 2, x.channels);
     const size_t pixel_bytes = size_t(x.channels) * sizeof(float);
     parallel_rows(out.height, [&](int y) {
         for (int px = 0; px < out.width; ++px)
@@ -74,7 +88,7 @@ void concat(const std::vector<const Tensor*>& parts, Tensor& out)
     int channels = 0;
     for (const Tensor* part : parts)
         channels += part->channels;
-    out = Tensor(parts[0]->height, parts[0]->width, channels);
+    reshape(out, parts[0]->height, parts[0]->width, channels);
     parallel_rows(out.height, [&](int y) {
         for (int px = 0; px < out.width; ++px) {
             float* po = out.pixel(y, px);
@@ -88,44 +102,10 @@ void concat(const std::vector<const Tensor*>& parts, Tensor& out)
 
 void slice(const Tensor& x, int first, int count, Tensor& out)
 {
-    out = Tensor(x.height, x.width, count);
+    reshape(out, x.height, x.width, count);
     parallel_rows(x.height, [&](int y) {
         for (int px = 0; px < x.width; ++px)
             std::memcpy(out.pixel(y, px), x.pixel(y, px) + first, count * sizeof(float));
-    });
-}
-
-void apply_kernel(const Tensor& logits, const Tensor& image, int kernel, Tensor& out)
-{
-    const int pad = kernel / 2, taps = kernel * kernel, channels = image.channels;
-    out = Tensor(image.height, image.width, channels);
-    parallel_rows(image.height, [&](int y) {
-        std::vector<float> weight(taps);
-        std::vector<float> sum_c(channels);
-        for (int px = 0; px < image.width; ++px) {
-            // KPCN eq. 9: softmax over the k×k taps, shifted by the max so exp cannot
-            // overflow; the weights are positive, so the float sums do not cancel.
-            const float* z = logits.pixel(y, px);
-            const float max_logit = *std::max_element(z, z + taps);
-            float total = 0;
-            for (int t = 0; t < taps; ++t)
-                total += weight[t] = std::exp(z[t] - max_logit);
-            std::fill(sum_c.begin(), sum_c.end(), 0.0f);
-            for (int dy = 0; dy < kernel; ++dy) {
-                const int sy = std::clamp(y + dy - pad, 0, image.height - 1);  // edge clamp
-                for (int dx = 0; dx < kernel; ++dx) {
-                    const int sx = std::clamp(px + dx - pad, 0, image.width - 1);
-                    const float w = weight[dy * kernel + dx];
-                    const float* p = image.pixel(sy, sx);
-                    for (int c = 0; c < channels; ++c)
-                        sum_c[c] += w * p[c];
-                }
-            }
-            float* po = out.pixel(y, px);
-            const float inverse_total = 1.0f / total;
-            for (int c = 0; c < channels; ++c)
-                po[c] = sum_c[c] * inverse_total;
-        }
     });
 }
 

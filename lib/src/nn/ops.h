@@ -1,7 +1,9 @@
 // The parameter-free ops of a network, twice: `ops::` is what run() uses (threaded over
 // rows with TBB, no reductions across threads, so results do not depend on the thread
 // count), `reference::` is plain loops written to be obviously right, used by the tests and
-// by Backend::reference. Each op allocates `out`; inputs are NHWC tensors (mcdn/nn.h).
+// by Backend::reference. Each op sizes `out` with reshape() (so run() can hand in storage
+// left by an earlier value: no allocation, no page faults per tile); inputs are NHWC
+// tensors (mcdn/nn.h).
 #pragma once
 
 #include <vector>
@@ -11,6 +13,16 @@
 namespace mcdn {
 namespace nn {
 
+/// Gives t the shape (height, width, channels), keeping its storage when it is big enough;
+/// the values are unspecified (the op writes every one). t.data may then hold more than
+/// t.size() floats (storage is never shrunk, so it is neither re-zeroed nor re-faulted when
+/// a larger value reuses it): inside the engine use size(), not data.size().
+void reshape(Tensor& t, int height, int width, int channels);
+/// Asks the kernel for 2 MB pages in [data, data + bytes) before it is first written: a
+/// tile's values are hundreds of MB, and 4 kB page faults on them cost more than the ops
+/// (measured: ~20% of a KPCN frame's CPU time). A hint; no effect where unsupported.
+void advise_huge_pages(void* data, size_t bytes);
+
 namespace ops {
 void add(const Tensor& a, const Tensor& b, Activation activation, Tensor& out);
 void max_pool2(const Tensor& x, Tensor& out);
@@ -18,6 +30,10 @@ void upsample2(const Tensor& x, Tensor& out);
 void concat(const std::vector<const Tensor*>& parts, Tensor& out);
 void slice(const Tensor& x, int first, int count, Tensor& out);
 void apply_kernel(const Tensor& logits, const Tensor& image, int kernel, Tensor& out);
+/// The same with the k×k logits at channels [first_channel, first_channel + k²) of `logits`
+/// (a slice that need not be copied out first).
+void apply_kernel(const Tensor& logits, int first_channel, const Tensor& image, int kernel,
+                  Tensor& out);
 }  // namespace ops
 
 namespace reference {

@@ -39,7 +39,7 @@ void conv(const Tensor& x, const std::vector<float>& weights_oihw,
 void add(const Tensor& a, const Tensor& b, Activation activation, Tensor& out)
 {
     out = Tensor(a.height, a.width, a.channels);
-    for (size_t i = 0; i < a.data.size(); ++i)
+    for (size_t i = 0; i < a.size(); ++i)
         out.data[i] = activate(double(a.data[i]) + b.data[i], activation);
 }
 

@@ -6,6 +6,8 @@
 #include <algorithm>
 
 #include "mcdn/nn.h"
+#include "nn/ops.h"
+#include "nn/parallel.h"
 
 namespace mcdn {
 namespace nn {
@@ -14,16 +16,19 @@ namespace {
 
 int round_up(int value, int multiple) { return (value + multiple - 1) / multiple * multiple; }
 
-/// Rows [y0, y1) and columns [x0, x1) of `image`, where rows and columns past the image's
-/// last one repeat it (the extension of a size to a multiple of the alignment).
-Tensor extract_window(const Tensor& image, int y0, int y1, int x0, int x1)
+/// Rows [y0, y1) and columns [x0, x1) of `image` into `window` (its storage reused), where
+/// rows and columns past the image's last one repeat it (the extension of a size to a
+/// multiple of the alignment).
+void extract_window(const Tensor& image, int y0, int y1, int x0, int x1, Tensor& window)
 {
-    Tensor window(y1 - y0, x1 - x0, image.channels);
-    for (int y = y0; y < y1; ++y)
-        for (int x = x0; x < x1; ++x)
-            std::copy_n(image.pixel(std::min(y, image.height - 1), std::min(x, image.width - 1)),
-                        image.channels, window.pixel(y - y0, x - x0));
-    return window;
+    reshape(window, y1 - y0, x1 - x0, image.channels);
+    parallel_rows(y1 - y0, [&](int wy) {
+        const int y = std::min(y0 + wy, image.height - 1);
+        const int inside = std::max(std::min(x1, image.width) - x0, 0);
+        std::copy_n(image.pixel(y, x0), size_t(inside) * image.channels, window.pixel(wy, 0));
+        for (int x = x0 + inside; x < x1; ++x)
+            std::copy_n(image.pixel(y, image.width - 1), image.channels, window.pixel(wy, x - x0));
+    });
 }
 
 }  // namespace
@@ -47,34 +52,48 @@ bool run_tiled(Net& net, const std::vector<Tensor>& inputs, std::vector<Tensor>&
     // The image extended to a multiple of the alignment (last row/column repeated).
     const int padded_height = round_up(height, alignment), padded_width = round_up(width, alignment);
 
-    outputs.clear();
+    // The tiles, largest window first: the buffers of the first run then hold every later
+    // tile's values (Net::run reuses them), and nothing is allocated after it.
+    struct Tile {
+        int ty, tx, y0, y1, x0, x1;
+    };
+    std::vector<Tile> order;
     for (int ty = 0; ty < padded_height; ty += tile)
         for (int tx = 0; tx < padded_width; tx += tile) {
             const int core_y1 = std::min(ty + tile, padded_height);
             const int core_x1 = std::min(tx + tile, padded_width);
-            const int y0 = std::max(ty - halo, 0), y1 = std::min(core_y1 + halo, padded_height);
-            const int x0 = std::max(tx - halo, 0), x1 = std::min(core_x1 + halo, padded_width);
-            std::vector<Tensor> tile_inputs, tile_outputs;
-            for (const Tensor& input : inputs)
-                tile_inputs.push_back(extract_window(input, y0, y1, x0, x1));
-            if (!net.run(tile_inputs, tile_outputs, error, options.backend))
-                return false;
-            if (outputs.empty())
-                for (const Tensor& t : tile_outputs) {
-                    if (t.height != y1 - y0 || t.width != x1 - x0) {
-                        error = "network '" + net.name()
-                                + "': run_tiled needs outputs at the input resolution";
-                        return false;
-                    }
-                    outputs.emplace_back(height, width, t.channels);
-                }
-            // Keep the tile's core, cropped to the real image.
-            for (size_t o = 0; o < outputs.size(); ++o)
-                for (int y = ty; y < std::min(core_y1, height); ++y)
-                    std::copy_n(tile_outputs[o].pixel(y - y0, tx - x0),
-                                size_t(std::min(core_x1, width) - tx) * outputs[o].channels,
-                                outputs[o].pixel(y, tx));
+            order.push_back({ ty, tx, std::max(ty - halo, 0), std::min(core_y1 + halo, padded_height),
+                              std::max(tx - halo, 0), std::min(core_x1 + halo, padded_width) });
         }
+    std::stable_sort(order.begin(), order.end(), [](const Tile& a, const Tile& b) {
+        return (a.y1 - a.y0) * (a.x1 - a.x0) > (b.y1 - b.y0) * (b.x1 - b.x0);
+    });
+
+    outputs.clear();
+    // Kept across tiles: the windows' storage, and the outputs', which run() reuses.
+    std::vector<Tensor> tile_inputs(inputs.size()), tile_outputs;
+    for (const Tile& t : order) {
+        for (size_t i = 0; i < inputs.size(); ++i)
+            extract_window(inputs[i], t.y0, t.y1, t.x0, t.x1, tile_inputs[i]);
+        if (!net.run(tile_inputs, tile_outputs, error, options.backend))
+            return false;
+        if (outputs.empty())
+            for (const Tensor& out : tile_outputs) {
+                if (out.height != t.y1 - t.y0 || out.width != t.x1 - t.x0) {
+                    error = "network '" + net.name()
+                            + "': run_tiled needs outputs at the input resolution";
+                    return false;
+                }
+                outputs.emplace_back(height, width, out.channels);
+            }
+        // Keep the tile's core, cropped to the real image.
+        const int core_y1 = std::min({ t.ty + tile, padded_height, height });
+        const int core_x1 = std::min({ t.tx + tile, padded_width, width });
+        for (size_t o = 0; o < outputs.size(); ++o)
+            for (int y = t.ty; y < core_y1; ++y)
+                std::copy_n(tile_outputs[o].pixel(y - t.y0, t.tx - t.x0),
+                            size_t(core_x1 - t.tx) * outputs[o].channels, outputs[o].pixel(y, t.tx));
+    }
     return true;
 }
 

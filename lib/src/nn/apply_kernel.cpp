@@ -1,0 +1,145 @@
+// ops::apply_kernel (KPCN eq. 9), vectorised across the pixels of a row: the image is first
+// copied to planes with a replicated border of k/2 pixels (so no tap needs a clamp), the
+// row's logits are transposed to tap-major rows (so the softmax max, exp and sum, and every
+// tap's multiply-add, run on 16 consecutive pixels at a time). The sums run over the taps in
+// the reference's order, one pixel per lane: the result does not depend on the ISA's lane
+// count beyond FMA rounding, nor on the thread count (every pixel is one thread's).
+#include <algorithm>
+#include <vector>
+
+#include "core/simd.h"
+#include "nn/ops.h"
+#include "nn/parallel.h"
+
+namespace mcdn {
+namespace nn {
+namespace ops {
+
+namespace {
+
+int round_up16(int n) { return (n + kLanes - 1) / kLanes * kLanes; }
+
+/// The image as one plane per channel, `pad` replicated pixels around it, rows of
+/// `stride` floats (room for a last vector that reads past the right border).
+struct PaddedPlanes {
+    int pad = 0, stride = 0, rows = 0, channels = 0;
+    std::vector<float> values;
+    const float* row(int c, int padded_y) const
+    {
+        return values.data() + (size_t(c) * rows + padded_y) * stride;
+    }
+};
+
+void make_planes(const Tensor& image, int pad, PaddedPlanes& planes)
+{
+    planes.pad = pad;
+    planes.stride = round_up16(image.width + 2 * pad) + kLanes;
+    planes.rows = image.height + 2 * pad;
+    planes.channels = image.channels;
+    planes.values.resize(size_t(planes.channels) * planes.rows * planes.stride);
+    parallel_row_blocks(planes.rows, [&](int first, int last) {
+        for (int py = first; py != last; ++py) {
+            const int y = std::clamp(py - pad, 0, image.height - 1);  // edge clamp
+            for (int c = 0; c < planes.channels; ++c) {
+                float* out = planes.values.data() + (size_t(c) * planes.rows + py) * planes.stride;
+                for (int px = 0; px < image.width + 2 * pad; ++px)
+                    out[px] = image.at(y, std::clamp(px - pad, 0, image.width - 1), c);
+                std::fill(out + image.width + 2 * pad, out + planes.stride, 0.0f);
+            }
+        }
+    });
+}
+
+/// Per-thread scratch of one row: the weights tap-major, the per-pixel max and total, the
+/// per-channel sums.
+struct RowScratch {
+    std::vector<float> weights, max_logit, total, sums;
+};
+
+struct Job {
+    const Tensor* logits;
+    int first;  // logits channel of tap 0
+    const PaddedPlanes* planes;
+    int kernel;
+    Tensor* out;
+};
+
+MCDN_INLINE void row_impl(const Job& job, int y, RowScratch& s)
+{
+    const Tensor& logits = *job.logits;
+    const int width = job.out->width, lanes_width = round_up16(width);
+    const int kernel = job.kernel, taps = kernel * kernel, channels = job.planes->channels;
+    s.weights.resize(size_t(taps) * lanes_width);
+    s.max_logit.resize(lanes_width);
+    s.total.resize(lanes_width);
+    s.sums.resize(size_t(channels) * lanes_width);
+    // Tap-major logits; the lanes past the row's end get 0 (finite, never written out).
+    for (int px = 0; px < lanes_width; ++px) {
+        const float* z = px < width ? logits.pixel(y, px) + job.first : nullptr;
+        for (int t = 0; t < taps; ++t)
+            s.weights[size_t(t) * lanes_width + px] = z ? z[t] : 0.0f;
+    }
+    for (int x = 0; x < lanes_width; x += kLanes) {
+        // Softmax, shifted by the max so exp cannot overflow; exp_neg16 is good to ~2e-7.
+        vfloat16 max = load16(&s.weights[x]);
+        for (int t = 1; t < taps; ++t) {
+            const vfloat16 z = load16(&s.weights[size_t(t) * lanes_width + x]);
+            max = z > max ? z : max;
+        }
+        vfloat16 total = {};
+        for (int t = 0; t < taps; ++t) {
+            float* w = &s.weights[size_t(t) * lanes_width + x];
+            const vfloat16 e = exp_neg16(max - load16(w));
+            store16(w, e);
+            total += e;
+        }
+        store16(&s.total[x], total);
+        // The weighted sum of the neighbourhood, tap by tap in the reference's order.
+        for (int c = 0; c < channels; ++c) {
+            vfloat16 sum = {};
+            for (int dy = 0; dy < kernel; ++dy) {
+                const float* row = job.planes->row(c, y + dy) + x;
+                for (int dx = 0; dx < kernel; ++dx)
+                    sum += load16(&s.weights[size_t(dy * kernel + dx) * lanes_width + x]) * load16(row + dx);
+            }
+            store16(&s.sums[size_t(c) * lanes_width + x], sum);
+        }
+    }
+    for (int px = 0; px < width; ++px) {
+        float* out = job.out->pixel(y, px);
+        const float inverse_total = 1.0f / s.total[px];
+        for (int c = 0; c < channels; ++c)
+            out[c] = s.sums[size_t(c) * lanes_width + px] * inverse_total;
+    }
+}
+
+MCDN_TARGET_AVX512 void row_avx512(const Job& job, int y, RowScratch& s) { row_impl(job, y, s); }
+MCDN_TARGET_AVX2 void row_avx2(const Job& job, int y, RowScratch& s) { row_impl(job, y, s); }
+void row_baseline(const Job& job, int y, RowScratch& s) { row_impl(job, y, s); }
+
+}  // namespace
+
+void apply_kernel(const Tensor& logits, int first_channel, const Tensor& image, int kernel,
+                  Tensor& out)
+{
+    static thread_local PaddedPlanes planes;  // kept: no allocation per call
+    make_planes(image, kernel / 2, planes);
+    reshape(out, image.height, image.width, image.channels);
+    const Job job { &logits, first_channel, &planes, kernel, &out };
+    const Isa isa = detect_isa();
+    auto row = isa == Isa::Avx512 ? row_avx512 : isa == Isa::Avx2 ? row_avx2 : row_baseline;
+    parallel_row_blocks(image.height, [&](int first, int last) {
+        RowScratch scratch;
+        for (int y = first; y != last; ++y)
+            row(job, y, scratch);
+    });
+}
+
+void apply_kernel(const Tensor& logits, const Tensor& image, int kernel, Tensor& out)
+{
+    apply_kernel(logits, 0, image, kernel, out);
+}
+
+}  // namespace ops
+}  // namespace nn
+}  // namespace mcdn
