@@ -60,13 +60,33 @@ bool read_positive_int(const Command& c, const std::string& key, int& value, std
     return true;
 }
 
+// :skip=0 turns the stage's skipping off, :converged=X sets its threshold (mcdn/skip.h).
+bool skip_options(const Command& c, mcdn::SkipOptions& o, std::string& error)
+{
+    const std::string skip = c.modifier("skip", "1");
+    if (skip != "0" && skip != "1") {
+        error = format("{}:skip={} must be 0 or 1", c.name, skip);
+        return false;
+    }
+    o.enabled = skip == "1";
+    if (!read_float(c, "converged", o.max_relative_error, error))
+        return false;
+    if (!(o.max_relative_error >= 0)) {
+        error = format("{}:converged={} must be >= 0 (a relative standard error)", c.name,
+                       c.modifier("converged"));
+        return false;
+    }
+    return true;
+}
+
 // The stages' Options from their modifiers (the AOV spec is the session's); no side effects,
 // so the same functions check the command line before anything runs.
 bool prefilter_options(const Command& c, mcdn::PrefilterOptions& o, std::string& error)
 {
     o.extra_features = features_of(c);
     return width_to_radius(c, "window", o.window_radius, error)
-           && width_to_radius(c, "patch", o.patch_radius, error) && read_float(c, "k", o.k, error);
+           && width_to_radius(c, "patch", o.patch_radius, error) && read_float(c, "k", o.k, error)
+           && skip_options(c, o.skip, error);
 }
 
 bool nfor_options(const Command& c, mcdn::NforOptions& o, std::string& error)
@@ -75,7 +95,7 @@ bool nfor_options(const Command& c, mcdn::NforOptions& o, std::string& error)
     o.output_mse = c.modifier("mse", "0") == "1";
     o.output_selection = c.modifier("selection", "0") == "1";
     o.denoise_extras = c.modifier("extras", "1") != "0";
-    if (!width_to_radius(c, "window", o.window_radius, error)
+    if (!skip_options(c, o.skip, error) || !width_to_radius(c, "window", o.window_radius, error)
         || !width_to_radius(c, "patch", o.patch_radius, error))
         return false;
     if (c.has("k")) {
@@ -96,13 +116,13 @@ bool cnn_options(const Command& c, mcdn::CnnOptions& o, std::string& error)
     if (c.has("weights"))
         o.weights = c.modifier("weights");
     o.denoise_extras = c.modifier("extras", "1") != "0";
-    return read_positive_int(c, "tile", o.tile_size, error);
+    return read_positive_int(c, "tile", o.tile_size, error) && skip_options(c, o.skip, error);
 }
 
 bool sure_options(const Command& c, mcdn::SureOptions& o, std::string& error)
 {
     if (!read_positive_int(c, "probes", o.probes, error)
-        || !read_float(c, "eps", o.epsilon_relative, error))
+        || !read_float(c, "eps", o.epsilon_relative, error) || !skip_options(c, o.skip, error))
         return false;
     if (c.has("seed")) {
         // std::stoull would throw on "abc" and wrap "-1" around: accept digits only.
@@ -128,7 +148,7 @@ bool mix_options(const Command& c, mcdn::MixOptions& o, std::string& error)
     o.weights = c.modifier("weights");
     o.t_test = c.modifier("ttest", "1") != "0";
     o.output_alpha = c.modifier("alpha", "0") == "1";
-    return true;
+    return skip_options(c, o.skip, error);
 }
 
 // A check is the options function with the result thrown away.
@@ -206,33 +226,35 @@ bool run_mix(Session& s, const Command& c, std::string& error)
 std::vector<CommandInfo> stage_commands()
 {
     return {
-        { "--prefilter", "", { "window", "patch", "k", "features" },
+        { "--prefilter", "", { "window", "patch", "k", "features", "skip", "converged" },
           "NFOR feature prefilter (§5.1): NL-means cross-filtering of albedo, normal, depth "
           "and visibility with their half buffers. window=11 patch=7 k=0.5; features=a,b "
           "adds extra feature channels.",
           queue_prefilter, false, check<mcdn::PrefilterOptions, prefilter_options> },
-        { "--nfor", "", { "window", "patch", "k", "mse", "selection", "features", "extras" },
+        { "--nfor", "", { "window", "patch", "k", "mse", "selection", "features", "extras", "skip", "converged" },
           "NFOR denoiser (§5.2-5.4): first-order regression on the features, collaborative, "
           "bandwidth chosen per pixel. window=19 patch=7 k=0.5,1.0; mse=1 and selection=1 "
           "add nfor.mse.* and nfor.selection.* channels. Prefilters the features itself "
           "unless --prefilter ran. Extra AOVs (light groups, extra.NAME) are denoised with "
           "the beauty's weights so they still add up (extras=0: keep them as they are).",
           queue_nfor, false, check<mcdn::NforOptions, nfor_options> },
-        { "--cnn", "", { "weights", "tile", "extras" },
+        { "--cnn", "", { "weights", "tile", "extras", "skip", "converged" },
           "Kernel-predicting CNN denoiser (KPCN): diffuse/specular split, our trained weights "
           "(models/kpcn.mcdnw; weights=FILE), tiled (tile=256). Extra AOVs take their share "
           "of the beauty's denoised light through its kernels (extras=0: keep them).",
           queue_cnn, false, check<mcdn::CnnOptions, cnn_options> },
-        { "--sure", "", { "probes", "eps", "seed" },
+        { "--sure", "", { "probes", "eps", "seed", "skip", "converged" },
           "Monte-Carlo SURE of the denoisers before it (PD §3.2): adds sure.*, "
           "sure.divergence.*, sure.residual.* and noisy.* channels. probes=1 (K; costs K+1 "
           "denoiser runs), eps=1e-3 (relative probe step).",
           run_sure, false, check<mcdn::SureOptions, sure_options> },
-        { "--mix", "", { "model", "weights", "ttest", "alpha" },
+        { "--mix", "", { "model", "weights", "ttest", "alpha", "skip", "converged" },
           "Progressive mix of the render and the denoised image (PD §4), after --sure: "
           "model=analytic|net, ttest=1 bounds alpha by the t-test (eq. 18), alpha=1 adds "
           "mix.alpha.* channels.",
           run_mix, false, check<mcdn::MixOptions, mix_options> },
+        // Every stage also takes skip=0|1 and converged=0.08 (mcdn/skip.h): converged tiles
+        // pass through untouched, constant features are dropped; skip=0 turns that off.
     };
 }
 

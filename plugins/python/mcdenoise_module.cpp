@@ -47,18 +47,29 @@ template<class Op> ImageBuf run(const ImageBuf& src, Op op)
     return dst;
 }
 
-mcdn::Denoiser named_denoiser(const std::string& chain, const mcdn::AovSpec& spec, int nthreads)
+mcdn::SkipOptions skip_options(bool enabled, float max_relative_error)
+{
+    mcdn::SkipOptions o;
+    o.enabled = enabled;
+    o.max_relative_error = max_relative_error;
+    return o;
+}
+
+mcdn::Denoiser named_denoiser(const std::string& chain, const mcdn::AovSpec& spec,
+                              const mcdn::SkipOptions& skip, int nthreads)
 {
     if (chain == "cnn")
-        return [spec, nthreads](ImageBuf& dst, const ImageBuf& src) {
+        return [spec, skip, nthreads](ImageBuf& dst, const ImageBuf& src) {
             mcdn::CnnOptions o;
             o.aovs = spec;
+            o.skip = skip;
             return mcdn::cnn(dst, src, o, {}, nthreads);
         };
     if (chain == "nfor" || chain == "prefilter,nfor")
-        return [spec, nthreads](ImageBuf& dst, const ImageBuf& src) {
+        return [spec, skip, nthreads](ImageBuf& dst, const ImageBuf& src) {
             mcdn::NforOptions o;
             o.aovs = spec;
+            o.skip = skip;
             o.prefilter.aovs = spec;
             return mcdn::nfor(dst, src, o, {}, nthreads);
         };
@@ -133,8 +144,9 @@ PYBIND11_MODULE(mcdenoise, m)
     m.def("prefilter",
           [](const ImageBuf& src, const std::string& preset,
              const std::map<std::string, std::string>& aovs, const std::string& colorspace,
-             int window, int patch, float k, int nthreads) {
+             int window, int patch, float k, bool skip, float converged, int nthreads) {
               mcdn::PrefilterOptions o;
+              o.skip = skip_options(skip, converged);
               o.aovs = aov_spec(preset, aovs, colorspace);
               o.window_radius = window / 2;
               o.patch_radius = patch / 2;
@@ -146,13 +158,16 @@ PYBIND11_MODULE(mcdenoise, m)
           py::arg("image"), py::arg("preset") = "cycles",
           py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
           py::arg("window") = 11, py::arg("patch") = 7, py::arg("k") = 0.5f,
+          py::arg("skip") = true, py::arg("converged") = mcdn::SkipOptions().max_relative_error,
           py::arg("nthreads") = 0, "NFOR feature prefilter (NFOR §5.1).");
 
     m.def("nfor",
           [](const ImageBuf& src, const std::string& preset,
              const std::map<std::string, std::string>& aovs, const std::string& colorspace,
-             int window, int patch, bool mse, bool selection, bool extras, int nthreads) {
+             int window, int patch, bool mse, bool selection, bool extras, bool skip,
+             float converged, int nthreads) {
               mcdn::NforOptions o;
+              o.skip = skip_options(skip, converged);
               o.denoise_extras = extras;
               o.aovs = aov_spec(preset, aovs, colorspace);
               o.prefilter.aovs = o.aovs;
@@ -167,15 +182,18 @@ PYBIND11_MODULE(mcdenoise, m)
           py::arg("image"), py::arg("preset") = "cycles",
           py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
           py::arg("window") = 19, py::arg("patch") = 7, py::arg("mse") = false,
-          py::arg("selection") = false, py::arg("extras") = true, py::arg("nthreads") = 0,
+          py::arg("selection") = false, py::arg("extras") = true, py::arg("skip") = true,
+          py::arg("converged") = mcdn::SkipOptions().max_relative_error, py::arg("nthreads") = 0,
           "NFOR: first-order regression denoiser (NFOR §5.2-5.4). extras: denoise the extra "
-          "AOVs (light groups) with the beauty's weights.");
+          "AOVs (light groups) with the beauty's weights. skip: pass converged tiles (worst "
+          "relative standard error <= converged) through and drop constant features.");
 
     m.def("cnn",
           [](const ImageBuf& src, const std::string& preset,
              const std::map<std::string, std::string>& aovs, const std::string& colorspace,
-             const std::string& weights, bool extras, int nthreads) {
+             const std::string& weights, bool extras, bool skip, float converged, int nthreads) {
               mcdn::CnnOptions o;
+              o.skip = skip_options(skip, converged);
               o.aovs = aov_spec(preset, aovs, colorspace);
               o.weights = weights;
               o.denoise_extras = extras;
@@ -185,21 +203,23 @@ PYBIND11_MODULE(mcdenoise, m)
           },
           py::arg("image"), py::arg("preset") = "cycles",
           py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
-          py::arg("weights") = "", py::arg("extras") = true, py::arg("nthreads") = 0,
+          py::arg("weights") = "", py::arg("extras") = true, py::arg("skip") = true,
+          py::arg("converged") = mcdn::SkipOptions().max_relative_error, py::arg("nthreads") = 0,
           "KPCN: kernel-predicting CNN denoiser with our trained weights. extras: denoise the "
           "extra AOVs (light groups) with the beauty's kernels.");
 
     m.def("sure",
           [](const ImageBuf& src, py::object denoiser, const std::string& preset,
              const std::map<std::string, std::string>& aovs, const std::string& colorspace,
-             int probes, float eps, int nthreads) {
+             int probes, float eps, bool skip, float converged, int nthreads) {
               mcdn::SureOptions o;
+              o.skip = skip_options(skip, converged);
               o.aovs = aov_spec(preset, aovs, colorspace);
               o.probes = probes;
               o.epsilon_relative = eps;
               mcdn::Denoiser f;
               if (py::isinstance<py::str>(denoiser))
-                  f = named_denoiser(denoiser.cast<std::string>(), o.aovs, nthreads);
+                  f = named_denoiser(denoiser.cast<std::string>(), o.aovs, o.skip, nthreads);
               else {
                   // A Python callable ImageBuf -> ImageBuf; called with the GIL held.
                   auto callable = denoiser.cast<py::function>();
@@ -220,7 +240,8 @@ PYBIND11_MODULE(mcdenoise, m)
           },
           py::arg("image"), py::arg("denoiser") = "nfor", py::arg("preset") = "cycles",
           py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
-          py::arg("probes") = 1, py::arg("eps") = 1e-3f, py::arg("nthreads") = 0,
+          py::arg("probes") = 1, py::arg("eps") = 1e-3f, py::arg("skip") = true,
+          py::arg("converged") = mcdn::SkipOptions().max_relative_error, py::arg("nthreads") = 0,
           "Monte-Carlo SURE (PD §3.2) of a denoiser: 'nfor' or a callable ImageBuf -> "
           "ImageBuf. Returns the denoised image with noisy.*, sure.*, sure.divergence.*, "
           "sure.residual.* channels.");
@@ -229,8 +250,9 @@ PYBIND11_MODULE(mcdenoise, m)
           [](const ImageBuf& src, const std::string& model, const std::string& weights,
              bool t_test, bool alpha, const std::string& preset,
              const std::map<std::string, std::string>& aovs, const std::string& colorspace,
-             int nthreads) {
+             bool skip, float converged, int nthreads) {
               mcdn::MixOptions o;
+              o.skip = skip_options(skip, converged);
               o.aovs = aov_spec(preset, aovs, colorspace);
               if (model == "net")
                   o.model = mcdn::MixOptions::Model::Net;
@@ -246,6 +268,7 @@ PYBIND11_MODULE(mcdenoise, m)
           py::arg("image"), py::arg("model") = "analytic", py::arg("weights") = "",
           py::arg("t_test") = true, py::arg("alpha") = false, py::arg("preset") = "cycles",
           py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
+          py::arg("skip") = true, py::arg("converged") = mcdn::SkipOptions().max_relative_error,
           py::arg("nthreads") = 0,
           "Progressive mix (PD §4) of the output of sure(): z = x + alpha'(y - x).");
 

@@ -19,6 +19,7 @@
 #include <OpenImageIO/imagebuf.h>
 
 #include "mcdn/aov.h"
+#include "mcdn/skip.h"
 
 namespace mcdn {
 
@@ -33,6 +34,11 @@ struct CnnOptions {
     /// Output tile side of the tiled inference (nn::run_tiled): memory is bounded by
     /// (tile_size + 2 · halo)² × the widest layer, not by the image.
     int tile_size = 256;
+    /// Converged tiles are the render, untouched; the network runs only on rectangles
+    /// holding non-converged tiles (each with its receptive-field halo), so pixels within
+    /// the halo of a converged tile can differ from an unskipped run (mcdn/skip.h). Feature
+    /// AOVs are fixed network inputs: absent ones are zero, constant ones are used as they are.
+    SkipOptions skip;
 };
 
 /// $MCDN_MODELS/kpcn.mcdnw when MCDN_MODELS is set, else <models dir>/kpcn.mcdnw (the

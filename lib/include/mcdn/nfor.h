@@ -16,6 +16,7 @@
 
 #include "mcdn/aov.h"
 #include "mcdn/prefilter.h"
+#include "mcdn/skip.h"
 
 namespace mcdn {
 
@@ -57,6 +58,12 @@ struct NforOptions {
     /// nfor.selection.R/G/B (0: k = candidate_k[0], 1: candidate_k[1]).
     bool output_mse = false;
     bool output_selection = false;
+
+    /// Converged tiles are the render, untouched, and cost nothing in any pass (their
+    /// first-pass values for the neighbours' windows are the half buffers); features
+    /// constant over the frame are left out of the prefilter and the regressions
+    /// (mcdn/skip.h). Off: exactly the unskipped filter.
+    SkipOptions skip;
 };
 
 /// Denoises the colour. dst = src (every channel kept) with the colour role's channels

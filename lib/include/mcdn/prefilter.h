@@ -14,6 +14,7 @@
 #include <OpenImageIO/imagebuf.h>
 
 #include "mcdn/aov.h"
+#include "mcdn/skip.h"
 
 namespace mcdn {
 
@@ -34,6 +35,11 @@ struct PrefilterOptions {
     int second_window_radius = 2;
     int second_patch_radius = 3;
     float second_k = 0.5f;
+
+    /// Converged tiles of the colour (needs its variance role) are not filtered, and
+    /// features constant over the frame are left as they are (mcdn/skip.h). nfor's own
+    /// prefilter follows NforOptions::skip instead.
+    SkipOptions skip;
 };
 
 /// Prefilters every feature channel. dst = src with the features' mean, half A and half B

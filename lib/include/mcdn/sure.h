@@ -15,6 +15,7 @@
 #include <OpenImageIO/imagebuf.h>
 
 #include "mcdn/aov.h"
+#include "mcdn/skip.h"
 
 namespace mcdn {
 
@@ -33,6 +34,12 @@ struct SureOptions {
     float epsilon_relative = 1e-3f;
     /// Seed of the probes' counter-based Gaussian generator (same result for any threads).
     uint64_t seed = 0x5EED5EEDull;
+    /// Converged tiles (mcdn/skip.h) get no probe, and the denoiser is handed this op's map
+    /// (attribute mcdn:converged_tiles) so that its first run and its probes skip the same
+    /// tiles. The ops pass converged tiles through, y = x, so there f'(x) = 1: this op
+    /// writes σ²f'(x) = σ² and SURE = ‖y − x‖² + σ² (= σ², the render's own error) without
+    /// probing. Off: every pixel probed, the denoiser chooses its own tiles.
+    SkipOptions skip;
 };
 
 /// Channel names the op writes (besides replacing the colour role by y = F(x)).

@@ -33,6 +33,16 @@ int radius(const ChainOptions& o, const std::string& key, int fallback)
     return value.empty() ? fallback : std::max(0, Strutil::stoi(value) / 2);
 }
 
+// "STAGE.skip=0" turns the stage's skipping off, "STAGE.converged=X" is its threshold.
+SkipOptions skip_setting(const ChainOptions& o, const std::string& stage)
+{
+    SkipOptions s;
+    s.enabled = setting(o, stage + ".skip", "1") != "0";
+    s.max_relative_error = Strutil::stof(setting(o, stage + ".converged",
+                                                 std::to_string(s.max_relative_error)));
+    return s;
+}
+
 Denoiser denoiser_stage(const std::string& name, const ChainOptions& o, int nthreads)
 {
     if (name == "prefilter") {
@@ -41,6 +51,7 @@ Denoiser denoiser_stage(const std::string& name, const ChainOptions& o, int nthr
         p.window_radius = radius(o, "prefilter.window", p.window_radius);
         p.patch_radius = radius(o, "prefilter.patch", p.patch_radius);
         p.k = Strutil::stof(setting(o, "prefilter.k", std::to_string(p.k)));
+        p.skip = skip_setting(o, "prefilter");
         return [p, nthreads](ImageBuf& dst, const ImageBuf& src) {
             return prefilter(dst, src, p, {}, nthreads);
         };
@@ -50,6 +61,7 @@ Denoiser denoiser_stage(const std::string& name, const ChainOptions& o, int nthr
         c.aovs = o.aovs;
         c.weights = setting(o, "cnn.weights", "");
         c.denoise_extras = setting(o, "cnn.extras", "1") != "0";
+        c.skip = skip_setting(o, "cnn");
         return [c, nthreads](ImageBuf& dst, const ImageBuf& src) { return cnn(dst, src, c, {}, nthreads); };
     }
     NforOptions n;
@@ -59,6 +71,7 @@ Denoiser denoiser_stage(const std::string& name, const ChainOptions& o, int nthr
     n.output_mse = setting(o, "nfor.mse", "0") == "1";
     n.output_selection = setting(o, "nfor.selection", "0") == "1";
     n.denoise_extras = setting(o, "nfor.extras", "1") != "0";
+    n.skip = skip_setting(o, "nfor");
     return [n, nthreads](ImageBuf& dst, const ImageBuf& src) { return nfor(dst, src, n, {}, nthreads); };
 }
 
@@ -127,6 +140,7 @@ bool run_chain(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, ROI ro
             s.aovs = o.aovs;
             s.probes = Strutil::stoi(setting(o, "sure.probes", "1"));
             s.epsilon_relative = Strutil::stof(setting(o, "sure.eps", "0.001"));
+            s.skip = skip_setting(o, "sure");
             ok = sure(next, current, compose(pending), s, roi, nthreads);
             pending.clear();
         } else {  // mix
@@ -137,6 +151,7 @@ bool run_chain(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, ROI ro
             m.weights = setting(o, "mix.weights", "");
             m.t_test = setting(o, "mix.ttest", "1") != "0";
             m.output_alpha = setting(o, "mix.alpha", "0") == "1";
+            m.skip = skip_setting(o, "mix");
             ok = mix(next, current, m, roi, nthreads);
         }
         if (!ok) {

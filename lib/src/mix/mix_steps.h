@@ -4,6 +4,7 @@
 
 #include <string>
 
+#include "core/converged_tiles.h"
 #include "core/planar.h"
 #include "mcdn/mix.h"
 #include "mcdn/nn.h"
@@ -27,8 +28,13 @@ nn::Tensor net_features(const MixInputs& in);
 
 /// alpha = clip(f_act(h_NN(features)), 0, 1) per colour channel (eq. 19); `raw`, if given,
 /// receives the network's outputs (x1 RGB, x2 RGB, x3 RGB per pixel).
+/// `regions`: only these are computed (nn::TileOptions::regions), alpha = 0 elsewhere.
 bool net_alpha(Plane alpha[3], const MixInputs& in, nn::Net& net, std::string& error,
-               nn::Tensor* raw = nullptr);
+               nn::Tensor* raw = nullptr, const std::vector<nn::Region>& regions = {});
+
+/// The tiles where z = x whatever α is (MixOptions::skip): converged, or y = x throughout.
+ConvergedTiles tiles_mixing_to_x(const ImageBuf& src, const MixInputs& in,
+                                 const SkipOptions& skip);
 
 /// sigma_s of eq. 15: min(sqrt(spatial variance of x), 1) * scale.
 float t_test_sigma(const MixInputs& in, float scale);

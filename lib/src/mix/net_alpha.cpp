@@ -100,10 +100,12 @@ nn::Tensor net_features(const MixInputs& in)
 }
 
 bool net_alpha(Plane alpha[3], const MixInputs& in, nn::Net& net, std::string& error,
-               nn::Tensor* raw_out)
+               nn::Tensor* raw_out, const std::vector<nn::Region>& regions)
 {
     std::vector<nn::Tensor> outputs;
-    if (!nn::run_tiled(net, { net_features(in) }, outputs, error)) {
+    nn::TileOptions tiles;
+    tiles.regions = regions;
+    if (!nn::run_tiled(net, { net_features(in) }, outputs, error, tiles)) {
         error = "mix: model=net: " + error;
         return false;
     }

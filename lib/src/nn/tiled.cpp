@@ -47,34 +47,46 @@ bool run_tiled(Net& net, const std::vector<Tensor>& inputs, std::vector<Tensor>&
     // The image extended to a multiple of the alignment (last row/column repeated).
     const int padded_height = round_up(height, alignment), padded_width = round_up(width, alignment);
 
+    std::vector<Region> cores = options.regions;
+    if (cores.empty())
+        for (int ty = 0; ty < padded_height; ty += tile)
+            for (int tx = 0; tx < padded_width; tx += tile)
+                cores.push_back({ tx, ty, tx + tile, ty + tile });
     outputs.clear();
-    for (int ty = 0; ty < padded_height; ty += tile)
-        for (int tx = 0; tx < padded_width; tx += tile) {
-            const int core_y1 = std::min(ty + tile, padded_height);
-            const int core_x1 = std::min(tx + tile, padded_width);
-            const int y0 = std::max(ty - halo, 0), y1 = std::min(core_y1 + halo, padded_height);
-            const int x0 = std::max(tx - halo, 0), x1 = std::min(core_x1 + halo, padded_width);
-            std::vector<Tensor> tile_inputs, tile_outputs;
-            for (const Tensor& input : inputs)
-                tile_inputs.push_back(extract_window(input, y0, y1, x0, x1));
-            if (!net.run(tile_inputs, tile_outputs, error, options.backend))
-                return false;
-            if (outputs.empty())
-                for (const Tensor& t : tile_outputs) {
-                    if (t.height != y1 - y0 || t.width != x1 - x0) {
-                        error = "network '" + net.name()
-                                + "': run_tiled needs outputs at the input resolution";
-                        return false;
-                    }
-                    outputs.emplace_back(height, width, t.channels);
-                }
-            // Keep the tile's core, cropped to the real image.
-            for (size_t o = 0; o < outputs.size(); ++o)
-                for (int y = ty; y < std::min(core_y1, height); ++y)
-                    std::copy_n(tile_outputs[o].pixel(y - y0, tx - x0),
-                                size_t(std::min(core_x1, width) - tx) * outputs[o].channels,
-                                outputs[o].pixel(y, tx));
+    for (const Region& core : cores) {
+        const int tx = core.x0, ty = core.y0;
+        if (tx % alignment || ty % alignment) {
+            error = "network '" + net.name() + "': run_tiled regions must start at multiples of "
+                    + std::to_string(alignment);
+            return false;
         }
+        const int core_y1 = std::min(round_up(core.y1, alignment), padded_height);
+        const int core_x1 = std::min(round_up(core.x1, alignment), padded_width);
+        if (tx >= core_x1 || ty >= core_y1)
+            continue;
+        const int y0 = std::max(ty - halo, 0), y1 = std::min(core_y1 + halo, padded_height);
+        const int x0 = std::max(tx - halo, 0), x1 = std::min(core_x1 + halo, padded_width);
+        std::vector<Tensor> tile_inputs, tile_outputs;
+        for (const Tensor& input : inputs)
+            tile_inputs.push_back(extract_window(input, y0, y1, x0, x1));
+        if (!net.run(tile_inputs, tile_outputs, error, options.backend))
+            return false;
+        if (outputs.empty())
+            for (const Tensor& t : tile_outputs) {
+                if (t.height != y1 - y0 || t.width != x1 - x0) {
+                    error = "network '" + net.name()
+                            + "': run_tiled needs outputs at the input resolution";
+                    return false;
+                }
+                outputs.emplace_back(height, width, t.channels);
+            }
+        // Keep the tile's core, cropped to the real image.
+        for (size_t o = 0; o < outputs.size(); ++o)
+            for (int y = ty; y < std::min(core_y1, height); ++y)
+                std::copy_n(tile_outputs[o].pixel(y - y0, tx - x0),
+                            size_t(std::min(core_x1, width) - tx) * outputs[o].channels,
+                            outputs[o].pixel(y, tx));
+    }
     return true;
 }
 

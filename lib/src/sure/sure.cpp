@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "core/channels.h"
+#include "core/converged_tiles.h"
 #include "core/op_prepare.h"
 #include "core/planar.h"
 #include "core/random.h"
@@ -73,6 +74,12 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
         p.variance[c] = read_plane(noisy, aovs.channels(Role::ColorVariance)[c], true);
     }
 
+    // mcdn/skip.h: the denoiser's runs all skip the tiles of this map.
+    const ConvergedTiles converged = converged_tiles_of(noisy, p.x, p.variance, options.skip);
+    if (options.skip.enabled)
+        noisy.specmod().attribute(kConvergedAttribute, encode_converged_tiles(converged));
+    const Plane no_probe(noisy.spec().width, noisy.spec().height);
+
     // y = F(x): the result we report SURE for.
     ImageBuf denoised;
     if (!denoiser(denoised, noisy)) {
@@ -98,6 +105,7 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
             for (size_t i = 0; i < b[c].size(); ++i)
                 b[c].px[i] = std::sqrt(p.variance[c].px[i])
                              * standard_normal(options.seed, uint64_t(k), i * 3 + c);
+            pass_through_converged(b[c], no_probe, converged);
         }
         ImageBuf probed = noisy.copy(OIIO::TypeDesc::FLOAT);
         probed.specmod().attribute(sure_channels::kProbeAttribute, 1);
@@ -118,6 +126,9 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
 
     // Eq. 1 per pixel and channel (d = 1): SURE = (y - x)^2 + 2 sigma^2 f'(x) - sigma^2.
     dst = std::move(denoised);
+    dst.specmod().erase_attribute(kConvergedAttribute);
+    for (int c = 0; c < 3; ++c)  // the pass-through's f'(x) = 1
+        pass_through_converged(divergence[c], p.variance[c], converged);
     std::vector<std::string> names;
     for (const auto* group : { sure_channels::kNoisy, sure_channels::kSure,
                                sure_channels::kDivergence, sure_channels::kResidual })
