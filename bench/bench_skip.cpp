@@ -1,7 +1,7 @@
 // Skipping converged tiles (mcdn/skip.h, issue 8 item 3): a frame whose left half of tiles is
 // converged against the same frame all noisy, timed in the same run.
 //
-//   bench_skip [--spp 16|64|256] [--threads N] [--repeat N]
+//   bench_skip [--spp 16|64|256] [--threads N] [--repeat N] [--only CHAIN] [--tile N]
 //
 // The all-noisy frame is box at the given spp (../shared/data/box, every channel with its
 // variance and halves). The half-converged frame is the same with the left 128 columns (4 of
@@ -13,7 +13,8 @@
 // (target <= 0.60). Errors: relMSE against the reference over the whole frame and over the
 // noisy right half (the left half passed through is the reference itself, error 0, by
 // construction; without skipping it is what the denoiser does to a converged render).
-// Skips (exit 0) when ../shared/data is absent.
+// --tile N repeats every image N×N times (a larger frame, same content). Skips (exit 0) when
+// ../shared/data is absent.
 #include <chrono>
 #include <cstdio>
 #include <cstring>
@@ -73,9 +74,29 @@ ImageBuf converge_left(const ImageBuf& render, const ImageBuf& ref, const ImageB
     return out;
 }
 
+/// `image` repeated n×n times.
+ImageBuf tiled(const ImageBuf& image, int n)
+{
+    if (n <= 1)
+        return image;
+    OIIO::ImageSpec spec = image.spec();
+    spec.width *= n;
+    spec.height *= n;
+    spec.full_width = spec.width;
+    spec.full_height = spec.height;
+    spec.set_format(OIIO::TypeDesc::FLOAT);
+    ImageBuf out(spec);
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i)
+            OIIO::ImageBufAlgo::paste(out, i * image.spec().width, j * image.spec().height, 0, 0, image);
+    return out;
+}
+
 struct Timing {
     double wall = 1e30, cpu = 1e30;
 };
+
+Timing best(Timing a, Timing b) { return { std::min(a.wall, b.wall), std::min(a.cpu, b.cpu) }; }
 
 using Chain = std::function<bool(ImageBuf&, const ImageBuf&)>;
 
@@ -117,18 +138,22 @@ double relmse(const ImageBuf& image, const std::vector<int>& rgb, const ImageBuf
 
 int main(int argc, char** argv)
 {
-    int nthreads = 2, repeat = 3;
-    std::string spp = "0064";
+    int nthreads = 2, repeat = 3, tile = 1;
+    std::string spp = "0064", only;
     for (int i = 1; i < argc; ++i) {
         if (!std::strcmp(argv[i], "--threads") && i + 1 < argc)
             nthreads = std::atoi(argv[++i]);
         else if (!std::strcmp(argv[i], "--repeat") && i + 1 < argc)
             repeat = std::max(1, std::atoi(argv[++i]));
+        else if (!std::strcmp(argv[i], "--tile") && i + 1 < argc)
+            tile = std::max(1, std::atoi(argv[++i]));
+        else if (!std::strcmp(argv[i], "--only") && i + 1 < argc)
+            only = argv[++i];
         else if (!std::strcmp(argv[i], "--spp") && i + 1 < argc) {
             spp = argv[++i];
             spp = std::string(4 - std::min<size_t>(4, spp.size()), '0') + spp;
         } else {
-            std::fprintf(stderr, "usage: bench_skip [--spp 16|64|256] [--threads N] [--repeat N]\n");
+            std::fprintf(stderr, "usage: bench_skip [--spp 16|64|256] [--threads N] [--repeat N] [--only CHAIN] [--tile N]\n");
             return 2;
         }
     }
@@ -146,6 +171,9 @@ int main(int argc, char** argv)
         std::fprintf(stderr, "bench_skip: %s %s\n", noisy.geterror().c_str(), ref.geterror().c_str());
         return 1;
     }
+    noisy = tiled(noisy, tile);
+    ref = tiled(ref, tile);
+    ref_var = tiled(ref_var, tile);
     const int width = noisy.spec().width;
     const ImageBuf half = converge_left(noisy, ref, ref_var, width / 2);
 
@@ -210,10 +238,16 @@ int main(int argc, char** argv)
                 "| ratio half/noisy, skip on: CPU (wall) | relMSE half, skip on / off: whole frame "
                 "| noisy half | all noisy, skip on / off: whole frame |\n|---|---|---|---|---|---|---|---|\n");
     for (const Row& row : rows) {
+        if (!only.empty() && only != row.name)
+            continue;
         ImageBuf out_noisy, out_noisy_off, out_on, out_off;
-        const Timing t_noisy = time_chain(row.make(true), noisy, out_noisy, repeat);
-        const Timing t_on = time_chain(row.make(true), half, out_on, repeat);
-        const Timing t_off = time_chain(row.make(false), half, out_off, repeat);
+        Timing t_noisy, t_on, t_off;
+        // Interleaved, so that a change of the machine's load hits all three alike.
+        for (int r = 0; r < repeat; ++r) {
+            t_noisy = best(t_noisy, time_chain(row.make(true), noisy, out_noisy, 1));
+            t_on = best(t_on, time_chain(row.make(true), half, out_on, 1));
+            t_off = best(t_off, time_chain(row.make(false), half, out_off, 1));
+        }
         time_chain(row.make(false), noisy, out_noisy_off, 1);
         std::printf("| %s | %.2f (%.2f) | %.2f (%.2f) | %.2f (%.2f) | **%.2f** (%.2f) | %.5f / %.5f "
                     "| %.5f / %.5f | %.5f / %.5f |\n",

@@ -12,6 +12,8 @@ namespace {
 constexpr int T = kConvergedTileSize;
 /// relMSE's offset on r²: errors are relative to sqrt(colour² + 0.01) (metrics.h).
 constexpr float kRelativeFloor = 0.01f;
+/// Networks run on the non-converged rectangles only below this fraction of the work.
+constexpr double kWorthSkipping = 0.7;
 }  // namespace
 
 bool ConvergedTiles::any() const
@@ -190,8 +192,25 @@ std::vector<nn::Region> network_regions(const ConvergedTiles& m, const nn::Net& 
     const int alignment = net.alignment();
     if (!m.any() || alignment <= 0 || T % alignment != 0)
         return regions;
-    for (const Rect& r : unconverged_rects(m, tile_size, alignment))
+    // Each run computes its rectangle grown by the halo: worth it only when the windows add
+    // up to clearly less than the whole image's tiles with theirs (a 256² frame with its
+    // left half converged is not: the halo and each run's fixed cost eat the saving).
+    const int halo = (net.receptive_radius() + alignment - 1) / alignment * alignment;
+    auto window_area = [&](int x0, int y0, int x1, int y1) {
+        return double(std::min(x1 + halo, m.width) - std::max(x0 - halo, 0))
+               * (std::min(y1 + halo, m.height) - std::max(y0 - halo, 0));
+    };
+    double whole = 0, skipping = 0;
+    const int side = std::max(tile_size / alignment, 1) * alignment;
+    for (int y = 0; y < m.height; y += side)
+        for (int x = 0; x < m.width; x += side)
+            whole += window_area(x, y, x + side, y + side);
+    for (const Rect& r : unconverged_rects(m, tile_size, alignment)) {
         regions.push_back({ r.x0, r.y0, r.x1, r.y1 });
+        skipping += window_area(r.x0, r.y0, r.x1, r.y1);
+    }
+    if (skipping > kWorthSkipping * whole)
+        regions.clear();
     return regions;
 }
 

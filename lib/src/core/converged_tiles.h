@@ -66,8 +66,9 @@ void pass_through_converged(Plane& out, const Plane& render, const ConvergedTile
 std::vector<Rect> unconverged_rects(const ConvergedTiles& tiles, int max_side, int alignment);
 
 /// nn::TileOptions::regions for `net`: the unconverged rectangles, or empty (the whole
-/// image, as without skipping) when nothing is converged or the net's alignment does not
-/// divide the tile size.
+/// image, as without skipping) when nothing is converged, when their windows (grown by the
+/// receptive field) come to more than 70% of the whole image's, or when the net's alignment
+/// does not divide the tile size.
 std::vector<nn::Region> network_regions(const ConvergedTiles& tiles, const nn::Net& net,
                                         int tile_size);
 

@@ -98,6 +98,19 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
     for (Role half : { Role::ColorA, Role::ColorB })
         if (aovs.has(half))
             moved.insert(moved.end(), aovs.channels(half).begin(), aovs.channels(half).end());
+    // The moved channels' exact bits (read_plane would sanitize), restored after each probe.
+    std::vector<std::vector<float>> unprobed(moved.size());
+    auto channel_roi = [&](int channel) {
+        ROI r = noisy.roi();
+        r.chbegin = channel;
+        r.chend = channel + 1;
+        return r;
+    };
+    if (eps > 0)
+        for (size_t m = 0; m < moved.size(); ++m) {
+            unprobed[m].resize(size_t(noisy.spec().width) * noisy.spec().height);
+            noisy.get_pixels(channel_roi(moved[m]), OIIO::TypeDesc::FLOAT, unprobed[m].data());
+        }
     for (int k = 0; eps > 0 && k < options.probes; ++k) {
         Plane b[3];
         for (int c = 0; c < 3; ++c) {
@@ -107,12 +120,18 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
                              * standard_normal(options.seed, uint64_t(k), i * 3 + c);
             pass_through_converged(b[c], no_probe, converged);
         }
-        ImageBuf probed = noisy.copy(OIIO::TypeDesc::FLOAT);
+        // Probed in place and restored after (a copy of every channel per probe cost as
+        // much as the denoiser's own work on half-converged frames).
+        ImageBuf& probed = noisy;
         probed.specmod().attribute(sure_channels::kProbeAttribute, 1);
         for (size_t g = 0; g < moved.size(); g += 3)
             add_probe(probed, { moved[g], moved[g + 1], moved[g + 2] }, b, eps);
         ImageBuf response;
-        if (!denoiser(response, probed)) {
+        const bool probe_ok = denoiser(response, probed);
+        for (size_t m = 0; m < moved.size(); ++m)
+            noisy.set_pixels(channel_roi(moved[m]), OIIO::TypeDesc::FLOAT, unprobed[m].data());
+        noisy.specmod().erase_attribute(sure_channels::kProbeAttribute);
+        if (!probe_ok) {
             dst.errorfmt("sure: the denoiser failed on probe {}: {}", k, response.geterror());
             return false;
         }
