@@ -48,10 +48,10 @@ struct MixOptions {
     /// Add mix.alpha.R/G/B (alpha', the final per-pixel mix).
     bool output_alpha = false;
 
-    /// z = x, α' = 0, on converged tiles and on tiles the denoiser returned unchanged
-    /// (y = x at every pixel: no α can change z there); the network does not run on them
-    /// (mcdn/skip.h). The t-test's α' = 0 elsewhere is not known before α (it tests
-    /// α(y − x)), so those tiles still run.
+    /// z = x, α' = 0, on tiles the denoiser returned unchanged (y = x at every pixel, as the
+    /// ops leave converged tiles: no α can change z there); the network does not run on them
+    /// (mcdn/skip.h). z is the same as without skipping. The t-test's α' = 0 elsewhere is
+    /// not known before α (it tests α(y − x)), so those tiles still run.
     SkipOptions skip;
 };
 

@@ -34,11 +34,11 @@ struct SureOptions {
     float epsilon_relative = 1e-3f;
     /// Seed of the probes' counter-based Gaussian generator (same result for any threads).
     uint64_t seed = 0x5EED5EEDull;
-    /// Converged tiles (mcdn/skip.h) get no probe, and the denoiser is handed this op's map
-    /// (attribute mcdn:converged_tiles) so that its first run and its probes skip the same
-    /// tiles. The ops pass converged tiles through, y = x, so there f'(x) = 1: this op
-    /// writes σ²f'(x) = σ² and SURE = ‖y − x‖² + σ² (= σ², the render's own error) without
-    /// probing. Off: every pixel probed, the denoiser chooses its own tiles.
+    /// The denoiser is handed this op's converged map (mcdn/skip.h; attribute
+    /// mcdn:converged_tiles) so that its first run and its probes skip the same tiles.
+    /// Converged tiles it passed through (y = x on the whole tile, as the ops do) get no
+    /// probe: f'(x) = 1 there, so σ²f'(x) = σ² and SURE = σ² (the render's own error),
+    /// exactly. Off: every pixel probed, the denoiser chooses its own tiles.
     SkipOptions skip;
 };
 

@@ -93,6 +93,30 @@ ConvergedTiles converged_tiles_of(const ImageBuf& src, const AovSet& aovs, const
     return converged_tiles_of(src, mean, variance, skip);
 }
 
+ConvergedTiles tiles_where_equal(const Plane a[3], const Plane b[3], const ConvergedTiles* within)
+{
+    ConvergedTiles m;
+    m.width = a[0].width;
+    m.height = a[0].height;
+    m.tiles_x = (m.width + T - 1) / T;
+    m.tiles_y = (m.height + T - 1) / T;
+    m.converged.assign(size_t(m.tiles_x) * m.tiles_y, 0);
+    for (int ty = 0; ty < m.tiles_y; ++ty)
+        for (int tx = 0; tx < m.tiles_x; ++tx) {
+            if (within && !within->tile(tx, ty))
+                continue;
+            bool same = true;
+            for (int c = 0; c < 3 && same; ++c)
+                for (int y = ty * T; y < std::min(ty * T + T, m.height) && same; ++y)
+                    same = std::equal(a[c].row(y) + tx * T, a[c].row(y) + std::min(tx * T + T, m.width),
+                                      b[c].row(y) + tx * T);
+            m.converged[size_t(ty) * m.tiles_x + tx] = same;
+        }
+    if (!m.any())
+        m.converged.clear();
+    return m;
+}
+
 std::string encode_converged_tiles(const ConvergedTiles& m)
 {
     std::string text = OIIO::Strutil::fmt::format("{}x{}:", m.width, m.height);

@@ -52,6 +52,11 @@ ConvergedTiles converged_tiles_of(const ImageBuf& src, const AovSet& aovs,
 ConvergedTiles converged_tiles_of(const ImageBuf& src, const Plane mean[3],
                                   const Plane variance[3], const SkipOptions& skip);
 
+/// The tiles where a = b at every pixel of the three planes (a denoiser's result that is
+/// its input there), restricted to those of `within` when it is given.
+ConvergedTiles tiles_where_equal(const Plane a[3], const Plane b[3],
+                                 const ConvergedTiles* within = nullptr);
+
 /// String attribute carrying a map from sure to the denoiser it probes: "WxH:0110...".
 constexpr const char* kConvergedAttribute = "mcdn:converged_tiles";
 std::string encode_converged_tiles(const ConvergedTiles& tiles);

@@ -53,7 +53,7 @@ bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options, ROI roi,
     }
 
     // mcdn/skip.h: tiles where z can only be x.
-    const ConvergedTiles passed = tiles_mixing_to_x(src, in, options.skip);
+    const ConvergedTiles passed = tiles_mixing_to_x(in, options.skip);
     const Plane zero(in.x[0].width, in.x[0].height);
     Plane alpha[3];
     if (passed.all()) {

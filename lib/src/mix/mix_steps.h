@@ -32,9 +32,9 @@ nn::Tensor net_features(const MixInputs& in);
 bool net_alpha(Plane alpha[3], const MixInputs& in, nn::Net& net, std::string& error,
                nn::Tensor* raw = nullptr, const std::vector<nn::Region>& regions = {});
 
-/// The tiles where z = x whatever α is (MixOptions::skip): converged, or y = x throughout.
-ConvergedTiles tiles_mixing_to_x(const ImageBuf& src, const MixInputs& in,
-                                 const SkipOptions& skip);
+/// The tiles where z = x whatever α is (MixOptions::skip): y = x throughout (the denoiser
+/// passed them through, as the ops do with converged tiles).
+ConvergedTiles tiles_mixing_to_x(const MixInputs& in, const SkipOptions& skip);
 
 /// sigma_s of eq. 15: min(sqrt(spatial variance of x), 1) * scale.
 float t_test_sigma(const MixInputs& in, float scale);

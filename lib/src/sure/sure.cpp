@@ -78,7 +78,6 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
     const ConvergedTiles converged = converged_tiles_of(noisy, p.x, p.variance, options.skip);
     if (options.skip.enabled)
         noisy.specmod().attribute(kConvergedAttribute, encode_converged_tiles(converged));
-    const Plane no_probe(noisy.spec().width, noisy.spec().height);
 
     // y = F(x): the result we report SURE for.
     ImageBuf denoised;
@@ -89,6 +88,9 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
     Plane y[3];
     for (int c = 0; c < 3; ++c)
         y[c] = read_plane(denoised, color[c]);
+    // Of those, the tiles the denoiser did pass through (a callable may not skip): no probes.
+    const ConvergedTiles passed = tiles_where_equal(y, p.x, &converged);
+    const Plane no_probe(noisy.spec().width, noisy.spec().height);
 
     // Eq. 2: probe with b ~ N(0, Sigma); the render and both halves move together.
     const double eps = probe_step(p, options.epsilon_relative);
@@ -118,7 +120,7 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
             for (size_t i = 0; i < b[c].size(); ++i)
                 b[c].px[i] = std::sqrt(p.variance[c].px[i])
                              * standard_normal(options.seed, uint64_t(k), i * 3 + c);
-            pass_through_converged(b[c], no_probe, converged);
+            pass_through_converged(b[c], no_probe, passed);
         }
         // Probed in place and restored after (a copy of every channel per probe cost as
         // much as the denoiser's own work on half-converged frames).
@@ -147,7 +149,7 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
     dst = std::move(denoised);
     dst.specmod().erase_attribute(kConvergedAttribute);
     for (int c = 0; c < 3; ++c)  // the pass-through's f'(x) = 1
-        pass_through_converged(divergence[c], p.variance[c], converged);
+        pass_through_converged(divergence[c], p.variance[c], passed);
     std::vector<std::string> names;
     for (const auto* group : { sure_channels::kNoisy, sure_channels::kSure,
                                sure_channels::kDivergence, sure_channels::kResidual })
