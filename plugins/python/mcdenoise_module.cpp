@@ -66,18 +66,21 @@ template<class Op> ImageBuf run(const ImageBuf& src, Op op)
     return dst;
 }
 
-mcdn::Denoiser named_denoiser(const std::string& chain, const mcdn::AovSpec& spec, int nthreads)
+mcdn::Denoiser named_denoiser(const std::string& chain, const mcdn::AovSpec& spec,
+                              const mcdn::SkipOptions& skip, int nthreads)
 {
     if (chain == "cnn")
-        return [spec, nthreads](ImageBuf& dst, const ImageBuf& src) {
+        return [spec, skip, nthreads](ImageBuf& dst, const ImageBuf& src) {
             mcdn::CnnOptions o;
             o.aovs = spec;
+            o.skip = skip;
             return mcdn::cnn(dst, src, o, {}, nthreads);
         };
     if (chain == "nfor" || chain == "prefilter,nfor")
-        return [spec, nthreads](ImageBuf& dst, const ImageBuf& src) {
+        return [spec, skip, nthreads](ImageBuf& dst, const ImageBuf& src) {
             mcdn::NforOptions o;
             o.aovs = spec;
+            o.skip = skip;
             o.prefilter.aovs = spec;
             return mcdn::nfor(dst, src, o, {}, nthreads);
         };
@@ -152,10 +155,12 @@ PYBIND11_MODULE(mcdenoise, m)
     m.def("prefilter",
           [](const ImageBuf& src, const std::string& preset,
              const std::map<std::string, std::string>& aovs, const std::string& colorspace,
-             int window, int patch, float k, int nthreads) {
+             int window, int patch, float k, bool skip, float converged,
+              int nthreads) {
               auto o = stage_options<mcdn::PrefilterOptions>(
                   "prefilter", aov_spec(preset, aovs, colorspace),
-                  { { "window", text(window) }, { "patch", text(patch) }, { "k", text(k) } });
+                  { { "window", text(window) }, { "patch", text(patch) }, { "k", text(k) }, { "skip", text(skip) },
+                    { "converged", text(converged) } });
               return run(src, [&](ImageBuf& d, const ImageBuf& s) {
                   return mcdn::prefilter(d, s, o, {}, nthreads);
               });
@@ -163,16 +168,19 @@ PYBIND11_MODULE(mcdenoise, m)
           py::arg("image"), py::arg("preset") = "cycles",
           py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
           py::arg("window") = 11, py::arg("patch") = 7, py::arg("k") = 0.5f,
+          py::arg("skip") = true, py::arg("converged") = mcdn::SkipOptions().max_relative_error,
           py::arg("nthreads") = 0, "NFOR feature prefilter (NFOR §5.1).");
 
     m.def("nfor",
           [](const ImageBuf& src, const std::string& preset,
              const std::map<std::string, std::string>& aovs, const std::string& colorspace,
-             int window, int patch, bool mse, bool selection, bool extras, int nthreads) {
+             int window, int patch, bool mse, bool selection, bool extras, bool skip, float converged,
+              int nthreads) {
               auto o = stage_options<mcdn::NforOptions>(
                   "nfor", aov_spec(preset, aovs, colorspace),
                   { { "window", text(window) }, { "patch", text(patch) }, { "mse", text(mse) },
-                    { "selection", text(selection) }, { "extras", text(extras) } });
+                    { "selection", text(selection) }, { "extras", text(extras) }, { "skip", text(skip) },
+                    { "converged", text(converged) } });
               o.prefilter.aovs = o.aovs;
               return run(src, [&](ImageBuf& d, const ImageBuf& s) {
                   return mcdn::nfor(d, s, o, {}, nthreads);
@@ -181,37 +189,44 @@ PYBIND11_MODULE(mcdenoise, m)
           py::arg("image"), py::arg("preset") = "cycles",
           py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
           py::arg("window") = 19, py::arg("patch") = 7, py::arg("mse") = false,
-          py::arg("selection") = false, py::arg("extras") = true, py::arg("nthreads") = 0,
+          py::arg("selection") = false, py::arg("extras") = true, py::arg("skip") = true,
+          py::arg("converged") = mcdn::SkipOptions().max_relative_error, py::arg("nthreads") = 0,
           "NFOR: first-order regression denoiser (NFOR §5.2-5.4). extras: denoise the extra "
-          "AOVs (light groups) with the beauty's weights.");
+          "AOVs (light groups) with the beauty's weights. skip: pass converged tiles (worst "
+          "relative standard error <= converged) through and drop constant features.");
 
     m.def("cnn",
           [](const ImageBuf& src, const std::string& preset,
              const std::map<std::string, std::string>& aovs, const std::string& colorspace,
-             const std::string& weights, bool extras, int nthreads) {
+             const std::string& weights, bool extras, bool skip, float converged,
+              int nthreads) {
               auto o = stage_options<mcdn::CnnOptions>(
                   "cnn", aov_spec(preset, aovs, colorspace),
-                  { { "weights", weights }, { "extras", text(extras) } });
+                  { { "weights", weights }, { "extras", text(extras) }, { "skip", text(skip) },
+                    { "converged", text(converged) } });
               return run(src, [&](ImageBuf& d, const ImageBuf& s) {
                   return mcdn::cnn(d, s, o, {}, nthreads);
               });
           },
           py::arg("image"), py::arg("preset") = "cycles",
           py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
-          py::arg("weights") = "", py::arg("extras") = true, py::arg("nthreads") = 0,
+          py::arg("weights") = "", py::arg("extras") = true, py::arg("skip") = true,
+          py::arg("converged") = mcdn::SkipOptions().max_relative_error, py::arg("nthreads") = 0,
           "KPCN: kernel-predicting CNN denoiser with our trained weights. extras: denoise the "
           "extra AOVs (light groups) with the beauty's kernels.");
 
     m.def("sure",
           [](const ImageBuf& src, py::object denoiser, const std::string& preset,
              const std::map<std::string, std::string>& aovs, const std::string& colorspace,
-             int probes, float eps, int nthreads) {
+             int probes, float eps, bool skip, float converged,
+              int nthreads) {
               auto o = stage_options<mcdn::SureOptions>(
                   "sure", aov_spec(preset, aovs, colorspace),
-                  { { "probes", text(probes) }, { "eps", text(eps) } });
+                  { { "probes", text(probes) }, { "eps", text(eps) }, { "skip", text(skip) },
+                    { "converged", text(converged) } });
               mcdn::Denoiser f;
               if (py::isinstance<py::str>(denoiser))
-                  f = named_denoiser(denoiser.cast<std::string>(), o.aovs, nthreads);
+                  f = named_denoiser(denoiser.cast<std::string>(), o.aovs, o.skip, nthreads);
               else {
                   // A Python callable ImageBuf -> ImageBuf; called with the GIL held.
                   auto callable = denoiser.cast<py::function>();
@@ -232,7 +247,8 @@ PYBIND11_MODULE(mcdenoise, m)
           },
           py::arg("image"), py::arg("denoiser") = "nfor", py::arg("preset") = "cycles",
           py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
-          py::arg("probes") = 1, py::arg("eps") = 1e-3f, py::arg("nthreads") = 0,
+          py::arg("probes") = 1, py::arg("eps") = 1e-3f, py::arg("skip") = true,
+          py::arg("converged") = mcdn::SkipOptions().max_relative_error, py::arg("nthreads") = 0,
           "Monte-Carlo SURE (PD §3.2) of a denoiser: 'nfor' or a callable ImageBuf -> "
           "ImageBuf. Returns the denoised image with noisy.*, sure.*, sure.divergence.*, "
           "sure.residual.* channels.");
@@ -241,11 +257,13 @@ PYBIND11_MODULE(mcdenoise, m)
           [](const ImageBuf& src, const std::string& model, const std::string& weights,
              bool t_test, bool alpha, const std::string& preset,
              const std::map<std::string, std::string>& aovs, const std::string& colorspace,
-             int nthreads) {
+             bool skip, float converged,
+              int nthreads) {
               auto o = stage_options<mcdn::MixOptions>(
                   "mix", aov_spec(preset, aovs, colorspace),
                   { { "model", model }, { "weights", weights }, { "ttest", text(t_test) },
-                    { "alpha", text(alpha) } });
+                    { "alpha", text(alpha) }, { "skip", text(skip) },
+                    { "converged", text(converged) } });
               return run(src, [&](ImageBuf& d, const ImageBuf& s) {
                   return mcdn::mix(d, s, o, {}, nthreads);
               });
@@ -253,6 +271,7 @@ PYBIND11_MODULE(mcdenoise, m)
           py::arg("image"), py::arg("model") = "analytic", py::arg("weights") = "",
           py::arg("t_test") = true, py::arg("alpha") = false, py::arg("preset") = "cycles",
           py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
+          py::arg("skip") = true, py::arg("converged") = mcdn::SkipOptions().max_relative_error,
           py::arg("nthreads") = 0,
           "Progressive mix (PD §4) of the output of sure(): z = x + alpha'(y - x).");
 

@@ -39,6 +39,21 @@ class OpsTakeAndReturnImageBufs(unittest.TestCase):
         self.assertLess(after["relmse"], 0.5 * noisy["relmse"])
         self.assertEqual(denoised.nchannels, self.render.nchannels)
 
+    def test_skip_passes_converged_tiles_through(self):
+        # Variance 0 everywhere: every tile is converged (mcdn/skip.h).
+        spec = self.render.spec()
+        names = list(spec.channelnames)
+        pixels = self.render.get_pixels(oiio.FLOAT)
+        for c in "RGB":
+            pixels[:, :, names.index("variance.ViewLayer.Combined." + c)] = 0.0
+        converged = oiio.ImageBuf(spec)
+        converged.set_pixels(oiio.ROI(), pixels)
+        colour = [names.index("ViewLayer.Combined." + c) for c in "RGB"]
+        skipped = mcdenoise.nfor(converged, skip=True).get_pixels(oiio.FLOAT)[:, :, colour]
+        filtered = mcdenoise.nfor(converged, skip=False).get_pixels(oiio.FLOAT)[:, :, colour]
+        self.assertTrue((skipped == pixels[:, :, colour]).all())
+        self.assertFalse((filtered == pixels[:, :, colour]).all())
+
     def test_cnn_denoises(self):
         noisy = mcdenoise.metrics(self.render, self.reference)
         after = mcdenoise.metrics(mcdenoise.cnn(self.render), self.reference)

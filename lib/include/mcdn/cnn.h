@@ -19,6 +19,7 @@
 #include <OpenImageIO/imagebuf.h>
 
 #include "mcdn/aov.h"
+#include "mcdn/skip.h"
 
 namespace mcdn {
 
@@ -34,6 +35,11 @@ struct CnnOptions {
     /// (tile_size + 2 · halo)² × the widest layer, not by the image (512: ~350 MB; each
     /// tile recomputes its halo, so smaller tiles cost time: 256 took 1.7× the CPU time).
     int tile_size = 512;
+    /// Converged tiles are the render, untouched; the network runs only on rectangles
+    /// holding non-converged tiles (each with its receptive-field halo), so pixels within
+    /// the halo of a converged tile can differ from an unskipped run (mcdn/skip.h). Feature
+    /// AOVs are fixed network inputs: absent ones are zero, constant ones are used as they are.
+    SkipOptions skip;
 };
 
 /// $MCDN_MODELS/kpcn.mcdnw when MCDN_MODELS is set, else <models dir>/kpcn.mcdnw (the

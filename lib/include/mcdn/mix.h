@@ -13,6 +13,7 @@
 #include <OpenImageIO/imagebuf.h>
 
 #include "mcdn/aov.h"
+#include "mcdn/skip.h"
 
 namespace mcdn {
 
@@ -51,6 +52,12 @@ struct MixOptions {
 
     /// Add mix.alpha.R/G/B (alpha', the final per-pixel mix).
     bool output_alpha = false;
+
+    /// z = x, α' = 0, on tiles the denoiser returned unchanged (y = x at every pixel, as the
+    /// ops leave converged tiles: no α can change z there); the network does not run on them
+    /// (mcdn/skip.h). z is the same as without skipping. The t-test's α' = 0 elsewhere is
+    /// not known before α (it tests α(y − x)), so those tiles still run.
+    SkipOptions skip;
 };
 
 /// The mixing network's default weights file: $MCDN_MODELS/mix.mcdnw when the environment

@@ -16,6 +16,7 @@
 
 #include "mcdn/aov.h"
 #include "mcdn/prefilter.h"
+#include "mcdn/skip.h"
 
 namespace mcdn {
 
@@ -63,6 +64,11 @@ struct NforOptions {
     /// (75 rows at the default settings): the same output, memory that follows the band
     /// (7680×4320: ~14 GB instead of ~20), ~25% more time at 8K. 0: always the whole frame.
     int64_t band_pixels = int64_t(1) << 22;
+    /// Converged tiles are the render, untouched, and cost nothing in any pass (their
+    /// first-pass values for the neighbours' windows are the half buffers); features
+    /// constant over the frame are left out of the prefilter and the regressions
+    /// (mcdn/skip.h). Off: exactly the unskipped filter.
+    SkipOptions skip;
 };
 
 /// Denoises the colour. dst = src (every channel kept) with the colour role's channels

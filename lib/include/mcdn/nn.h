@@ -199,12 +199,21 @@ private:
     friend struct NetRunner;
 };
 
+/// An output rectangle [x0, x1) × [y0, y1) in pixels.
+struct Region {
+    int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+};
+
 struct TileOptions {
     /// Output tile side in pixels (rounded up to alignment()); memory grows with
     /// (tile_size + 2 × halo)² × widest layer; every tile recomputes its halo, and a
     /// tile's buffers are reused by the next (Net::run), so fewer, larger tiles are faster.
     int tile_size = 512;
     Backend backend = Backend::onednn;
+    /// When not empty, only these output rectangles are computed, each as one tile with its
+    /// halo (x0 and y0 multiples of alignment(); sides at most tile_size for bounded memory);
+    /// the outputs are 0 elsewhere. Used to skip converged tiles (mcdn/skip.h).
+    std::vector<Region> regions;
 };
 
 /// Runs `net` over whole images tile by tile; each tile is computed with a halo of

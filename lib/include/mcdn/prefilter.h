@@ -14,6 +14,7 @@
 #include <OpenImageIO/imagebuf.h>
 
 #include "mcdn/aov.h"
+#include "mcdn/skip.h"
 
 namespace mcdn {
 
@@ -39,6 +40,10 @@ struct PrefilterOptions {
     /// the filter's radius of extra rows each side), so memory follows the band: same
     /// output, a little more time. 0: always the whole frame.
     int64_t band_pixels = int64_t(1) << 22;
+    /// Converged tiles of the colour (needs its variance role) are not filtered, and
+    /// features constant over the frame are left as they are (mcdn/skip.h). nfor's own
+    /// prefilter follows NforOptions::skip instead.
+    SkipOptions skip;
 };
 
 /// Prefilters every feature channel. dst = src with the features' mean, half A and half B

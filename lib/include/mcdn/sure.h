@@ -15,6 +15,7 @@
 #include <OpenImageIO/imagebuf.h>
 
 #include "mcdn/aov.h"
+#include "mcdn/skip.h"
 
 namespace mcdn {
 
@@ -33,6 +34,12 @@ struct SureOptions {
     float epsilon_relative = 1e-3f;
     /// Seed of the probes' counter-based Gaussian generator (same result for any threads).
     uint64_t seed = 0x5EED5EEDull;
+    /// The denoiser is handed this op's converged map (mcdn/skip.h; attribute
+    /// mcdn:converged_tiles) so that its first run and its probes skip the same tiles.
+    /// Converged tiles it passed through (y = x on the whole tile, as the ops do) get no
+    /// probe: f'(x) = 1 there, so σ²f'(x) = σ² and SURE = σ² (the render's own error),
+    /// exactly. Off: every pixel probed, the denoiser chooses its own tiles.
+    SkipOptions skip;
 };
 
 /// Channel names the op writes (besides replacing the colour role by y = F(x)).

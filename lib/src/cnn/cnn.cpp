@@ -12,6 +12,7 @@
 
 #include "cnn/cnn_steps.h"
 #include "cnn/extras.h"
+#include "core/converged_tiles.h"
 #include "core/op_prepare.h"
 #include "mcdn/color.h"
 
@@ -74,6 +75,10 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
         dst.errorfmt("cnn: {}", error);
         return false;
     }
+    // mcdn/skip.h: nothing to do where every tile is converged (dst is the render).
+    const ConvergedTiles converged = converged_tiles_of(dst, aovs, options.skip);
+    if (converged.all())
+        return true;
     kpcn::Model model;
     const std::string path = options.weights.empty() ? default_cnn_weights() : options.weights;
     const int image_channels = extras.empty() ? 3 : 3 * (2 + int(extras.size()));
@@ -102,6 +107,7 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
         std::vector<nn::Tensor> inputs(2), outputs;  // moved in: a frame's features are ~300 MB
         inputs[0] = std::move(features);
         inputs[1] = std::move(image);
+        tiles.regions = network_regions(converged, net, options.tile_size);
         if (!nn::run_tiled(net, inputs, outputs, error, tiles)) {
             error = "cnn: '" + path + "': " + error;
             return false;
@@ -142,10 +148,12 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
         Plane out(raw.width(), raw.height());
         for (size_t i = 0; i < out.size(); ++i)
             out.px[i] = sanitize(specular.component[c].px[i] + diffuse.component[c].px[i]);
+        pass_through_converged(out, raw.color[c], converged);
         write_plane(dst, colour[c], out, where);
     }
     // The extras' shares of the same components: they add up to the beauty.
     kpcn::write_extras(dst, where, extras, raw.split ? &diffuse : nullptr, specular);
+    pass_through_extras(dst, where, extras, converged);
     return true;
 }
 

@@ -1,5 +1,8 @@
 #include "core/channels.h"
 
+#include <algorithm>
+#include <cstring>
+
 #include <OpenImageIO/imagebufalgo.h>
 
 namespace mcdn {
@@ -20,7 +23,27 @@ std::vector<int> add_channels(OIIO::ImageBuf& buf, const std::vector<std::string
             fill.push_back(0.0f);
             all.push_back(name);
         }
-    if (all.size() != spec.channelnames.size()) {
+    if (all.size() != spec.channelnames.size() && buf.localpixels()
+        && spec.format == OIIO::TypeDesc::FLOAT
+        && buf.pixel_stride() == OIIO::stride_t(spec.pixel_bytes())
+        && buf.scanline_stride() == OIIO::stride_t(spec.scanline_bytes())) {
+        // Fast path for a float buffer in memory: one memcpy per pixel (IBA::channels goes
+        // value by value, ~0.15 s for 156 channels at 256×256).
+        OIIO::ImageSpec grown_spec = spec;
+        grown_spec.nchannels = int(all.size());
+        grown_spec.channelnames = all;
+        grown_spec.channelformats.clear();
+        OIIO::ImageBuf grown(grown_spec);
+        const size_t pixels = spec.image_pixels(), old_bytes = spec.pixel_bytes();
+        const size_t new_floats = all.size();
+        const char* from = static_cast<const char*>(buf.localpixels());
+        float* to = static_cast<float*>(grown.localpixels());
+        for (size_t p = 0; p < pixels; ++p) {
+            std::memcpy(to + p * new_floats, from + p * old_bytes, old_bytes);
+            std::fill(to + p * new_floats + spec.nchannels, to + (p + 1) * new_floats, 0.0f);
+        }
+        buf = std::move(grown);
+    } else if (all.size() != spec.channelnames.size()) {
         OIIO::ImageBuf grown;
         OIIO::ImageBufAlgo::channels(grown, buf, int(all.size()), order, fill, all);
         buf = std::move(grown);

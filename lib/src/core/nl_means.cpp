@@ -7,6 +7,8 @@
 
 #include <tbb/enumerable_thread_specific.h>
 
+#include "core/converged_tiles.h"
+
 namespace mcdn {
 namespace {
 
@@ -107,7 +109,7 @@ void filter_tile_baseline(const FilterJob& j, Rect t, FilterScratch& s) { filter
 std::vector<Plane> nl_means(const std::vector<const Plane*>& image,
                             const std::vector<const Plane*>& guide,
                             const std::vector<const Plane*>& variance, const NlMeansParams& params,
-                            int nthreads)
+                            int nthreads, const ConvergedTiles* skip)
 {
     std::vector<Plane> out;
     if (image.empty() || guide.empty())
@@ -127,8 +129,13 @@ std::vector<Plane> nl_means(const std::vector<const Plane*>& image,
     std::vector<Rect> tiles = make_tiles(width, height, nlm::kTileSize);
     // Scratch kept per thread across calls: no page faults for fresh buffers on every call.
     static tbb::enumerable_thread_specific<FilterScratch> scratch;
-    parallel_for_index(int(tiles.size()), nthreads,
-                       [&](int i) { kernel(job, tiles[i], scratch.local()); });
+    parallel_for_index(int(tiles.size()), nthreads, [&](int i) {
+        if (!skip || !skip->covers(tiles[i]))
+            kernel(job, tiles[i], scratch.local());
+    });
+    if (skip)
+        for (size_t c = 0; c < image.size(); ++c)
+            pass_through_converged(out[c], *image[c], *skip);
     return out;
 }
 

@@ -18,6 +18,8 @@
 
 namespace mcdn {
 
+struct ConvergedTiles;
+
 struct NlMeansParams {
     int patch_radius = 3;        // F: patch (2F+1)²
     int window_radius = 5;       // R: search window (2R+1)²
@@ -293,10 +295,11 @@ MCDN_INLINE void patch_distance(float* out, int stride, const LocalPlane& guide,
 
 /// NL-means filter: channel c of `image` is filtered with the weights of channel
 /// c % guide.size() of `guide` and `variance` (per-channel weights, as the reference).
-/// All planes have the same size. Deterministic for any thread count.
+/// All planes have the same size. Deterministic for any thread count. Tiles of `skip`
+/// (mcdn/skip.h) are not filtered: the output is the image there.
 std::vector<Plane> nl_means(const std::vector<const Plane*>& image,
                             const std::vector<const Plane*>& guide,
                             const std::vector<const Plane*>& variance, const NlMeansParams& params,
-                            int nthreads);
+                            int nthreads, const ConvergedTiles* skip = nullptr);
 
 }  // namespace mcdn

@@ -100,6 +100,17 @@ public:
         return *this;
     }
 
+    // :skip=0 turns the stage's skipping off, :converged=X is its threshold (mcdn/skip.h).
+    SettingsReader& skip(SkipOptions& o)
+    {
+        flag("skip", o.enabled);
+        number("converged", o.max_relative_error);
+        if (m_ok && !(o.max_relative_error >= 0))
+            fail(format("converged={} must be >= 0 (a relative standard error)",
+                        m_settings.at("converged")));
+        return *this;
+    }
+
     // A value the typed readers do not cover: `parse` sets the option and says whether the
     // text was valid; `requirement` completes the message when it was not.
     template <class Parse>
@@ -154,11 +165,11 @@ bool parse_seed(const std::string& text, uint64_t& seed)
 const std::vector<std::string>& setting_keys(const std::string& stage)
 {
     static const std::map<std::string, std::vector<std::string>> keys = {
-        { "prefilter", { "window", "patch", "k", "features" } },
-        { "nfor", { "window", "patch", "k", "mse", "selection", "features", "extras" } },
-        { "cnn", { "weights", "tile", "extras" } },
-        { "sure", { "probes", "eps", "seed" } },
-        { "mix", { "model", "weights", "ttest", "alpha", "outlier" } },
+        { "prefilter", { "window", "patch", "k", "features", "skip", "converged" } },
+        { "nfor", { "window", "patch", "k", "mse", "selection", "features", "extras", "skip", "converged" } },
+        { "cnn", { "weights", "tile", "extras", "skip", "converged" } },
+        { "sure", { "probes", "eps", "seed", "skip", "converged" } },
+        { "mix", { "model", "weights", "ttest", "alpha", "outlier", "skip", "converged" } },
     };
     static const std::vector<std::string> none;
     auto it = keys.find(stage);
@@ -172,6 +183,7 @@ bool apply_settings(PrefilterOptions& o, const Settings& s, std::string& error)
         .width("patch", o.patch_radius)
         .number("k", o.k)
         .list("features", o.extra_features)
+        .skip(o.skip)
         .ok();
 }
 
@@ -186,6 +198,7 @@ bool apply_settings(NforOptions& o, const Settings& s, std::string& error)
                   .flag("selection", o.output_selection)
                   .flag("extras", o.denoise_extras)
                   .list("features", o.extra_features)
+                  .skip(o.skip)
                   .ok();
     // The second pass (§5.4) filters with the first pass's window.
     o.second_window_radius = o.window_radius;
@@ -198,6 +211,7 @@ bool apply_settings(CnnOptions& o, const Settings& s, std::string& error)
         .text("weights", o.weights)
         .positive_int("tile", o.tile_size)
         .flag("extras", o.denoise_extras)
+        .skip(o.skip)
         .ok();
 }
 
@@ -208,6 +222,7 @@ bool apply_settings(SureOptions& o, const Settings& s, std::string& error)
         .number("eps", o.epsilon_relative)
         .custom("seed", "is not a whole number below 10^19",
                 [&](const std::string& v) { return parse_seed(v, o.seed); })
+        .skip(o.skip)
         .ok();
 }
 
@@ -225,6 +240,7 @@ bool apply_settings(MixOptions& o, const Settings& s, std::string& error)
         .flag("ttest", o.t_test)
         .flag("alpha", o.output_alpha)
         .number("outlier", o.outlier_relative_variance)
+        .skip(o.skip)
         .ok();
 }
 

@@ -52,11 +52,18 @@ bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options, ROI roi,
         return false;
     }
 
+    // mcdn/skip.h: tiles where z can only be x.
+    const ConvergedTiles passed = tiles_mixing_to_x(in, options.skip);
+    const Plane zero(in.x[0].width, in.x[0].height);
     Plane alpha[3];
-    if (options.model == MixOptions::Model::Net) {
+    if (passed.all()) {
+        for (int c = 0; c < 3; ++c)
+            alpha[c] = zero;
+    } else if (options.model == MixOptions::Model::Net) {
         nn::Net net;
         const std::string path = options.weights.empty() ? default_mix_weights() : options.weights;
-        if (!load_mix_net(net, path, error) || !net_alpha(alpha, in, net, error)) {
+        if (!load_mix_net(net, path, error)
+            || !net_alpha(alpha, in, net, error, nullptr, network_regions(passed, net, 256))) {
             dst.errorfmt("{}", error);
             return false;
         }
@@ -73,6 +80,8 @@ bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options, ROI roi,
         for (int c = 0; c < 3; ++c)
             t_test_bound(alpha[c], in.x[c], in.y[c], in.variance[c], sigma_s, options);
     }
+    for (int c = 0; c < 3; ++c)
+        pass_through_converged(alpha[c], zero, passed);
 
     // z = x + alpha' (y - x)
     ROI where = output_roi(src, roi);
@@ -83,6 +92,7 @@ bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options, ROI roi,
         Plane z(in.x[c].width, in.x[c].height);
         for (size_t i = 0; i < z.size(); ++i)
             z.px[i] = sanitize(in.x[c].px[i] + alpha[c].px[i] * (in.y[c].px[i] - in.x[c].px[i]));
+        pass_through_converged(z, in.x[c], passed);
         write_plane(dst, aovs.channels(Role::Color)[c], z, where);
         if (options.output_alpha)
             write_plane(dst, alpha_channels[c], alpha[c], where);

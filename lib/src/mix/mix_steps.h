@@ -4,6 +4,7 @@
 
 #include <string>
 
+#include "core/converged_tiles.h"
 #include "core/planar.h"
 #include "mcdn/mix.h"
 #include "mcdn/nn.h"
@@ -27,8 +28,13 @@ nn::Tensor net_features(const MixInputs& in);
 
 /// alpha = clip(f_act(h_NN(features)), 0, 1) per colour channel (eq. 19); `raw`, if given,
 /// receives the network's outputs (x1 RGB, x2 RGB, x3 RGB per pixel).
+/// `regions`: only these are computed (nn::TileOptions::regions), alpha = 0 elsewhere.
 bool net_alpha(Plane alpha[3], const MixInputs& in, nn::Net& net, std::string& error,
-               nn::Tensor* raw = nullptr);
+               nn::Tensor* raw = nullptr, const std::vector<nn::Region>& regions = {});
+
+/// The tiles where z = x whatever α is (MixOptions::skip): y = x throughout (the denoiser
+/// passed them through, as the ops do with converged tiles).
+ConvergedTiles tiles_mixing_to_x(const MixInputs& in, const SkipOptions& skip);
 
 /// Where variance > relative_variance * (y^2 + 0.01) (the render is an outlier of its own
 /// variance, past where the network's arctan inputs saturate), alpha >= the pixel's eq. 9,

@@ -105,11 +105,13 @@ nn::Tensor net_features(const MixInputs& in)
 }
 
 bool net_alpha(Plane alpha[3], const MixInputs& in, nn::Net& net, std::string& error,
-               nn::Tensor* raw_out)
+               nn::Tensor* raw_out, const std::vector<nn::Region>& regions)
 {
     std::vector<nn::Tensor> inputs(1), outputs;
     inputs[0] = net_features(in);  // moved in, not copied from an initializer list
-    if (!nn::run_tiled(net, inputs, outputs, error)) {
+    nn::TileOptions tiles;
+    tiles.regions = regions;
+    if (!nn::run_tiled(net, inputs, outputs, error, tiles)) {
         error = "mix: model=net: " + error;
         return false;
     }

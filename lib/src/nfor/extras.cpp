@@ -84,6 +84,13 @@ void ExtraAovs::share_rounding(const Plane colour[3], const std::vector<Plane>& 
         }
 }
 
+void ExtraAovs::pass_through(const ConvergedTiles& converged)
+{
+    for (Extra& e : m_extras)
+        for (int c = 0; c < 3; ++c)
+            pass_through_converged(e.denoised[c], e.planes.mean[c], converged);
+}
+
 void ExtraAovs::write(ImageBuf& dst, ROI roi) const
 {
     for (const Extra& e : m_extras)

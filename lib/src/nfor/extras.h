@@ -5,6 +5,7 @@
 
 #include <vector>
 
+#include "core/converged_tiles.h"
 #include "core/extra_aovs.h"
 #include "nfor/regression.h"
 
@@ -37,6 +38,8 @@ public:
     /// beauty − Σ extras of the result is shared out in proportion to |extra|, so that they
     /// add up there as well.
     void share_rounding(const Plane colour[3], const std::vector<Plane>& denoised_colour);
+    /// Each extra's result is its render on the converged tiles (mcdn/skip.h).
+    void pass_through(const ConvergedTiles& converged);
     /// Writes each extra's result into its channels of dst inside roi.
     void write(ImageBuf& dst, ROI roi) const;
 

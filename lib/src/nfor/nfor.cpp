@@ -13,6 +13,8 @@
 #include <OpenImageIO/imagebufalgo.h>
 
 #include "core/channels.h"
+#include "core/constant_features.h"
+#include "core/converged_tiles.h"
 #include "core/extra_aovs.h"
 #include "core/feature_channels.h"
 #include "core/nl_means.h"
@@ -131,12 +133,16 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     }
     // Extra AOVs go through the beauty's filters stage by stage (nfor/extras.h).
     ExtraAovs extras(std::move(extra_planes));
+    // mcdn/skip.h: converged tiles pass through every stage below; constant features go.
+    const ConvergedTiles converged = converged_tiles_of(src, color.mean, color.variance, options.skip);
+    if (options.skip.enabled)
+        drop_constant_features(features);
 
     // §5.1: prefiltered features, unless the prefilter op ran already.
     const bool prefiltered = src.spec().get_int_attribute("mcdn:prefiltered", 0) == 1;
     timer("read planes");
     if (!prefiltered && options.prefilter_features)
-        prefilter_planes(features, options.prefilter, nthreads);
+        prefilter_planes(features, options.prefilter, nthreads, &converged);
     // Planes are freed as soon as their last stage is done (peak memory at 1080p).
     for (FeaturePlanes& f : features)
         f.variance = Plane();
@@ -156,6 +162,7 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     first_a.patch_radius = options.patch_radius;
     first_a.bandwidths = { options.candidate_k[0], options.candidate_k[1] };
     first_a.variance_scale = options.variance_scale;
+    first_a.skip_tiles = &converged;
     first_b = first_a;
     for (int c = 0; c < 3; ++c) {
         first_a.image[c] = &color.half_a[c];
@@ -204,7 +211,7 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     for (int j = 0; j < 2; ++j)
         for (int c = 0; c < 3; ++c)
             noisy.push_back(&mse[j][c]);
-    std::vector<Plane> filtered_mse = nl_means(noisy, map_guide, map_variance, map_params, nthreads);
+    std::vector<Plane> filtered_mse = nl_means(noisy, map_guide, map_variance, map_params, nthreads, &converged);
     for (int j = 0; j < 2; ++j)
         mse[j].clear();
     std::vector<Plane> mse0(std::make_move_iterator(filtered_mse.begin()),
@@ -216,7 +223,7 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     noisy.clear();
     for (int c = 0; c < 3; ++c)
         noisy.push_back(&selection_noisy[c]);
-    std::vector<Plane> selection = nl_means(noisy, map_guide, map_variance, map_params, nthreads);
+    std::vector<Plane> selection = nl_means(noisy, map_guide, map_variance, map_params, nthreads, &converged);
     selection_noisy.clear();
     for (int c = 0; c < 3; ++c)
         color.variance[c] = Plane();
@@ -254,6 +261,7 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     second.patch_radius = options.second_patch_radius;
     second.bandwidths = { options.second_k };
     second.variance_scale = options.variance_scale;
+    second.skip_tiles = &converged;
     for (int c = 0; c < 3; ++c) {
         second.image[c] = &combined[c];
         second.guide[c] = &combined[c];
@@ -275,6 +283,8 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
         for (size_t i = 0; i < denoised[c].size(); ++i)
             if (!std::isfinite(denoised[c].px[i]))
                 denoised[c].px[i] = color.mean[c].px[i];
+    for (int c = 0; c < 3; ++c)
+        pass_through_converged(denoised[c], color.mean[c], converged);
 
     // dst (a copy of src) is made only now, when the working planes are gone; everything was
     // read from src before (dst may be src).
@@ -288,6 +298,7 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     // The extras' sum stays the denoised beauty.
     if (!extras.empty()) {
         extras.share_rounding(color.mean, denoised);
+        extras.pass_through(converged);
         extras.write(dst, roi);
     }
 

@@ -17,6 +17,7 @@
 
 #include <tbb/enumerable_thread_specific.h>
 
+#include "core/converged_tiles.h"
 #include "nfor/regression_tile.h"
 
 namespace mcdn {
@@ -81,7 +82,10 @@ std::vector<std::vector<Plane>> collaborative_regression(const RegressionInputs&
     std::vector<TileResult> results(tiles_per_row);
     for (size_t row0 = 0; row0 < tiles.size(); row0 += tiles_per_row) {
         parallel_for_index(tiles_per_row, nthreads, [&](int i) {
-            kernel(in, tiles[row0 + i], scratch.local(), results[i]);
+            if (in.skip_tiles && in.skip_tiles->covers(tiles[row0 + i]))
+                results[i].area = Rect {};  // gathers nothing
+            else
+                kernel(in, tiles[row0 + i], scratch.local(), results[i]);
         });
         // Gather in tile order: the sums do not depend on which thread ran which tile.
         for (const TileResult& r : results) {
@@ -107,6 +111,10 @@ std::vector<std::vector<Plane>> collaborative_regression(const RegressionInputs&
                 float v = out[j][c].px[i] / weight_sum[j].px[i];
                 out[j][c].px[i] = std::isfinite(v) ? v : in.image[c]->px[i];
             }
+    if (in.skip_tiles)
+        for (int j = 0; j < NK; ++j)
+            for (int c = 0; c < 3; ++c)
+                pass_through_converged(out[j][c], *in.image[c], *in.skip_tiles);
     return out;
 }
 

@@ -13,6 +13,8 @@
 
 namespace mcdn {
 
+struct ConvergedTiles;
+
 struct RegressionInputs {
     const Plane* image[3] = {};     // colour to fit
     const Plane* guide[3] = {};     // colour the NL-means weights are computed on
@@ -26,6 +28,9 @@ struct RegressionInputs {
     float variance_scale = 2.0f;
     /// Use the kernel for any design size even where an unrolled one exists (tests).
     bool any_size_kernel = false;
+    /// Tiles not fitted (mcdn/skip.h): their windows add nothing to the neighbours, and
+    /// their result is `image` unchanged. nullptr: every tile.
+    const ConvergedTiles* skip_tiles = nullptr;
 };
 
 /// Most features a regression takes (design columns = 3 + this).

@@ -52,19 +52,34 @@ bool run_tiled(Net& net, const std::vector<Tensor>& inputs, std::vector<Tensor>&
     // The image extended to a multiple of the alignment (last row/column repeated).
     const int padded_height = round_up(height, alignment), padded_width = round_up(width, alignment);
 
-    // The tiles, largest window first: the buffers of the first run then hold every later
+    // The output cores: the caller's regions (mcdn/skip.h: only where something is not
+    // converged), else a grid of tiles.
+    std::vector<Region> cores = options.regions;
+    if (cores.empty())
+        for (int ty = 0; ty < padded_height; ty += tile)
+            for (int tx = 0; tx < padded_width; tx += tile)
+                cores.push_back({ tx, ty, tx + tile, ty + tile });
+    // Each core's window, largest first: the buffers of the first run then hold every later
     // tile's values (Net::run reuses them), and nothing is allocated after it.
     struct Tile {
-        int ty, tx, y0, y1, x0, x1;
+        int ty, tx, core_y1, core_x1, y0, y1, x0, x1;
     };
     std::vector<Tile> order;
-    for (int ty = 0; ty < padded_height; ty += tile)
-        for (int tx = 0; tx < padded_width; tx += tile) {
-            const int core_y1 = std::min(ty + tile, padded_height);
-            const int core_x1 = std::min(tx + tile, padded_width);
-            order.push_back({ ty, tx, std::max(ty - halo, 0), std::min(core_y1 + halo, padded_height),
-                              std::max(tx - halo, 0), std::min(core_x1 + halo, padded_width) });
+    for (const Region& core : cores) {
+        const int tx = core.x0, ty = core.y0;
+        if (tx % alignment || ty % alignment) {
+            error = "network '" + net.name() + "': run_tiled regions must start at multiples of "
+                    + std::to_string(alignment);
+            return false;
         }
+        const int core_y1 = std::min(round_up(core.y1, alignment), padded_height);
+        const int core_x1 = std::min(round_up(core.x1, alignment), padded_width);
+        if (tx >= core_x1 || ty >= core_y1)
+            continue;
+        order.push_back({ ty, tx, core_y1, core_x1, std::max(ty - halo, 0),
+                          std::min(core_y1 + halo, padded_height), std::max(tx - halo, 0),
+                          std::min(core_x1 + halo, padded_width) });
+    }
     std::stable_sort(order.begin(), order.end(), [](const Tile& a, const Tile& b) {
         return (a.y1 - a.y0) * (a.x1 - a.x0) > (b.y1 - b.y0) * (b.x1 - b.x0);
     });
@@ -87,8 +102,7 @@ bool run_tiled(Net& net, const std::vector<Tensor>& inputs, std::vector<Tensor>&
                 outputs.emplace_back(height, width, out.channels);
             }
         // Keep the tile's core, cropped to the real image.
-        const int core_y1 = std::min({ t.ty + tile, padded_height, height });
-        const int core_x1 = std::min({ t.tx + tile, padded_width, width });
+        const int core_y1 = std::min(t.core_y1, height), core_x1 = std::min(t.core_x1, width);
         for (size_t o = 0; o < outputs.size(); ++o)
             for (int y = t.ty; y < core_y1; ++y)
                 std::copy_n(tile_outputs[o].pixel(y - t.y0, t.tx - t.x0),

@@ -5,7 +5,7 @@
 namespace mcdn {
 
 void prefilter_planes(std::vector<FeaturePlanes>& features, const PrefilterOptions& options,
-                      int nthreads)
+                      int nthreads, const ConvergedTiles* skip)
 {
     if (features.empty())
         return;
@@ -26,7 +26,7 @@ void prefilter_planes(std::vector<FeaturePlanes>& features, const PrefilterOptio
     }
     NlMeansParams step1 { options.patch_radius, options.window_radius, options.k,
                           options.variance_scale };
-    std::vector<Plane> halves = nl_means(image, guide, variance, step1, nthreads);
+    std::vector<Plane> halves = nl_means(image, guide, variance, step1, nthreads, skip);
     for (size_t i = 0; i < n; ++i) {
         features[i].half_a = std::move(halves[i]);
         features[i].half_b = std::move(halves[n + i]);
@@ -47,7 +47,7 @@ void prefilter_planes(std::vector<FeaturePlanes>& features, const PrefilterOptio
     }
     NlMeansParams step2 { options.second_patch_radius, options.second_window_radius,
                           options.second_k, 1.0f };
-    std::vector<Plane> means = nl_means(image, image, variance, step2, nthreads);
+    std::vector<Plane> means = nl_means(image, image, variance, step2, nthreads, skip);
     for (size_t i = 0; i < n; ++i)
         features[i].mean = std::move(means[i]);
 }

@@ -1,6 +1,8 @@
 // mcdn::prefilter: the op face of the feature prefilter (feature_prefilter.cpp).
 #include "mcdn/prefilter.h"
 
+#include "core/constant_features.h"
+#include "core/converged_tiles.h"
 #include "core/feature_channels.h"
 #include "core/bands.h"
 #include "core/op_prepare.h"
@@ -39,9 +41,12 @@ bool prefilter_in_working_space(ImageBuf& dst, const ImageBuf& src,
     std::vector<FeaturePlanes> planes;
     for (const FeatureChannel& f : channels)
         planes.push_back(read_feature(src, f));
+    const ConvergedTiles converged = converged_tiles_of(src, aovs, options.skip);
+    if (options.skip.enabled)
+        drop_constant_features(planes, &channels);  // their channels are copied unchanged
     if (!prepare_op(dst, src, options.aovs, aovs, op))
         return false;
-    prefilter_planes(planes, options, nthreads);
+    prefilter_planes(planes, options, nthreads, &converged);
 
     roi = output_roi(dst, roi);
     for (size_t i = 0; i < channels.size(); ++i) {

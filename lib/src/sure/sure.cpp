@@ -2,10 +2,10 @@
 // denoise once, choose the probe step, probe K times, assemble SURE per pixel and channel.
 #include "mcdn/sure.h"
 
-#include <array>
 #include <cmath>
 
 #include "core/channels.h"
+#include "core/converged_tiles.h"
 #include "core/op_prepare.h"
 #include "core/planar.h"
 #include "core/random.h"
@@ -74,37 +74,10 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
         p.variance[c] = read_plane(noisy, aovs.channels(Role::ColorVariance)[c], true);
     }
 
-    // Eq. 2: probe with b ~ N(0, Sigma); the render and both halves move together. The
-    // probes run before y = F(x) and keep only their colour, so at most three full frames
-    // (render, probed render, response) are alive at once.
-    const double eps = probe_step(p, options.epsilon_relative);
-    const int w = p.x[0].width, h = p.x[0].height;
-    auto probe = [&](int k, int c) {
-        Plane b(w, h);
-        for (size_t i = 0; i < b.size(); ++i)
-            b.px[i] = std::sqrt(p.variance[c].px[i]) * standard_normal(options.seed, uint64_t(k), i * 3 + c);
-        return b;
-    };
-    std::vector<int> moved = color;
-    for (Role half : { Role::ColorA, Role::ColorB })
-        if (aovs.has(half))
-            moved.insert(moved.end(), aovs.channels(half).begin(), aovs.channels(half).end());
-    const int probes = eps > 0 ? options.probes : 0;
-    std::vector<std::array<Plane, 3>> responses(probes);  // F(x + eps b_k), colour only
-    for (int k = 0; k < probes; ++k) {
-        Plane b[3] = { probe(k, 0), probe(k, 1), probe(k, 2) };
-        ImageBuf probed = noisy.copy(OIIO::TypeDesc::FLOAT);
-        probed.specmod().attribute(sure_channels::kProbeAttribute, 1);
-        for (size_t g = 0; g < moved.size(); g += 3)
-            add_probe(probed, { moved[g], moved[g + 1], moved[g + 2] }, b, eps);
-        ImageBuf response;
-        if (!denoiser(response, probed)) {
-            dst.errorfmt("sure: the denoiser failed on probe {}: {}", k, response.geterror());
-            return false;
-        }
-        for (int c = 0; c < 3; ++c)
-            responses[k][c] = read_plane(response, color[c]);
-    }
+    // mcdn/skip.h: the denoiser's runs all skip the tiles of this map.
+    const ConvergedTiles converged = converged_tiles_of(noisy, p.x, p.variance, options.skip);
+    if (options.skip.enabled)
+        noisy.specmod().attribute(kConvergedAttribute, encode_converged_tiles(converged));
 
     // y = F(x): the result we report SURE for.
     ImageBuf denoised;
@@ -115,19 +88,68 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
     Plane y[3];
     for (int c = 0; c < 3; ++c)
         y[c] = read_plane(denoised, color[c]);
+    // Of those, the tiles the denoiser did pass through (a callable may not skip): no probes.
+    const ConvergedTiles passed = tiles_where_equal(y, p.x, &converged);
+    const Plane no_probe(noisy.spec().width, noisy.spec().height);
+
+    // Eq. 2: probe with b ~ N(0, Sigma); the render and both halves move together.
+    const double eps = probe_step(p, options.epsilon_relative);
+    const int w = p.x[0].width, h = p.x[0].height;
     Plane divergence[3] = { Plane(w, h), Plane(w, h), Plane(w, h) };
-    for (int k = 0; k < probes; ++k)
-        for (int c = 0; c < 3; ++c) {
-            Plane b = probe(k, c);
-            const Plane& f = responses[k][c];
-            for (size_t i = 0; i < f.size(); ++i)
-                divergence[c].px[i] += float(b.px[i] * (double(f.px[i]) - y[c].px[i])
-                                             / (eps * options.probes));
-            responses[k][c] = Plane();
+    std::vector<int> moved = color;
+    for (Role half : { Role::ColorA, Role::ColorB })
+        if (aovs.has(half))
+            moved.insert(moved.end(), aovs.channels(half).begin(), aovs.channels(half).end());
+    // The moved channels' exact bits (read_plane would sanitize), restored after each probe.
+    std::vector<std::vector<float>> unprobed(moved.size());
+    auto channel_roi = [&](int channel) {
+        ROI r = noisy.roi();
+        r.chbegin = channel;
+        r.chend = channel + 1;
+        return r;
+    };
+    if (eps > 0)
+        for (size_t m = 0; m < moved.size(); ++m) {
+            unprobed[m].resize(size_t(noisy.spec().width) * noisy.spec().height);
+            noisy.get_pixels(channel_roi(moved[m]), OIIO::TypeDesc::FLOAT, unprobed[m].data());
         }
+    for (int k = 0; eps > 0 && k < options.probes; ++k) {
+        Plane b[3];
+        for (int c = 0; c < 3; ++c) {
+            b[c] = Plane(w, h);
+            for (size_t i = 0; i < b[c].size(); ++i)
+                b[c].px[i] = std::sqrt(p.variance[c].px[i])
+                             * standard_normal(options.seed, uint64_t(k), i * 3 + c);
+            pass_through_converged(b[c], no_probe, passed);
+        }
+        // Probed in place and restored after (a copy of every channel per probe cost as
+        // much as the denoiser's own work on half-converged frames).
+        ImageBuf& probed = noisy;
+        probed.specmod().attribute(sure_channels::kProbeAttribute, 1);
+        for (size_t g = 0; g < moved.size(); g += 3)
+            add_probe(probed, { moved[g], moved[g + 1], moved[g + 2] }, b, eps);
+        ImageBuf response;
+        const bool probe_ok = denoiser(response, probed);
+        for (size_t m = 0; m < moved.size(); ++m)
+            noisy.set_pixels(channel_roi(moved[m]), OIIO::TypeDesc::FLOAT, unprobed[m].data());
+        noisy.specmod().erase_attribute(sure_channels::kProbeAttribute);
+        if (!probe_ok) {
+            dst.errorfmt("sure: the denoiser failed on probe {}: {}", k, response.geterror());
+            return false;
+        }
+        for (int c = 0; c < 3; ++c) {
+            Plane f = read_plane(response, color[c]);
+            for (size_t i = 0; i < f.size(); ++i)
+                divergence[c].px[i] += float(b[c].px[i] * (double(f.px[i]) - y[c].px[i])
+                                             / (eps * options.probes));
+        }
+    }
 
     // Eq. 1 per pixel and channel (d = 1): SURE = (y - x)^2 + 2 sigma^2 f'(x) - sigma^2.
     dst = std::move(denoised);
+    dst.specmod().erase_attribute(kConvergedAttribute);
+    for (int c = 0; c < 3; ++c)  // the pass-through's f'(x) = 1
+        pass_through_converged(divergence[c], p.variance[c], passed);
     std::vector<std::string> names;
     for (const auto* group : { sure_channels::kNoisy, sure_channels::kSure,
                                sure_channels::kDivergence, sure_channels::kResidual })

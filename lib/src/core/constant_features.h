@@ -1,0 +1,21 @@
+// "Skip AOVs that are constant" (mcdn/skip.h): a feature channel whose mean and half buffers
+// hold one value over the whole frame (a flat albedo, the depth of a backdrop plane) has
+// nothing to prefilter and is a zero column of every regression window (f(q) − f(p) = 0),
+// which the solve drops anyway (nfor/least_squares.h); nfor and prefilter leave it out.
+#pragma once
+
+#include <vector>
+
+#include "core/feature_channels.h"
+
+namespace mcdn {
+
+/// Mean, half A and half B hold one value everywhere (NaN is never constant).
+bool is_constant_feature(const FeaturePlanes& feature);
+
+/// Removes the constant features from `features` and, when given, the matching entries of
+/// `channels` (same order). Returns how many were removed.
+int drop_constant_features(std::vector<FeaturePlanes>& features,
+                           std::vector<FeatureChannel>* channels = nullptr);
+
+}  // namespace mcdn

@@ -1,0 +1,254 @@
+// The converged-tile map (core/converged_tiles.h, mcdn/skip.h).
+#include "core/converged_tiles.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <OpenImageIO/strutil.h>
+
+namespace mcdn {
+
+namespace {
+constexpr int T = kConvergedTileSize;
+/// relMSE's offset on r²: errors are relative to sqrt(colour² + 0.01) (metrics.h).
+constexpr float kRelativeFloor = 0.01f;
+/// Networks run on the non-converged rectangles only below this fraction of the work.
+constexpr double kWorthSkipping = 0.7;
+}  // namespace
+
+bool ConvergedTiles::any() const
+{
+    return std::find(converged.begin(), converged.end(), 1) != converged.end();
+}
+
+int ConvergedTiles::count() const { return int(std::count(converged.begin(), converged.end(), 1)); }
+
+bool ConvergedTiles::covers(Rect r) const
+{
+    if (converged.empty())
+        return false;
+    r = { std::max(r.x0, 0), std::max(r.y0, 0), std::min(r.x1, width), std::min(r.y1, height) };
+    if (r.empty())
+        return false;
+    for (int ty = r.y0 / T; ty <= (r.y1 - 1) / T; ++ty)
+        for (int tx = r.x0 / T; tx <= (r.x1 - 1) / T; ++tx)
+            if (!tile(tx, ty))
+                return false;
+    return true;
+}
+
+float relative_standard_error(float mean, float variance_of_mean)
+{
+    return std::sqrt(std::max(variance_of_mean, 0.0f) / (mean * mean + kRelativeFloor));
+}
+
+ConvergedTiles find_converged_tiles(const Plane mean[3], const Plane variance[3],
+                                    float max_relative_error)
+{
+    ConvergedTiles m;
+    m.width = mean[0].width;
+    m.height = mean[0].height;
+    m.tiles_x = (m.width + T - 1) / T;
+    m.tiles_y = (m.height + T - 1) / T;
+    // Compared squared, without a square root per pixel; NaN never counts as converged.
+    const float limit = max_relative_error * max_relative_error;
+    if (!(limit > 0) || m.width <= 0 || m.height <= 0)
+        return m;
+    m.converged.assign(size_t(m.tiles_x) * m.tiles_y, 1);
+    for (int y = 0; y < m.height; ++y)
+        for (int c = 0; c < 3; ++c) {
+            const float* mu = mean[c].row(y);
+            const float* var = variance[c].row(y);
+            for (int x = 0; x < m.width; ++x)
+                if (!(std::max(var[x], 0.0f) <= limit * (mu[x] * mu[x] + kRelativeFloor)))
+                    m.converged[size_t(y / T) * m.tiles_x + x / T] = 0;
+        }
+    if (!m.any())
+        m.converged.clear();
+    return m;
+}
+
+ConvergedTiles converged_tiles_of(const ImageBuf& src, const Plane mean[3],
+                                  const Plane variance[3], const SkipOptions& skip)
+{
+    ConvergedTiles m;
+    if (!skip.enabled)
+        return m;
+    std::string attached = src.spec().get_string_attribute(kConvergedAttribute);
+    if (!attached.empty() && decode_converged_tiles(m, attached, mean[0].width, mean[0].height))
+        return m;
+    return find_converged_tiles(mean, variance, skip.max_relative_error);
+}
+
+ConvergedTiles converged_tiles_of(const ImageBuf& src, const AovSet& aovs, const SkipOptions& skip)
+{
+    if (!skip.enabled || !aovs.has(Role::Color) || !aovs.has(Role::ColorVariance)
+        || aovs.channels(Role::Color).size() != 3 || aovs.channels(Role::ColorVariance).size() != 3)
+        return {};
+    Plane mean[3], variance[3];
+    for (int c = 0; c < 3; ++c) {
+        mean[c] = read_plane(src, aovs.channels(Role::Color)[c]);
+        variance[c] = read_plane(src, aovs.channels(Role::ColorVariance)[c], true);
+    }
+    return converged_tiles_of(src, mean, variance, skip);
+}
+
+ConvergedTiles tiles_where_equal(const Plane a[3], const Plane b[3], const ConvergedTiles* within)
+{
+    ConvergedTiles m;
+    m.width = a[0].width;
+    m.height = a[0].height;
+    m.tiles_x = (m.width + T - 1) / T;
+    m.tiles_y = (m.height + T - 1) / T;
+    m.converged.assign(size_t(m.tiles_x) * m.tiles_y, 0);
+    for (int ty = 0; ty < m.tiles_y; ++ty)
+        for (int tx = 0; tx < m.tiles_x; ++tx) {
+            if (within && !within->tile(tx, ty))
+                continue;
+            bool same = true;
+            for (int c = 0; c < 3 && same; ++c)
+                for (int y = ty * T; y < std::min(ty * T + T, m.height) && same; ++y)
+                    same = std::equal(a[c].row(y) + tx * T, a[c].row(y) + std::min(tx * T + T, m.width),
+                                      b[c].row(y) + tx * T);
+            m.converged[size_t(ty) * m.tiles_x + tx] = same;
+        }
+    if (!m.any())
+        m.converged.clear();
+    return m;
+}
+
+std::string encode_converged_tiles(const ConvergedTiles& m)
+{
+    std::string text = OIIO::Strutil::fmt::format("{}x{}:", m.width, m.height);
+    for (int ty = 0; ty < m.tiles_y; ++ty)
+        for (int tx = 0; tx < m.tiles_x; ++tx)
+            text += m.tile(tx, ty) ? '1' : '0';
+    return text;
+}
+
+bool decode_converged_tiles(ConvergedTiles& m, const std::string& text, int width, int height)
+{
+    const std::string head = OIIO::Strutil::fmt::format("{}x{}:", width, height);
+    const int tiles_x = (width + T - 1) / T, tiles_y = (height + T - 1) / T;
+    if (text.compare(0, head.size(), head) != 0
+        || text.size() != head.size() + size_t(tiles_x) * tiles_y)
+        return false;
+    m = ConvergedTiles();
+    m.width = width;
+    m.height = height;
+    m.tiles_x = tiles_x;
+    m.tiles_y = tiles_y;
+    m.converged.resize(size_t(tiles_x) * tiles_y);
+    for (size_t i = 0; i < m.converged.size(); ++i)
+        m.converged[i] = text[head.size() + i] == '1';
+    if (!m.any())
+        m.converged.clear();
+    return true;
+}
+
+void pass_through_converged(Plane& out, const Plane& render, const ConvergedTiles& m)
+{
+    if (!m.any())
+        return;
+    for (int ty = 0; ty < m.tiles_y; ++ty)
+        for (int tx = 0; tx < m.tiles_x; ++tx) {
+            if (!m.tile(tx, ty))
+                continue;
+            const int x0 = tx * T, x1 = std::min(x0 + T, m.width);
+            for (int y = ty * T; y < std::min(ty * T + T, m.height); ++y)
+                std::copy(render.row(y) + x0, render.row(y) + x1, out.row(y) + x0);
+        }
+}
+
+std::vector<Rect> unconverged_rects(const ConvergedTiles& m, int max_side, int alignment)
+{
+    std::vector<Rect> rects;
+    if (m.width <= 0 || m.height <= 0)
+        return rects;
+    // Runs of non-converged tiles per tile row, in tile units.
+    struct Run { int tx0, tx1, ty0, ty1; };
+    std::vector<Run> open, done;
+    for (int ty = 0; ty < m.tiles_y; ++ty) {
+        std::vector<Run> row;
+        for (int tx = 0; tx < m.tiles_x;) {
+            if (m.tile(tx, ty)) {
+                ++tx;
+                continue;
+            }
+            int end = tx;
+            while (end < m.tiles_x && !m.tile(end, ty))
+                ++end;
+            row.push_back({ tx, end, ty, ty + 1 });
+            tx = end;
+        }
+        // A run identical to one of the row above extends it downwards.
+        std::vector<Run> next;
+        for (Run r : row) {
+            auto same = std::find_if(open.begin(), open.end(),
+                                     [&](const Run& o) { return o.tx0 == r.tx0 && o.tx1 == r.tx1; });
+            if (same != open.end()) {
+                r.ty0 = same->ty0;
+                open.erase(same);
+            }
+            next.push_back(r);
+        }
+        done.insert(done.end(), open.begin(), open.end());
+        open = std::move(next);
+    }
+    done.insert(done.end(), open.begin(), open.end());
+    std::sort(done.begin(), done.end(),
+              [](const Run& a, const Run& b) { return a.ty0 != b.ty0 ? a.ty0 < b.ty0 : a.tx0 < b.tx0; });
+    // In pixels, split into pieces of at most max_side (a multiple of the alignment).
+    const int side = std::max(max_side / alignment, 1) * alignment;
+    for (const Run& r : done) {
+        const int x0 = r.tx0 * T, x1 = std::min(r.tx1 * T, m.width);
+        const int y0 = r.ty0 * T, y1 = std::min(r.ty1 * T, m.height);
+        for (int y = y0; y < y1; y += side)
+            for (int x = x0; x < x1; x += side)
+                rects.push_back({ x, y, std::min(x + side, x1), std::min(y + side, y1) });
+    }
+    return rects;
+}
+
+std::vector<nn::Region> network_regions(const ConvergedTiles& m, const nn::Net& net, int tile_size)
+{
+    std::vector<nn::Region> regions;
+    const int alignment = net.alignment();
+    if (!m.any() || alignment <= 0 || T % alignment != 0)
+        return regions;
+    // Each run computes its rectangle grown by the halo: worth it only when the windows add
+    // up to clearly less than the whole image's tiles with theirs (a 256² frame with its
+    // left half converged is not: the halo and each run's fixed cost eat the saving).
+    const int halo = (net.receptive_radius() + alignment - 1) / alignment * alignment;
+    auto window_area = [&](int x0, int y0, int x1, int y1) {
+        return double(std::min(x1 + halo, m.width) - std::max(x0 - halo, 0))
+               * (std::min(y1 + halo, m.height) - std::max(y0 - halo, 0));
+    };
+    double whole = 0, skipping = 0;
+    const int side = std::max(tile_size / alignment, 1) * alignment;
+    for (int y = 0; y < m.height; y += side)
+        for (int x = 0; x < m.width; x += side)
+            whole += window_area(x, y, x + side, y + side);
+    for (const Rect& r : unconverged_rects(m, tile_size, alignment)) {
+        regions.push_back({ r.x0, r.y0, r.x1, r.y1 });
+        skipping += window_area(r.x0, r.y0, r.x1, r.y1);
+    }
+    if (skipping > kWorthSkipping * whole)
+        regions.clear();
+    return regions;
+}
+
+void pass_through_extras(ImageBuf& dst, ROI roi, const std::vector<ExtraPlanes>& extras,
+                         const ConvergedTiles& m)
+{
+    if (!m.any())
+        return;
+    for (const ExtraPlanes& e : extras)
+        for (int c = 0; c < 3; ++c) {
+            Plane plane = read_plane(dst, e.channels[c]);
+            pass_through_converged(plane, e.mean[c], m);
+            write_plane(dst, e.channels[c], plane, roi);
+        }
+}
+
+}  // namespace mcdn
