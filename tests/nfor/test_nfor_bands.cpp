@@ -25,6 +25,19 @@ ImageBuf box16()
     return merged;
 }
 
+// box16 stacked four times: 64×256, tall enough for bands of whole 32-row tiles whose
+// 96-row halos still cut the frame.
+ImageBuf tall_box16()
+{
+    ImageBuf one = box16();
+    ImageSpec spec = one.spec();
+    spec.height = spec.full_height = 4 * one.spec().height;
+    ImageBuf tall(spec);
+    for (int i = 0; i < 4; ++i)
+        EXPECT_TRUE(OIIO::ImageBufAlgo::paste(tall, 0, i * one.spec().height, 0, 0, one));
+    return tall;
+}
+
 // Largest difference over every channel and pixel, relative to the channel's largest value.
 float max_relative_difference(const ImageBuf& a, const ImageBuf& b)
 {
@@ -44,12 +57,12 @@ float max_relative_difference(const ImageBuf& a, const ImageBuf& b)
 
 TEST(Bands, NforInBandsEqualsTheWholeFrame)
 {
-    ImageBuf src = box16();
+    ImageBuf src = tall_box16();
     NforOptions whole;
     whole.band_pixels = 0;
     NforOptions banded;
-    // Four bands of a 64-row frame: every band edge is within NFOR's 75-row reach of another.
-    banded.band_pixels = int64_t(src.spec().width) * (src.spec().height / 4);
+    // Four bands of 64 rows, each with a 96-row halo (75 rounded up to whole tiles).
+    banded.band_pixels = int64_t(src.spec().width) * 64;
     ImageBuf a = nfor(src, whole, {}, 2), b = nfor(src, banded, {}, 2);
     ASSERT_FALSE(a.has_error()) << a.geterror();
     ASSERT_FALSE(b.has_error()) << b.geterror();
@@ -58,10 +71,10 @@ TEST(Bands, NforInBandsEqualsTheWholeFrame)
 
 TEST(Bands, PrefilterInBandsEqualsTheWholeFrame)
 {
-    ImageBuf src = box16();
+    ImageBuf src = tall_box16();
     PrefilterOptions whole, banded;
     whole.band_pixels = 0;
-    banded.band_pixels = int64_t(src.spec().width) * 7;  // bands of 7 rows, halo 13
+    banded.band_pixels = int64_t(src.spec().width) * 32;  // 8 bands of 32 rows, halo 13 -> 32
     ImageBuf a = prefilter(src, whole, {}, 2), b = prefilter(src, banded, {}, 2);
     ASSERT_FALSE(a.has_error()) << a.geterror();
     ASSERT_FALSE(b.has_error()) << b.geterror();
@@ -69,18 +82,18 @@ TEST(Bands, PrefilterInBandsEqualsTheWholeFrame)
     EXPECT_EQ(b.spec().get_int_attribute("mcdn:prefiltered", 0), 1);
 }
 
-// The tests above have teeth: a halo well short of NFOR's reach (75 rows at the default
+// The tests above have teeth: a halo well short of NFOR's reach (32 rows against 75 at the default
 // settings) changes pixels near the band edges. (On this fixture 50 rows already give the
 // whole-frame result: far NL-means weights underflow to exactly 0; 75 is the bound for any
 // image.)
 TEST(Bands, TooSmallAHaloShows)
 {
-    ImageBuf src = box16();
+    ImageBuf src = tall_box16();
     NforOptions o;
     o.band_pixels = 0;
     ImageBuf a = nfor(src, o, {}, 2);
     ImageBuf b;
-    ASSERT_TRUE(run_in_bands(b, src, 30, int64_t(src.spec().width) * 16,
+    ASSERT_TRUE(run_in_bands(b, src, 30, int64_t(src.spec().width) * 64,
                              [&](ImageBuf& d, const ImageBuf& s) { return nfor(d, s, o, {}, 2); }));
     EXPECT_GT(max_relative_difference(a, b), 1e-4f);
 }

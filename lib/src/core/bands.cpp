@@ -7,6 +7,7 @@
 #include <OpenImageIO/imagebufalgo.h>
 
 #include "mcdn/color.h"
+#include "mcdn/skip.h"
 
 namespace mcdn {
 
@@ -19,9 +20,14 @@ bool run_in_bands(ImageBuf& dst, const ImageBuf& src, int halo, int64_t band_pix
     if (band_pixels <= 0 || int64_t(whole.npixels()) <= band_pixels)
         return op(dst, src);
     // Equal bands: as many as band_pixels needs, the rows spread evenly between them.
-    const int max_rows = int(std::max<int64_t>(1, band_pixels / width));
+    // Band starts, cuts and halos are whole converged tiles (mcdn/skip.h), so every band sees
+    // the whole frame's tile grid and makes the same skip decisions.
+    const int grid = kConvergedTileSize;
+    auto round_up = [grid](int64_t v) { return int((v + grid - 1) / grid * grid); };
+    halo = round_up(halo);
+    const int max_rows = std::max(grid, int(band_pixels / width) / grid * grid);
     const int nbands = (height + max_rows - 1) / max_rows;
-    const int rows = (height + nbands - 1) / nbands;
+    const int rows = round_up((height + nbands - 1) / nbands);
 
     ImageBuf out;
     for (int y0 = whole.ybegin; y0 < whole.yend; y0 += rows) {

@@ -22,7 +22,9 @@ using BandOp = std::function<bool(ImageBuf& dst, const ImageBuf& src)>;
 /// Otherwise cuts src into horizontal bands of at most band_pixels pixels, each with `halo`
 /// more rows above and below (its own data window inside src's), runs `op` on each and
 /// assembles dst from the bands' own rows. When `halo` covers the op's receptive radius the
-/// result equals the whole-frame run. dst may be src. Errors go on dst.
+/// result equals the whole-frame run. Rows and halos are rounded up to whole converged tiles
+/// (mcdn/skip.h) so that skipping decides per tile as on the whole frame. dst may be src.
+/// Errors go on dst.
 bool run_in_bands(ImageBuf& dst, const ImageBuf& src, int halo, int64_t band_pixels,
                   const BandOp& op);
 
