@@ -16,30 +16,13 @@
 #include <oneapi/dnnl/dnnl.hpp>
 
 #include "mcdn/nn.h"
+#include "plain_conv.h"
 
 using namespace mcdn::nn;
-using dnnl::memory;
-using Clock = std::chrono::steady_clock;
+using mcdn_bench::fastest_of;
+using mcdn_bench::plain_onednn_conv;
 
 namespace {
-
-double seconds_since(Clock::time_point start)
-{
-    return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
-/// Fastest of `repeats` runs of f (the machine is shared: the minimum is the least noisy).
-template<class F> double fastest(int repeats, F f)
-{
-    f();  // warm-up: JIT, page faults, caches
-    double best = 1e30;
-    for (int r = 0; r < repeats; ++r) {
-        const auto start = Clock::now();
-        f();
-        best = std::min(best, seconds_since(start));
-    }
-    return best;
-}
 
 std::vector<float> random_values(size_t n, unsigned seed)
 {
@@ -49,38 +32,6 @@ std::vector<float> random_values(size_t n, unsigned seed)
     for (float& x : v)
         x = u(rng);
     return v;
-}
-
-/// One conv (+ReLU) as oneDNN's own examples run it: nhwc activations, weights "any".
-double plain_onednn_seconds(int height, int width, int in_c, int out_c, int k, int repeats)
-{
-    using tag = memory::format_tag;
-    using dt = memory::data_type;
-    dnnl::engine engine(dnnl::engine::kind::cpu, 0);
-    dnnl::stream stream(engine);
-    const memory::dim pad = k / 2;
-    memory::desc src_md({ 1, in_c, height, width }, dt::f32, tag::nhwc);
-    memory::desc dst_md({ 1, out_c, height, width }, dt::f32, tag::nhwc);
-    memory::desc w_md({ out_c, in_c, k, k }, dt::f32, tag::any);
-    memory::desc b_md({ out_c }, dt::f32, tag::x);
-    dnnl::convolution_forward::desc desc(dnnl::prop_kind::forward_inference,
-                                         dnnl::algorithm::convolution_direct, src_md, w_md, b_md,
-                                         dst_md, { 1, 1 }, { pad, pad }, { pad, pad });
-    dnnl::post_ops post_ops;
-    post_ops.append_eltwise(1.0f, dnnl::algorithm::eltwise_relu, 0.0f, 0.0f);
-    dnnl::primitive_attr attr;
-    attr.set_post_ops(post_ops);
-    dnnl::convolution_forward::primitive_desc pd(desc, attr, engine);
-    memory src(src_md, engine), dst(dst_md, engine), weights(pd.weights_desc(), engine),
-        bias(b_md, engine);
-    std::vector<float> src_values = random_values(size_t(height) * width * in_c, 1);
-    std::copy(src_values.begin(), src_values.end(), static_cast<float*>(src.get_data_handle()));
-    dnnl::convolution_forward conv(pd);
-    return fastest(repeats, [&] {
-        conv.execute(stream, { { DNNL_ARG_SRC, src }, { DNNL_ARG_WEIGHTS, weights },
-                               { DNNL_ARG_BIAS, bias }, { DNNL_ARG_DST, dst } });
-        stream.wait();
-    });
 }
 
 Weights random_weights(const Net& net)
@@ -160,8 +111,8 @@ int main(int argc, char** argv)
             return 1;
         }
         std::vector<Tensor> inputs { Tensor(size, size, s.in_c, 0.5f) }, outputs;
-        const double engine = fastest(repeats, [&] { net.run(inputs, outputs, error); });
-        const double plain = plain_onednn_seconds(size, size, s.in_c, s.out_c, s.k, repeats);
+        const double engine = fastest_of(repeats, [&] { net.run(inputs, outputs, error); }).wall;
+        const double plain = plain_onednn_conv(size, size, s.in_c, s.out_c, s.k, repeats).wall;
         const double flops = conv_flops(net, size, size);
         char name[64];
         std::snprintf(name, sizeof name, "%d->%d %dx%d", s.in_c, s.out_c, s.k, s.k);
@@ -178,7 +129,8 @@ int main(int argc, char** argv)
             return 1;
         }
         std::vector<Tensor> inputs { Tensor(size * 2, size * 2, net.channels(Value { 0 }), 0.5f) }, outputs;
-        const double seconds = fastest(std::max(repeats / 2, 1), [&] { run_tiled(net, inputs, outputs, error); });
+        const double seconds
+            = fastest_of(std::max(repeats / 2, 1), [&] { run_tiled(net, inputs, outputs, error); }).wall;
         const double flops = conv_flops(net, size * 2, size * 2);
         std::printf("%-6s halo %3d: %8.1f ms, %6.1f GFLOP/s (untiled FLOPs), %6.1f GFLOP per 1920x1080\n",
                     net.name().c_str(), net.receptive_radius(), seconds * 1e3, flops / seconds * 1e-9,

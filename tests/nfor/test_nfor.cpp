@@ -4,6 +4,7 @@
 
 #include "mcdn/nfor.h"
 #include "mcdn/prefilter.h"
+#include "fixtures.h"
 #include "nfor_support.h"
 
 using namespace mcdn;
@@ -27,21 +28,8 @@ std::vector<float> pixels(const OIIO::ImageBuf& img)
 
 OIIO::ImageBuf read_fixture(const std::string& name, std::string& preset)
 {
-    OIIO::ImageBuf merged;
-    if (name == "cornell20") {
-        preset = "tungsten";
-        EXPECT_TRUE(read_inputs(merged, { { mcdn_test::test_data("cornell20"), InputKind::Mean } }))
-            << merged.geterror();
-    } else {
-        preset = "cycles";
-        std::string b = mcdn_test::test_data("box16/box_0016spp");
-        EXPECT_TRUE(read_inputs(merged, { { b + ".exr", InputKind::Mean },
-                                          { b + "_var.exr", InputKind::Variance },
-                                          { b + "_A.exr", InputKind::HalfA },
-                                          { b + "_B.exr", InputKind::HalfB } }))
-            << merged.geterror();
-    }
-    return merged;
+    preset = name == "cornell20" ? "tungsten" : "cycles";
+    return name == "cornell20" ? mcdn_test::cornell20() : mcdn_test::box16();
 }
 
 std::vector<int> color_channels(const OIIO::ImageBuf& merged, const std::string& preset)

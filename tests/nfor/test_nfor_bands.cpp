@@ -7,29 +7,18 @@
 #include "mcdn/io.h"
 #include "mcdn/nfor.h"
 #include "mcdn/prefilter.h"
+#include "fixtures.h"
 #include "mcdn_test.h"
 
 using namespace mcdn;
 
 namespace {
 
-ImageBuf box16()
-{
-    std::string b = mcdn_test::test_data("box16/box_0016spp");
-    ImageBuf merged;
-    EXPECT_TRUE(read_inputs(merged, { { b + ".exr", InputKind::Mean },
-                                      { b + "_var.exr", InputKind::Variance },
-                                      { b + "_A.exr", InputKind::HalfA },
-                                      { b + "_B.exr", InputKind::HalfB } }))
-        << merged.geterror();
-    return merged;
-}
-
 // box16 stacked four times: 64×256, tall enough for bands of whole 32-row tiles whose
 // 96-row halos still cut the frame.
 ImageBuf tall_box16()
 {
-    ImageBuf one = box16();
+    ImageBuf one = mcdn_test::box16();
     ImageSpec spec = one.spec();
     spec.height = spec.full_height = 4 * one.spec().height;
     ImageBuf tall(spec);

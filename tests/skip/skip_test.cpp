@@ -14,6 +14,7 @@
 #include "mcdn/prefilter.h"
 #include "mcdn/sure.h"
 
+#include "fixtures.h"
 #include "mcdn_test.h"
 
 using namespace mcdn;
@@ -27,14 +28,7 @@ Plane constant_plane(int w, int h, float v) { return Plane(w, h, v); }
 
 ImageBuf read_examples_box()
 {
-    const std::string b = std::string(MCDN_SOURCE_DIR) + "/examples/box/box_0016spp";
-    ImageBuf merged;
-    EXPECT_TRUE(read_inputs(merged, { { b + ".exr", InputKind::Mean },
-                                      { b + "_var.exr", InputKind::Variance },
-                                      { b + "_A.exr", InputKind::HalfA },
-                                      { b + "_B.exr", InputKind::HalfB } }))
-        << merged.geterror();
-    return merged;
+    return mcdn_test::read_render(std::string(MCDN_SOURCE_DIR) + "/examples/box/box_0016spp");
 }
 
 /// The 128² box crop (16 spp) with its first `tiles` columns of tiles converged: colour and

@@ -7,11 +7,10 @@
 
 namespace mcdn_test {
 
-/// tests/data/box16: Blender Cycles 16 spp with variance and both halves (cycles preset).
-inline OIIO::ImageBuf box16()
+/// A render `prefix`.exr with `prefix`_var.exr and the halves `prefix`_A.exr, `prefix`_B.exr.
+inline OIIO::ImageBuf read_render(const std::string& b)
 {
     OIIO::ImageBuf merged;
-    std::string b = test_data("box16/box_0016spp");
     EXPECT_TRUE(mcdn::read_inputs(merged, { { b + ".exr", mcdn::InputKind::Mean },
                                             { b + "_var.exr", mcdn::InputKind::Variance },
                                             { b + "_A.exr", mcdn::InputKind::HalfA },
@@ -19,6 +18,9 @@ inline OIIO::ImageBuf box16()
         << merged.geterror();
     return merged;
 }
+
+/// tests/data/box16: Blender Cycles 16 spp with variance and both halves (cycles preset).
+inline OIIO::ImageBuf box16() { return read_render(test_data("box16/box_0016spp")); }
 
 /// tests/data/cornell20: a Tungsten buffer directory (tungsten preset).
 inline OIIO::ImageBuf cornell20()
