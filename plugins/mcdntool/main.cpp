@@ -6,6 +6,7 @@
 // Commands run left to right on one frame; file names with #, @ or %04d make a sequence
 // and the whole command line runs once per frame.
 #include <iostream>
+#include <new>
 #include <atomic>
 #include <mutex>
 #include <thread>
@@ -104,8 +105,16 @@ bool run_frames(const std::vector<Command>& commands, const std::vector<int>& fr
         for (size_t f; !failed && (f = next++) < frames.size();) {
             OIIO::Timer timer;
             std::string error;
-            bool ok = run_frame(commands, frames[f], parallel > 1 ? per_frame : nthreads,
-                                verbose && parallel == 1, error);
+            bool ok = false;
+            try {
+                ok = run_frame(commands, frames[f], parallel > 1 ? per_frame : nthreads,
+                               verbose && parallel == 1, error);
+            } catch (const std::bad_alloc&) {
+                // A frame too large for the memory left: one line and a non-zero exit, not
+                // an abort (outputs go through a temporary name: nothing partial is left).
+                error = "out of memory for this frame (fewer input channels, or a smaller "
+                        "--cnn:tile, need less)";
+            }
             std::lock_guard<std::mutex> lock(print);
             if (!ok) {
                 failed = true;

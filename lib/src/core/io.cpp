@@ -109,6 +109,18 @@ bool read_layout(FileLayout& layout, const std::string& path, std::string& error
     return true;
 }
 
+// OIIO leaves a buffer without pixels (and says so only on its debug channel) when memory
+// runs out: an error naming the file and the size, instead of writing through null.
+bool allocated(const ImageBuf& buf, const std::string& path, std::string& error)
+{
+    if (buf.localpixels())
+        return true;
+    const ImageSpec& spec = buf.spec();
+    error = format("{}: out of memory for a {}x{} frame of {} float channels ({:.1f} GB)", path,
+                   spec.width, spec.height, spec.nchannels, double(spec.image_bytes()) / 1e9);
+    return false;
+}
+
 // Reads every part of the file straight into dst's channels [first, first + its channels),
 // with strides: no buffer per file, so merging costs the merged frame only.
 bool read_pixels_into(ImageBuf& dst, int first, const FileLayout& layout, std::string& error)
@@ -144,7 +156,7 @@ bool read_image(ImageBuf& dst, const std::string& path)
         return false;
     }
     ImageBuf out(layout.merged_spec());
-    if (!read_pixels_into(out, 0, layout, error)) {
+    if (!allocated(out, path, error) || !read_pixels_into(out, 0, layout, error)) {
         dst.errorfmt("{}", error);
         return false;
     }
@@ -291,6 +303,10 @@ bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs)
     spec.attribute("mcdn:inputs", Strutil::join(provenance, "\n"));
     spec.attribute("mcdn:output_channels", Strutil::join(output_channels, "\n"));
     ImageBuf out(spec);
+    if (!allocated(out, inputs[meta_from].path, error)) {
+        dst.errorfmt("{}", error);
+        return false;
+    }
     int first = 0;
     for (size_t i = 0; i < inputs.size(); ++i) {
         if (directories[i].initialized())
