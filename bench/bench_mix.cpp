@@ -5,7 +5,14 @@
 // checked on them; and the speed of a 1920x1080 mix pass (without the denoiser runs) as a
 // ratio to one plain oneDNN 3x3 48->48 convolution of the same size, timed in the same run.
 //
-//   bench_mix [--no-speed | --only-speed] [--no-generated] [--crop DIR]... [weights.mcdnw]
+//   bench_mix [--no-speed | --only-speed] [--no-generated] [--crop DIR]... [--blur WIDTH]
+//             [weights.mcdnw]
+//
+// --blur WIDTH replaces NFOR with a deliberately biased "denoiser": a Gaussian blur of the
+// colour, WIDTH pixels wide (OIIO's make_kernel). It is how the properties that need a
+// denoiser worse than the render at high spp are measured (PD §4: the mix is consistent for
+// any denoiser; α' must fall toward the render as spp grows). Our NFOR never is worse on
+// the data we have.
 //
 // --crop DIR adds every level of one generated crop (DIR/<name>_00NNspp*.exr, DIR/<name>_ref.exr),
 // e.g. a training crop where a mix went wrong (datasets/small/0001_exterior).
@@ -24,6 +31,8 @@
 #include <vector>
 
 #include <oneapi/dnnl/dnnl.hpp>
+
+#include <OpenImageIO/imagebufalgo.h>
 
 #include "mcdn/io.h"
 #include "mcdn/metrics.h"
@@ -161,12 +170,61 @@ ImageBuf synthetic_frame(int width, int height)
     return buf;
 }
 
+/// Mean alpha' over the pixel-channels where the denoised image y is off the reference by
+/// more than 3 standard deviations of the render there (|y - r| > 3 sqrt(Var[x])): where the
+/// denoiser is biased at this sample count, so the mix should lean to the render (PD §4:
+/// alpha' -> 0 there as spp grows). share: the fraction of pixel-channels that qualify.
+double alpha_where_biased(const ImageBuf& z, const ImageBuf& with_sure, const ImageBuf& ref,
+                          const AovSpec& aovs, double& share)
+{
+    AovSet set;
+    std::string error;
+    share = 0;
+    if (!resolve_aovs(set, aovs, with_sure.spec(), error))
+        return 0;
+    const std::vector<int> y = colour_channels(with_sure), r = colour_channels(ref);
+    const std::vector<int>& var = set.channels(Role::ColorVariance);
+    const char* alpha_names[3] = { "mix.alpha.R", "mix.alpha.G", "mix.alpha.B" };
+    double sum = 0;
+    size_t n = 0, total = 0;
+    for (int py = 0; py < z.spec().height; ++py)
+        for (int px = 0; px < z.spec().width; ++px)
+            for (int c = 0; c < 3; ++c, ++total) {
+                const float off = with_sure.getchannel(px, py, 0, y[c]) - ref.getchannel(px, py, 0, r[c]);
+                const float sigma = std::sqrt(std::max(0.0f, with_sure.getchannel(px, py, 0, var[c])));
+                if (std::fabs(off) > 3 * sigma) {
+                    sum += z.getchannel(px, py, 0, z.spec().channelindex(alpha_names[c]));
+                    ++n;
+                }
+            }
+    share = total ? double(n) / total : 0;
+    return n ? sum / n : 0;
+}
+
+/// The biased stand-in denoiser of --blur: the colour convolved with a WIDTH-wide Gaussian
+/// (edges clamp), every other channel passed through.
+bool blur_colour(ImageBuf& dst, const ImageBuf& src, float width)
+{
+    const std::vector<int> rgb = colour_channels(src);
+    const ImageBuf kernel = OIIO::ImageBufAlgo::make_kernel("gaussian", width, width);
+    dst = src.copy(OIIO::TypeDesc::FLOAT);
+    for (int c : rgb) {  // into the copy, one channel at a time: the others stay as they are
+        ROI one = src.roi();
+        one.chbegin = c;
+        one.chend = c + 1;
+        if (!OIIO::ImageBufAlgo::convolve(dst, src, kernel, true, one))
+            return dst.errorfmt("blur: {}", dst.geterror()), false;
+    }
+    return true;
+}
+
 constexpr int kMixes = 5;
 const char* kMixNames[kMixes] = { "net+t", "net", "analytic+t", "analytic", "net+t nofloor" };
 struct Row {
     Input in;
     Metrics render, nfor, mix[kMixes];
     double alpha[kMixes];
+    double biased_alpha[kMixes], biased_share;
 };
 
 }  // namespace
@@ -176,6 +234,7 @@ int main(int argc, char** argv)
     bool speed = true, generated = true, accuracy = true;
     std::string weights;
     std::vector<std::string> extra_crops;
+    float blur_width = 0;  // 0: NFOR
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         if (a == "--crop" && i + 1 < argc)
@@ -184,6 +243,8 @@ int main(int argc, char** argv)
             speed = false;
         else if (a == "--only-speed")
             accuracy = false;
+        else if (a == "--blur" && i + 1 < argc)
+            blur_width = std::strtof(argv[++i], nullptr);
         else if (a == "--no-generated")
             generated = false;
         else
@@ -191,7 +252,9 @@ int main(int argc, char** argv)
     }
     if (weights.empty())
         weights = default_mix_weights();
-    std::printf("mcdenoise progressive mix benchmark (PD §4, Table 4); network %s\n\n", weights.c_str());
+    const std::string den = blur_width > 0 ? "blur" + std::to_string(int(blur_width)) : "NFOR";
+    std::printf("mcdenoise progressive mix benchmark (PD §4, Table 4); network %s; denoiser %s\n\n",
+                weights.c_str(), den.c_str());
 
     std::vector<Row> rows;
     for (const Input& in : accuracy ? inputs(generated, extra_crops) : std::vector<Input>()) {
@@ -207,7 +270,9 @@ int main(int argc, char** argv)
         no.aovs = aovs;
         SureOptions so;
         so.aovs = aovs;
-        Denoiser denoiser = [&](ImageBuf& dst, const ImageBuf& s) { return nfor(dst, s, no); };
+        Denoiser denoiser = [&](ImageBuf& dst, const ImageBuf& s) {
+            return blur_width > 0 ? blur_colour(dst, s, blur_width) : nfor(dst, s, no);
+        };
         ImageBuf with_sure;
         if (!sure(with_sure, src, denoiser, so)) {
             std::fprintf(stderr, "%s: %s\n", in.scene.c_str(), with_sure.geterror().c_str());
@@ -231,6 +296,7 @@ int main(int argc, char** argv)
             }
             const char* alpha_names[3] = { "mix.alpha.R", "mix.alpha.G", "mix.alpha.B" };
             row.alpha[m] = mean_of_channels(z, alpha_names);
+            row.biased_alpha[m] = alpha_where_biased(z, with_sure, ref, aovs, row.biased_share);
             ok = metrics_of(row.mix[m], z, ref);
         }
         if (!ok)
@@ -240,9 +306,9 @@ int main(int argc, char** argv)
     }
 
     if (accuracy) {
-        std::printf("| input | spp | RMSE render | RMSE NFOR | RMSE net+t | net | analytic+t | analytic "
-                    "| net+t nofloor | relMSE render | NFOR | net+t | net | analytic+t | analytic "
-                    "| net+t nofloor | mean alpha' net+t | analytic+t |\n");
+        std::printf("| input | spp | RMSE render | RMSE %s | RMSE net+t | net | analytic+t | analytic "
+                    "| net+t nofloor | relMSE render | %s | net+t | net | analytic+t | analytic "
+                    "| net+t nofloor | mean alpha' net+t | analytic+t |\n", den.c_str(), den.c_str());
         std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
         for (const Row& r : rows) {
             std::printf("| %s | %d | %.4f | %.4f", r.in.scene.c_str(), r.in.spp, r.render.rmse, r.nfor.rmse);
@@ -271,7 +337,7 @@ int main(int argc, char** argv)
                 s += which == -2 ? r->render.rmse : which == -1 ? r->nfor.rmse : r->mix[which].rmse;
             return s / list.size();
         };
-        const std::pair<const char*, int> models[] = { { "mc-render", -2 }, { "NFOR", -1 },
+        const std::pair<const char*, int> models[] = { { "mc-render", -2 }, { den.c_str(), -1 },
                                                       { "mix net + t-test", 0 }, { "mix net, no t-test", 1 },
                                                       { "mix analytic + t-test", 2 }, { "mix analytic, no t-test", 3 },
                                                       { "mix net + t-test, no outlier floor", 4 } };
@@ -295,8 +361,8 @@ int main(int argc, char** argv)
                     misses += " " + r.in.scene + "@" + std::to_string(r.in.spp) + "("
                               + std::to_string(int(std::round(100 * (r.mix[m].rmse / better - 1)))) + "%)";
             }
-            std::printf("  %-13s mix <= min(render, NFOR) + 2%%: %d of %zu inputs;%s\n", kMixNames[m],
-                        within, rows.size(), misses.empty() ? " all" : (" over:" + misses).c_str());
+            std::printf("  %-13s mix <= min(render, %s) + 2%%: %d of %zu inputs;%s\n", kMixNames[m],
+                        den.c_str(), within, rows.size(), misses.empty() ? " all" : (" over:" + misses).c_str());
         }
         // Scenes with several levels: alpha' trend and the averaged-over-spp gain where NFOR is
         // worse than the render at the highest level.
@@ -310,6 +376,10 @@ int main(int argc, char** argv)
             std::printf("  %s: alpha'(net+t) by spp:", scene.c_str());
             for (const Row* r : list)
                 std::printf(" %d:%.3f", r->in.spp, r->alpha[0]);
+            std::printf("; where %s is biased (|y - r| > 3 sqrt(Var[x]), share of pixel-channels):",
+                        den.c_str());
+            for (const Row* r : list)
+                std::printf(" %d:%.3f (%.1f%%)", r->in.spp, r->biased_alpha[0], 100 * r->biased_share);
             double nfor_mean = 0, mix_mean[kMixes] = {};
             for (const Row* r : list) {
                 nfor_mean += r->nfor.rmse / list.size();
@@ -317,7 +387,8 @@ int main(int argc, char** argv)
                     mix_mean[m] += r->mix[m].rmse / list.size();
             }
             if (top->nfor.rmse > top->render.rmse) {
-                std::printf("; NFOR worse than render at %d spp: mean-over-spp RMSE gain vs NFOR", top->in.spp);
+                std::printf("; %s worse than render at %d spp: mean-over-spp RMSE gain vs it", den.c_str(),
+                            top->in.spp);
                 for (int m = 0; m < kMixes; ++m)
                     std::printf(" %s %.0f%%%s", kMixNames[m], 100 * (1 - mix_mean[m] / nfor_mean),
                                 mix_mean[m] <= 0.8 * nfor_mean ? "" : " (<20%)");

@@ -10,8 +10,11 @@ continues where it stopped (data prepared since then joins the training set).
 DIR (default $CACHE/mix/run) also gets loss.csv and loss.png (the loss curve).
 
 Per step: a batch of 12 random 64x64 patches (whole crop if smaller) of random files, each
-with a random flip/rotation (8 symmetries of the square) and, with probability 1/2, HDR<->DEN
-and VAR<->SURE swapped (§4.3; the network then predicts beta = 1 - alpha of
+with a random flip/rotation (8 symmetries of the square), a random exposure (--exposure E:
+every radiance plane times s = 2^u, u uniform in [-E, E], and every squared-error plane times
+s^2, so the sample stays consistent; the HDR/DEN inputs are log-scaled, not scale-free, and a
+scene brighter than the training crops, e.g. a visible emitter's edge, was read wrongly)
+and, with probability 1/2, HDR<->DEN and VAR<->SURE swapped (§4.3; the network then predicts beta = 1 - alpha of
 z = y + beta (x - y)). Loss: SMAPE of z against the reference, plus --log-l1-weight times
 the L1 distance of their signed log1p (model.log_l1: SMAPE alone lets render fireflies
 through, its gradient vanishes on them). Adam, one-cycle schedule.
@@ -55,8 +58,14 @@ def to_tensors(sample):
     return {k: torch.from_numpy(sample[k]) for k in PLANES}
 
 
-def random_batch(samples, batch, patch, rng):
+# Planes in units of radiance and of squared radiance (scaled by s and s^2 for exposure).
+RADIANCE_PLANES = ("x", "y", "reference")
+SQUARED_PLANES = ("variance", "sure", "divergence", "residual")
+
+
+def random_batch(samples, batch, patch, rng, exposure=0.0):
     """Stacked planes {name: [batch, 3, p, p]} and the swap mask [batch]."""
+    assert set(RADIANCE_PLANES + SQUARED_PLANES) == set(PLANES)
     out = {k: [] for k in PLANES}
     for _ in range(batch):
         s = samples[rng.integers(len(samples))]
@@ -64,8 +73,11 @@ def random_batch(samples, batch, patch, rng):
         p = min(patch, h, w)
         y0, x0 = rng.integers(h - p + 1), rng.integers(w - p + 1)
         k, flip = int(rng.integers(4)), bool(rng.integers(2))
+        scale = 2.0 ** rng.uniform(-exposure, exposure) if exposure > 0 else 1.0
         for name in PLANES:
             t = s[name][:, y0:y0 + p, x0:x0 + p]
+            if scale != 1.0:
+                t = t * (scale if name in RADIANCE_PLANES else scale * scale)
             t = torch.rot90(t, k, dims=(1, 2))
             if flip:
                 t = torch.flip(t, dims=(2,))
@@ -165,6 +177,8 @@ def main():
                          "0 = SMAPE alone, as the paper")
     ap.add_argument("--leak", type=float, default=0.0,
                     help="surrogate gradient where f_act's clip is active (model.f_act); 0 = exact")
+    ap.add_argument("--exposure", type=float, default=0.0,
+                    help="random exposure of each patch, +-this many stops (0 = none)")
     ap.add_argument("--batch", type=int, default=12)
     ap.add_argument("--patch", type=int, default=64)
     ap.add_argument("--threads", type=int, default=2)
@@ -216,7 +230,8 @@ def main():
     if not cycles or cycles[-1]["start"] != state["cycle_start"]:
         cycles.append({"start": state["cycle_start"], "steps": state["cycle_steps"],
                        "max_lr": args.max_lr, "patch": args.patch, "batch": args.batch,
-                       "leak": args.leak, "log_l1_weight": args.log_l1_weight})
+                       "leak": args.leak, "log_l1_weight": args.log_l1_weight,
+                       "exposure": args.exposure})
     done_in_cycle = state["step"] - state["cycle_start"]
     if sched_state is not None and args.steps and args.steps != state["cycle_steps"] \
             and not args.extend:
@@ -248,7 +263,7 @@ def main():
     running, running_log, count, t0 = 0.0, 0.0, 0, time.time()
     train_files, val_files = list(train_files), list(val_files)
     while state["step"] < end:
-        batch, swap = random_batch(train, args.batch, args.patch, rng)
+        batch, swap = random_batch(train, args.batch, args.patch, rng, args.exposure)
         z, _ = mix(net, *(batch[k] for k in INPUT_PLANES), swap=swap, leak=args.leak)
         smape_term = smape(z, batch["reference"])
         log_term = log_l1(z, batch["reference"])
