@@ -60,6 +60,9 @@ kpcn::RawPlanes random_frame(int w, int h)
     std::uniform_real_distribution<float> u(0.0f, 1.0f);
     kpcn::RawPlanes raw;
     raw.split = true;
+    raw.rect = { 0, 0, w, h };
+    raw.frame_width = w;
+    raw.frame_height = h;
     auto fill = [&](Plane& p, float scale) {
         p = Plane(w, h);
         for (float& v : p.px)
@@ -94,12 +97,15 @@ void speed(kpcn::Model& model, int w, int h, int tile)
     const mcdn_bench::Timing t = mcdn_bench::timed([&] {
         for (auto [net, branch] : { std::pair{ &model.diffuse, kpcn::Branch::diffuse },
                                     std::pair{ &model.specular, kpcn::Branch::specular } }) {
-            nn::Tensor features, image;
-            kpcn::branch_inputs(raw, branch, features, image);
-            std::vector<nn::Tensor> in(2), out;  // moved, as the op does
-            in[0] = std::move(features);
-            in[1] = std::move(image);
-            if (!nn::run_tiled(*net, in, out, error, tiles))
+            // Inputs per tile, as the op makes them (without reading the AOVs).
+            auto make_inputs = [&, branch = branch](const nn::Region& window,
+                                                    std::vector<nn::Tensor>& in, std::string&) {
+                in.resize(2);
+                kpcn::branch_inputs(raw, branch, window, in[0], in[1]);
+                return true;
+            };
+            std::vector<nn::Tensor> out;
+            if (!nn::run_tiled(*net, h, w, make_inputs, out, error, tiles))
                 std::fprintf(stderr, "%s\n", error.c_str());
             model.diffuse.give_buffers(model.specular);  // as the op does
         }

@@ -15,10 +15,13 @@
 namespace mcdn {
 namespace kpcn {
 
-/// The branch's image with the parts its kernels filter for the extras appended: the
-/// colour's part, then each extra's (3 channels each; the diffuse parts demodulated).
-nn::Tensor with_extra_parts(const nn::Tensor& image, const RawPlanes& raw,
-                            const std::vector<ExtraPlanes>& extras, Branch branch);
+/// The branch's image of a network tile's `window` (branch_inputs) with the parts its
+/// kernels filter for the extras appended: the colour's part, then each extra's (3 channels
+/// each; the diffuse parts demodulated). `raw` covers inputs_rect(window); the extras'
+/// planes are the whole frame's.
+void with_extra_parts(nn::Tensor& image, const RawPlanes& raw,
+                      const std::vector<ExtraPlanes>& extras, Branch branch,
+                      const nn::Region& window);
 
 /// One branch's result: its denoised component (3 planes, in the beauty's units) and the
 /// filtered image of with_extra_parts (the parts from channel 3 on).
