@@ -1,15 +1,19 @@
 // KPCN's network inputs (Bako et al. 2017 §5.1), computed per network tile: a tile's window
 // needs its raw planes and one more column and row (the forward differences), so no
-// whole-frame input exists (34 channels: ~280 MB at 1080p, 4.5 GB at 8K). Every value is
+// whole-frame input exists (34 channels: ~280 MB at 1080p, 4.5 GB at 8K). A tile is made in
+// strips of rows, each read and computed in cache on the engine's OpenMP workers (between
+// two tiles' convolutions: work on another pool would share the cores with them spinning). Every value is
 // the whole-frame computation's, bit for bit: the same per-pixel arithmetic, the depth
 // scaled by the whole frame's range (scale_depth), and rows and columns past the frame
 // (nn::run_tiled's extension to the alignment) copies of its last ones.
 // training/cnn/model.py branch_inputs is the same computation in Python.
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <vector>
 
 #include "cnn/cnn_steps.h"
+#include "cnn/extras.h"
 #include "nn/ops.h"
 #include "nn/parallel.h"
 
@@ -69,28 +73,31 @@ void pixel_inputs(const RawPlanes& raw, Branch branch, size_t i, float* f, float
     f[13] = std::log1p(relu(raw.depth_var.px[i]));
 }
 
-/// branch_inputs on `window` of a frame_width × frame_height frame whose raw planes cover
-/// `rect` (at least inputs_rect(window)).
-void window_inputs(const RawPlanes& raw, Rect rect, int frame_width, int frame_height,
-                   Branch branch, const nn::Region& window, nn::Tensor& features,
-                   nn::Tensor& image)
+/// Rows [first, last) of a tile's inputs (tensors shaped to the window; the image's
+/// channels 0-2), from raw planes covering inputs_rect of those rows.
+void strip_inputs(const RawPlanes& raw, Branch branch, const nn::Region& window, int first,
+                  int last, nn::Tensor& features, nn::Tensor& image)
 {
-    // The per-pixel channels of the raw planes first, each pixel once (kept: no allocation
-    // per tile; the calling thread's, named here so that the row workers share them).
-    static thread_local std::vector<float> kept, kept_image;
-    std::vector<float>&own = kept, &own_image = kept_image;
+    const int frame_width = raw.frame_width, frame_height = raw.frame_height;
+    const Rect rect = inputs_rect({ window.x0, window.y0 + first, window.x1, window.y0 + last },
+                                  frame_width, frame_height);
+    // The per-pixel channels of the strip's pixels first, each pixel once (the worker's
+    // scratch, kept: no allocation per strip).
+    static thread_local std::vector<float> own, own_image;
     const int rw = rect.width(), rh = rect.height();
     own.resize(size_t(rw) * rh * kPixelChannels);
     own_image.resize(size_t(rw) * rh * 3);
-    nn::parallel_rows(rh, [&](int ly) {
-        for (size_t i = size_t(ly) * rw; i < size_t(ly + 1) * rw; ++i)
-            pixel_inputs(raw, branch, i, &own[i * kPixelChannels], &own_image[i * 3]);
-    });
-    // The window: those channels, forward differences (zero in the frame's last column and
-    // row), everything clamped to +-kInputLimit.
-    nn::reshape(features, window.y1 - window.y0, window.x1 - window.x0, kInputChannels);
-    nn::reshape(image, features.height, features.width, 3);
-    nn::parallel_rows(features.height, [&](int wy) {
+    for (int ly = 0; ly < rh; ++ly) {
+        const size_t raw_row = size_t(rect.y0 + ly - raw.rect.y0) * raw.width();
+        for (int lx = 0; lx < rw; ++lx) {
+            const size_t i = size_t(ly) * rw + lx;
+            pixel_inputs(raw, branch, raw_row + (rect.x0 + lx - raw.rect.x0),
+                         &own[i * kPixelChannels], &own_image[i * 3]);
+        }
+    }
+    // Those channels, forward differences (zero in the frame's last column and row),
+    // everything clamped to +-kInputLimit; past the frame, its last row and column.
+    for (int wy = first; wy < last; ++wy) {
         const int y = std::min(window.y0 + wy, frame_height - 1);
         for (int wx = 0; wx < features.width; ++wx) {
             const int x = std::min(window.x0 + wx, frame_width - 1);
@@ -108,6 +115,17 @@ void window_inputs(const RawPlanes& raw, Rect rect, int frame_width, int frame_h
                 f[k] = finite_input(f[k]);
             std::copy_n(&own_image[i * 3], 3, image.pixel(wy, wx));
         }
+    }
+}
+
+/// Rows of a window in strips of kStripRows on the engine's threads (nn/parallel.h: the
+/// workers that run the convolutions, already awake): strip(first, last) for each.
+constexpr int kStripRows = 16;  // one more row read per strip: ~6%
+template <class Strip> void for_strips(int rows, Strip strip)
+{
+    const int strips = (rows + kStripRows - 1) / kStripRows;
+    nn::parallel_rows(strips, [&](int s) {
+        strip(s * kStripRows, std::min((s + 1) * kStripRows, rows));
     });
 }
 
@@ -115,21 +133,52 @@ void window_inputs(const RawPlanes& raw, Rect rect, int frame_width, int frame_h
 
 Rect inputs_rect(const nn::Region& window, int frame_width, int frame_height)
 {
-    return { window.x0, window.y0, std::min(window.x1 + 1, frame_width),
-             std::min(window.y1 + 1, frame_height) };
+    // Past the frame (run_tiled's extension), the last row or column stands for the rest.
+    return { std::min(window.x0, frame_width - 1), std::min(window.y0, frame_height - 1),
+             std::min(window.x1 + 1, frame_width), std::min(window.y1 + 1, frame_height) };
+}
+
+bool tile_inputs(const ImageBuf& src, const AovSet& aovs, const DepthRange& depth, Branch branch,
+                 const std::vector<ExtraPlanes>& extras, const nn::Region& window,
+                 nn::Tensor& features, nn::Tensor& image, std::string& error)
+{
+    nn::reshape(features, window.y1 - window.y0, window.x1 - window.x0, kInputChannels);
+    nn::reshape(image, features.height, features.width,
+                extras.empty() ? 3 : 3 * (2 + int(extras.size())));
+    // Each strip reads and computes in cache, on every thread.
+    std::atomic<bool> read { true };
+    for_strips(features.height, [&](int first, int last) {
+        const nn::Region rows { window.x0, window.y0 + first, window.x1, window.y0 + last };
+        RawPlanes raw;
+        std::string strip_error;
+        if (!read_raw_planes(raw, src, aovs, strip_error,
+                             inputs_rect(rows, src.spec().width, src.spec().height))) {
+            read = false;
+            return;
+        }
+        scale_depth(raw, depth);
+        strip_inputs(raw, branch, window, first, last, features, image);
+        if (!extras.empty())
+            add_extra_parts(image, raw, extras, branch, window, first, last);
+    });
+    if (!read)
+        error = "cannot read the AOVs of a tile";
+    return read;
 }
 
 void branch_inputs(const RawPlanes& raw, Branch branch, const nn::Region& window,
                    nn::Tensor& features, nn::Tensor& image)
 {
-    window_inputs(raw, raw.rect, raw.frame_width, raw.frame_height, branch, window, features,
-                  image);
+    nn::reshape(features, window.y1 - window.y0, window.x1 - window.x0, kInputChannels);
+    nn::reshape(image, features.height, features.width, 3);
+    for_strips(features.height, [&](int first, int last) {
+        strip_inputs(raw, branch, window, first, last, features, image);
+    });
 }
 
 void branch_inputs(const RawPlanes& raw, Branch branch, nn::Tensor& features, nn::Tensor& image)
 {
-    const int w = raw.width(), h = raw.height();
-    window_inputs(raw, { 0, 0, w, h }, w, h, branch, { 0, 0, w, h }, features, image);
+    branch_inputs(raw, branch, { 0, 0, raw.frame_width, raw.frame_height }, features, image);
 }
 
 }  // namespace kpcn

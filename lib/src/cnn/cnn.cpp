@@ -99,16 +99,9 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
     auto run_branch = [&](nn::Net& net, kpcn::Branch branch, nn::Tensor& result) {
         auto make_inputs = [&](const nn::Region& window, std::vector<nn::Tensor>& inputs,
                                std::string& tile_error) {
-            kpcn::RawPlanes raw;
-            if (!kpcn::read_raw_planes(raw, dst, aovs, tile_error,
-                                       kpcn::inputs_rect(window, width, height)))
-                return false;
-            kpcn::scale_depth(raw, depth);
             inputs.resize(2);
-            kpcn::branch_inputs(raw, branch, window, inputs[0], inputs[1]);
-            if (!extras.empty())
-                kpcn::with_extra_parts(inputs[1], raw, extras, branch, window);
-            return true;
+            return kpcn::tile_inputs(dst, aovs, depth, branch, extras, window, inputs[0],
+                                     inputs[1], tile_error);
         };
         std::vector<nn::Tensor> outputs;
         tiles.regions = network_regions(converged, net, options.tile_size);

@@ -4,12 +4,15 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "core/planar.h"
 #include "mcdn/aov.h"
 #include "mcdn/nn.h"
 
 namespace mcdn {
+struct ExtraPlanes;  // core/extra_aovs.h
+
 namespace kpcn {
 
 constexpr const char* kInputLayout = "kpcn-cpu-1";  // model.py INPUT_LAYOUT
@@ -59,7 +62,8 @@ inline void scale_depth(RawPlanes& raw) { scale_depth(raw, depth_range(raw.depth
 enum class Branch { diffuse, specular };
 
 /// The frame pixels a network tile's inputs are computed from: the window clipped to the
-/// frame, and one more column and row (the forward differences of its last ones).
+/// frame (past it, the last row and column stand for the rest), and one more column and row
+/// (the forward differences of its last ones).
 Rect inputs_rect(const nn::Region& window, int frame_width, int frame_height);
 
 /// The 34 network input channels of a branch (layout in training/cnn/model.py) and the image
@@ -71,6 +75,13 @@ void branch_inputs(const RawPlanes& raw, Branch branch, const nn::Region& window
                    nn::Tensor& features, nn::Tensor& image);
 /// The same on the whole frame of `raw` (the bench's and the tests' whole-frame inputs).
 void branch_inputs(const RawPlanes& raw, Branch branch, nn::Tensor& features, nn::Tensor& image);
+
+/// The op's nn::TileInputs: read_raw_planes, scale_depth and branch_inputs on a tile's
+/// window, in strips of rows (each read and computed in cache, threaded), the extras' parts
+/// appended to the image (extras.h).
+bool tile_inputs(const ImageBuf& src, const AovSet& aovs, const DepthRange& depth, Branch branch,
+                 const std::vector<ExtraPlanes>& extras, const nn::Region& window,
+                 nn::Tensor& features, nn::Tensor& image, std::string& error);
 
 /// The two branch networks of a weights file ("diffuse.*", "specular.*" tensors).
 struct Model {

@@ -18,22 +18,18 @@ float diffuse_fraction(const RawPlanes& raw, int c, size_t i)
 
 }  // namespace
 
-void with_extra_parts(nn::Tensor& image, const RawPlanes& raw,
-                      const std::vector<ExtraPlanes>& extras, Branch branch,
-                      const nn::Region& window)
+void add_extra_parts(nn::Tensor& image, const RawPlanes& raw, const std::vector<ExtraPlanes>& extras,
+                     Branch branch, const nn::Region& window, int first, int last)
 {
-    const int parts = 1 + int(extras.size());
-    nn::Tensor out(image.height, image.width, 3 * (1 + parts));
-    for (int wy = 0; wy < image.height; ++wy)
+    for (int wy = first; wy < last; ++wy)
         for (int wx = 0; wx < image.width; ++wx) {
             // The frame pixel (past the frame: its last row and column, as run_tiled extends).
             const int y = std::min(window.y0 + wy, raw.frame_height - 1);
             const int x = std::min(window.x0 + wx, raw.frame_width - 1);
             const size_t i = size_t(y - raw.rect.y0) * raw.width() + (x - raw.rect.x0);
             const size_t frame_i = size_t(y) * raw.frame_width + x;
-            float* o = out.pixel(wy, wx);
+            float* o = image.pixel(wy, wx);
             for (int c = 0; c < 3; ++c) {
-                o[c] = image.at(wy, wx, c);
                 const float r = diffuse_fraction(raw, c, i);
                 const float share = branch == Branch::diffuse
                                         ? r / (std::max(raw.demod[c].px[i], 0.0f) + kAlbedoEpsilon)
@@ -43,7 +39,6 @@ void with_extra_parts(nn::Tensor& image, const RawPlanes& raw,
                     o[6 + 3 * e + c] = share * extras[e].mean[c].px[frame_i];
             }
         }
-    image = std::move(out);
 }
 
 void write_extras(ImageBuf& dst, ROI roi, const std::vector<ExtraPlanes>& extras,
