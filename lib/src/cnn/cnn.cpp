@@ -125,30 +125,34 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
         return false;
     }
 
-    // Eq. 4: (albedo + eps) · irradiance + exp(log specular) − 1.
+    // Eq. 4: (albedo + eps) · irradiance + exp(log specular) − 1, a channel at a time; the
+    // components are kept as planes only for the extras' shares (0.4 GB each at 8K).
     kpcn::BranchResult diffuse, specular;
     diffuse.filtered = &irradiance;
     specular.filtered = &log_specular;
+    const bool keep_components = !extras.empty();
     const size_t stride = size_t(log_specular.channels);
-    for (int c = 0; c < 3; ++c) {
-        specular.component[c] = Plane(raw.width(), raw.height());
-        if (raw.split)
-            diffuse.component[c] = Plane(raw.width(), raw.height());
-        for (size_t i = 0; i < raw.color[c].size(); ++i) {
-            specular.component[c].px[i] = std::expm1(log_specular.data[i * stride + c]);
-            if (raw.split)
-                diffuse.component[c].px[i] = (std::max(raw.demod[c].px[i], 0.0f)
-                                              + kpcn::kAlbedoEpsilon)
-                                             * irradiance.data[i * stride + c];
-        }
-    }
     const ROI where = output_roi(src, roi);
     const auto& colour = aovs.channels(Role::Color);
     for (int c = 0; c < 3; ++c) {
-        Plane out(raw.width(), raw.height());
-        for (size_t i = 0; i < out.size(); ++i)  // + 0 without a split, as the sum always was
-            out.px[i] = sanitize(specular.component[c].px[i]
-                                 + (raw.split ? diffuse.component[c].px[i] : 0.0f));
+        Plane out(width, height);
+        if (keep_components) {
+            specular.component[c] = Plane(width, height);
+            if (raw.split)
+                diffuse.component[c] = Plane(width, height);
+        }
+        for (size_t i = 0; i < out.size(); ++i) {
+            const float s = std::expm1(log_specular.data[i * stride + c]);
+            const float d = raw.split ? (std::max(raw.demod[c].px[i], 0.0f) + kpcn::kAlbedoEpsilon)
+                                            * irradiance.data[i * stride + c]
+                                      : 0.0f;
+            out.px[i] = sanitize(s + d);
+            if (keep_components) {
+                specular.component[c].px[i] = s;
+                if (raw.split)
+                    diffuse.component[c].px[i] = d;
+            }
+        }
         pass_through_converged(out, raw.color[c], converged);
         write_plane(dst, colour[c], out, where);
     }

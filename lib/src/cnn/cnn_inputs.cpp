@@ -154,7 +154,8 @@ void read_colour_and_demod(RawPlanes& raw, const ImageBuf& src, const AovSet& ao
     for (int c = 0; c < 3; ++c)
         raw.color[c] = reader.plane(aovs.channels(Role::Color)[c]);
     raw.split = cycles_split(aovs) || aovs.has(Role::Diffuse);
-    read_demod(reader, aovs, raw.demod);
+    if (raw.split)  // without a split there is no diffuse to multiply
+        read_demod(reader, aovs, raw.demod);
 }
 
 bool read_raw_planes(RawPlanes& raw, const ImageBuf& src, const AovSet& aovs, std::string& error,

@@ -44,7 +44,8 @@ struct RawPlanes {
 bool read_raw_planes(RawPlanes& raw, const ImageBuf& src, const AovSet& aovs,
                      std::string& error, Rect rect = {});
 /// What eq. 4 needs of the render on the whole frame besides the networks' outputs: the
-/// colour (kept on converged tiles), the albedo divided out of the diffuse, the split.
+/// colour (kept on converged tiles), the split, and with it the albedo divided out of the
+/// diffuse.
 void read_colour_and_demod(RawPlanes& raw, const ImageBuf& src, const AovSet& aovs);
 
 /// §5.1 scales depth linearly to [0, 1] over the frame: the one input statistic of the
