@@ -2,7 +2,8 @@
 // pixels so that every output pixel of the tile's core sees exactly what it would see in a
 // whole-image run. Tile windows are clamped to the image (so the image border is the same
 // zero padding as in a whole-image run) and start at multiples of alignment() (so the
-// pooling grid is the same). Memory is bounded by the tile, not the image.
+// pooling grid is the same). Memory is bounded by the tile, not the image; with a TileInputs
+// callback (KPCN) not even the inputs exist for the whole image.
 #include <algorithm>
 
 #include "mcdn/nn.h"
