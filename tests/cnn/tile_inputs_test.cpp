@@ -3,6 +3,8 @@
 // to the alignment repeats the last row and column).
 #include <gtest/gtest.h>
 
+#include <OpenImageIO/filesystem.h>
+
 #include "cnn/cnn_steps.h"
 #include "fixtures.h"
 
@@ -67,4 +69,25 @@ TEST(CnnTileInputs, WindowsEqualTheWholeFrame)
                                  << window.x1 << "," << window.y1;
         }
     }
+}
+
+TEST(CnnTileInputs, DepthRangeInBandsIsTheWholePlanes)
+{
+    // The shared box render (256 rows) is taller than a band (64): the range is gathered
+    // over several.
+    const std::string box = std::string(MCDN_SHARED_DATA) + "/box/box_0016spp";
+    if (!OIIO::Filesystem::exists(box + ".exr"))
+        GTEST_SKIP() << box << ".exr absent (../shared/data)";
+    const ImageBuf src = mcdn_test::read_render(box);
+    AovSet aovs;
+    std::string error;
+    ASSERT_TRUE(resolve_aovs(aovs, AovSpec{}, src.spec(), error)) << error;
+    ASSERT_GT(src.spec().height, 64);
+    kpcn::RawPlanes raw;
+    ASSERT_TRUE(kpcn::read_raw_planes(raw, src, aovs, error)) << error;
+    const kpcn::DepthRange bands = kpcn::depth_range(src, aovs);
+    const kpcn::DepthRange whole = kpcn::depth_range(raw.depth);
+    EXPECT_GT(whole.span, 0.0f);
+    EXPECT_EQ(bands.lo, whole.lo);
+    EXPECT_EQ(bands.span, whole.span);
 }
