@@ -2,7 +2,9 @@
 // branches), the time of the whole op's network part on a frame, and the relMSE of the
 // render, our NFOR and the CNN on the shared evaluation data (box 16/64, cycles preset) and
 // the generated crops training/cnn holds out (datasets/eval if rendered, else the `full`
-// crops whose number % 6 == 4) at 16 and 64 spp.
+// crops whose number % 6 == 4) at 16 and 64 spp. The speed part times the network part on
+// random inputs and then the whole op (reading the AOVs, inputs, networks, recombination)
+// on the box 16 spp render tiled to the frame size, skipping off (needs ../shared/data).
 //
 //   bench_cnn [--no-quality] [--no-speed] [--size WxH] [--tile N] [weights.mcdnw]
 #include <chrono>
@@ -58,6 +60,9 @@ kpcn::RawPlanes random_frame(int w, int h)
     std::uniform_real_distribution<float> u(0.0f, 1.0f);
     kpcn::RawPlanes raw;
     raw.split = true;
+    raw.rect = { 0, 0, w, h };
+    raw.frame_width = w;
+    raw.frame_height = h;
     auto fill = [&](Plane& p, float scale) {
         p = Plane(w, h);
         for (float& v : p.px)
@@ -92,12 +97,15 @@ void speed(kpcn::Model& model, int w, int h, int tile)
     const mcdn_bench::Timing t = mcdn_bench::timed([&] {
         for (auto [net, branch] : { std::pair{ &model.diffuse, kpcn::Branch::diffuse },
                                     std::pair{ &model.specular, kpcn::Branch::specular } }) {
-            nn::Tensor features, image;
-            kpcn::branch_inputs(raw, branch, features, image);
-            std::vector<nn::Tensor> in(2), out;  // moved, as the op does
-            in[0] = std::move(features);
-            in[1] = std::move(image);
-            if (!nn::run_tiled(*net, in, out, error, tiles))
+            // Inputs per tile, as the op makes them (without reading the AOVs).
+            auto make_inputs = [&, branch = branch](const nn::Region& window,
+                                                    std::vector<nn::Tensor>& in, std::string&) {
+                in.resize(2);
+                kpcn::branch_inputs(raw, branch, window, in[0], in[1]);
+                return true;
+            };
+            std::vector<nn::Tensor> out;
+            if (!nn::run_tiled(*net, h, w, make_inputs, out, error, tiles))
                 std::fprintf(stderr, "%s\n", error.c_str());
             model.diffuse.give_buffers(model.specular);  // as the op does
         }
@@ -105,6 +113,53 @@ void speed(kpcn::Model& model, int w, int h, int tile)
     std::printf("%dx%d, tile %d (halo %d): %.2f s wall, %.2f CPU-s for both branches, %.1f GFLOP "
                 "(nominal): %.1f GFLOP/s, %.1f GFLOP per CPU-s\n", w, h, tile,
                 model.diffuse.receptive_radius(), t.wall, t.cpu, gflop, gflop / t.wall, gflop / t.cpu);
+}
+
+std::string shared(const std::string& rel) { return std::string(MCDN_SHARED_DATA) + "/" + rel; }
+
+/// The box 16 spp render (mean and variance: every pass KPCN reads, with the split) tiled
+/// to w x h; an empty buffer without ../shared/data.
+ImageBuf tiled_box(int w, int h)
+{
+    const std::string stem = shared("box/box_0016spp");
+    ImageBuf box, frame;
+    if (!fs::exists(stem + ".exr")
+        || !read_inputs(box, { { stem + ".exr", InputKind::Mean },
+                               { stem + "_var.exr", InputKind::Variance } }))
+        return frame;
+    ImageSpec spec = box.spec();
+    const int bw = spec.width, bh = spec.height, channels = spec.nchannels;
+    std::vector<float> tile(size_t(bw) * bh * channels), px(size_t(w) * h * channels);
+    box.get_pixels(box.roi(), OIIO::TypeDesc::FLOAT, tile.data());
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+            std::copy_n(&tile[(size_t(y % bh) * bw + x % bw) * channels], channels,
+                        &px[(size_t(y) * w + x) * channels]);
+    spec.width = spec.full_width = w;
+    spec.height = spec.full_height = h;
+    frame.reset(spec);
+    frame.set_pixels(frame.roi(), OIIO::TypeDesc::FLOAT, px.data());
+    return frame;
+}
+
+/// The whole op on the tiled box frame, skipping off (every tile runs the networks).
+void op_speed(const std::string& weights, int w, int h, int tile)
+{
+    const ImageBuf frame = tiled_box(w, h);
+    if (!frame.initialized()) {
+        std::printf("whole op: skipped (needs ../shared/data/box)\n");
+        return;
+    }
+    CnnOptions options;
+    options.weights = weights;
+    options.tile_size = tile;
+    options.skip.enabled = false;
+    ImageBuf out;
+    const mcdn_bench::Timing t = mcdn_bench::timed([&] { cnn(out, frame, options); });
+    if (out.has_error())
+        std::fprintf(stderr, "%s\n", out.geterror().c_str());
+    std::printf("whole op on the box frame %dx%d (%d channels), tile %d: %.2f s wall, %.2f CPU-s\n",
+                w, h, frame.nchannels(), tile, t.wall, t.cpu);
 }
 
 /// The yardstick timed in the same run: one plain oneDNN 3x3 48->48 conv of the frame's size.
@@ -117,7 +172,6 @@ void plain_conv(int w, int h, double frame_gflop)
                 w, h, t.wall, t.cpu, flops / 1e9, flops / 1e9 / t.cpu, frame_gflop * 1e9 / flops);
 }
 
-std::string shared(const std::string& rel) { return std::string(MCDN_SHARED_DATA) + "/" + rel; }
 
 struct Input {
     std::string name;
@@ -257,6 +311,8 @@ int main(int argc, char** argv)
         plain_conv(w, h, per_pixel * w * h / 1e9);
         for (int tile : tiles)
             speed(model, w, h, tile);
+        for (int tile : tiles)
+            op_speed(weights, w, h, tile);
     }
     if (do_quality)
         quality(weights);

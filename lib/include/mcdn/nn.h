@@ -35,6 +35,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -222,6 +223,18 @@ struct TileOptions {
 /// repeating its last row and column, and the outputs are cropped back.
 bool run_tiled(Net& net, const std::vector<Tensor>& inputs, std::vector<Tensor>& outputs,
                std::string& error, const TileOptions& options = {});
+
+/// Makes one tile's inputs, one tensor per input() into `inputs` (reshaped; their storage
+/// is kept from the last tile): the window [x0, x1) × [y0, y1) of the image extended as
+/// above (rows and columns past the image repeat its last ones). False stops the run.
+using TileInputs = std::function<bool(const Region& window, std::vector<Tensor>& inputs,
+                                      std::string& error)>;
+
+/// run_tiled on a height × width image whose inputs are made tile by tile: no whole-image
+/// input exists, so memory is bounded by the tile (KPCN's 34 input channels are ~10x its
+/// image). The result is that of run_tiled on the whole inputs make_inputs would cut from.
+bool run_tiled(Net& net, int height, int width, const TileInputs& make_inputs,
+               std::vector<Tensor>& outputs, std::string& error, const TileOptions& options = {});
 
 }  // namespace nn
 }  // namespace mcdn

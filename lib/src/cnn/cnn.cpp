@@ -1,6 +1,6 @@
-// The KPCN op (Bako et al. 2017, Fig. 2), top to bottom: read the render and split its light
-// (§4.3), make each branch's inputs (§5.1), run the branch networks tile by tile (§4.2),
-// undo the transforms and add the branches (eq. 4).
+// The KPCN op (Bako et al. 2017, Fig. 2), top to bottom: per network tile, read the render's
+// window, split its light (§4.3) and make the branch's inputs (§5.1) for the branch network
+// (§4.2); then undo the transforms and add the branches (eq. 4) on the whole frame.
 #include "mcdn/cnn.h"
 
 #include <dlfcn.h>
@@ -87,34 +87,33 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
         return false;
     }
 
-    // §4.3 / §5.1: the split and the per-frame depth scale, on the whole image.
-    kpcn::RawPlanes raw;
-    if (!kpcn::read_raw_planes(raw, dst, aovs, error)) {
-        dst.errorfmt("cnn: {}", error);
-        return false;
-    }
-    kpcn::scale_depth(raw);
+    // §5.1: the depth range is the one input statistic of the whole frame; everything else
+    // (§4.3's split, the 34 input channels) is made per network tile from its window.
+    const kpcn::DepthRange depth = kpcn::depth_range(dst, aovs);
+    const int width = dst.spec().width, height = dst.spec().height;
 
     // §4.2: each branch's network, tiled so memory is bounded by the tile.
     nn::TileOptions tiles;
     tiles.tile_size = options.tile_size;
     nn::Tensor irradiance, log_specular;
     auto run_branch = [&](nn::Net& net, kpcn::Branch branch, nn::Tensor& result) {
-        nn::Tensor features, image;
-        kpcn::branch_inputs(raw, branch, features, image);
-        if (!extras.empty())
-            image = kpcn::with_extra_parts(image, raw, extras, branch);
-        std::vector<nn::Tensor> inputs(2), outputs;  // moved in: a frame's features are ~300 MB
-        inputs[0] = std::move(features);
-        inputs[1] = std::move(image);
+        auto make_inputs = [&](const nn::Region& window, std::vector<nn::Tensor>& inputs,
+                               std::string& tile_error) {
+            inputs.resize(2);
+            return kpcn::tile_inputs(dst, aovs, depth, branch, extras, window, inputs[0],
+                                     inputs[1], tile_error);
+        };
+        std::vector<nn::Tensor> outputs;
         tiles.regions = network_regions(converged, net, options.tile_size);
-        if (!nn::run_tiled(net, inputs, outputs, error, tiles)) {
+        if (!nn::run_tiled(net, height, width, make_inputs, outputs, error, tiles)) {
             error = "cnn: '" + path + "': " + error;
             return false;
         }
         result = std::move(outputs[0]);
         return true;
     };
+    kpcn::RawPlanes raw;  // the colour and the demodulation, for eq. 4
+    kpcn::read_colour_and_demod(raw, dst, aovs);
     const bool ran = with_threads(nthreads, [&] {
         if (raw.split && !run_branch(model.diffuse, kpcn::Branch::diffuse, irradiance))
             return false;
@@ -126,28 +125,34 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
         return false;
     }
 
-    // Eq. 4: (albedo + eps) · irradiance + exp(log specular) − 1.
+    // Eq. 4: (albedo + eps) · irradiance + exp(log specular) − 1, a channel at a time; the
+    // components are kept as planes only for the extras' shares (0.4 GB each at 8K).
     kpcn::BranchResult diffuse, specular;
     diffuse.filtered = &irradiance;
     specular.filtered = &log_specular;
+    const bool keep_components = !extras.empty();
     const size_t stride = size_t(log_specular.channels);
-    for (int c = 0; c < 3; ++c) {
-        specular.component[c] = Plane(raw.width(), raw.height());
-        diffuse.component[c] = Plane(raw.width(), raw.height());
-        for (size_t i = 0; i < raw.color[c].size(); ++i) {
-            specular.component[c].px[i] = std::expm1(log_specular.data[i * stride + c]);
-            if (raw.split)
-                diffuse.component[c].px[i] = (std::max(raw.demod[c].px[i], 0.0f)
-                                              + kpcn::kAlbedoEpsilon)
-                                             * irradiance.data[i * stride + c];
-        }
-    }
     const ROI where = output_roi(src, roi);
     const auto& colour = aovs.channels(Role::Color);
     for (int c = 0; c < 3; ++c) {
-        Plane out(raw.width(), raw.height());
-        for (size_t i = 0; i < out.size(); ++i)
-            out.px[i] = sanitize(specular.component[c].px[i] + diffuse.component[c].px[i]);
+        Plane out(width, height);
+        if (keep_components) {
+            specular.component[c] = Plane(width, height);
+            if (raw.split)
+                diffuse.component[c] = Plane(width, height);
+        }
+        for (size_t i = 0; i < out.size(); ++i) {
+            const float s = std::expm1(log_specular.data[i * stride + c]);
+            const float d = raw.split ? (std::max(raw.demod[c].px[i], 0.0f) + kpcn::kAlbedoEpsilon)
+                                            * irradiance.data[i * stride + c]
+                                      : 0.0f;
+            out.px[i] = sanitize(s + d);
+            if (keep_components) {
+                specular.component[c].px[i] = s;
+                if (raw.split)
+                    diffuse.component[c].px[i] = d;
+            }
+        }
         pass_through_converged(out, raw.color[c], converged);
         write_plane(dst, colour[c], out, where);
     }

@@ -1,23 +1,41 @@
-// KPCN inputs (Bako et al. 2017): the diffuse/specular split of §4.3 and the network input
-// channels of §5.1. training/cnn/data.py and model.py are the same computations in Python;
-// tests/cnn/pytorch_test.cpp checks the whole op against them.
+// KPCN's raw planes (Bako et al. 2017): the diffuse/specular split of §4.3 and the features,
+// read on a rectangle of the frame (a network tile's window: nothing here is whole-frame but
+// the depth range). training/cnn/data.py is the same computation in Python; the whole op is
+// checked against it (tests/cnn/cnn_test.cpp). The network inputs: branch_inputs.cpp.
 #include <algorithm>
 #include <cmath>
 
 #include <OpenImageIO/strutil.h>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 
 #include "cnn/cnn_steps.h"
-#include "nn/ops.h"
 
 namespace mcdn {
 namespace kpcn {
 
 namespace {
 
+/// Channels of src inside a rectangle of the frame, as read_plane reads them (sanitized).
+struct WindowReader {
+    const ImageBuf& src;
+    Rect rect;
+
+    const ImageSpec& spec() const { return src.spec(); }
+    Plane blank(float fill = 0.0f) const { return Plane(rect.width(), rect.height(), fill); }
+    Plane plane(int channel, bool is_variance = false) const
+    {
+        const ImageSpec& s = src.spec();
+        Plane plane = blank();
+        src.get_pixels(ROI(s.x + rect.x0, s.x + rect.x1, s.y + rect.y0, s.y + rect.y1, s.z,
+                           s.z + 1, channel, channel + 1),
+                       OIIO::TypeDesc::FLOAT, plane.data());
+        for (float& v : plane.px)
+            v = is_variance ? sanitize_variance(v) : sanitize(v);
+        return plane;
+    }
+};
+
 /// Index of "variance.<channel name>", or -1.
-int variance_channel(const ImageBuf& src, int channel)
+int variance_channel(const WindowReader& src, int channel)
 {
     const ImageSpec& spec = src.spec();
     return spec.channelindex(std::string(input_kind_prefix(InputKind::Variance))
@@ -26,7 +44,7 @@ int variance_channel(const ImageBuf& src, int channel)
 
 /// The three channels named `names` (mean and, when `variance` is given, their variance
 /// channels); false when any is missing.
-bool read_pass(const ImageBuf& src, const std::vector<std::string>& names, Plane mean[3],
+bool read_pass(const WindowReader& src, const std::vector<std::string>& names, Plane mean[3],
                Plane* variance = nullptr)
 {
     for (int c = 0; c < 3; ++c) {
@@ -36,9 +54,9 @@ bool read_pass(const ImageBuf& src, const std::vector<std::string>& names, Plane
         const int v = variance ? variance_channel(src, index) : 0;
         if (v < 0)
             return false;
-        mean[c] = read_plane(src, index);
+        mean[c] = src.plane(index);
         if (variance)
-            variance[c] = read_plane(src, v, true);
+            variance[c] = src.plane(v, true);
     }
     return true;
 }
@@ -55,7 +73,7 @@ std::vector<std::string> renamed(const std::vector<std::string>& names, const st
 /// Adds the value and delta-method variance of colour·(direct + indirect) to the sums:
 /// Var[C (D + I)] ~ C² (Var D + Var I) + (D + I)² Var C. False when a pass or one of its
 /// variances is missing (nothing is added then).
-bool add_product(const ImageBuf& src, const std::vector<std::string> names[3], Plane value[3],
+bool add_product(const WindowReader& src, const std::vector<std::string> names[3], Plane value[3],
                  Plane variance[3], bool& variance_complete)
 {
     Plane mean[3][3], var[3][3];
@@ -80,22 +98,22 @@ bool add_product(const ImageBuf& src, const std::vector<std::string> names[3], P
 
 /// Mean and variance of a feature role; the variance from its variance role, else from the
 /// half buffers ((A − B)² / 4 per pixel), else zero. Missing feature: zero planes.
-void read_feature(const ImageBuf& src, const AovSet& aovs, Role base, int channels, Plane* mean,
-                  Plane* variance, int width, int height)
+void read_feature(const WindowReader& src, const AovSet& aovs, Role base, int channels,
+                  Plane* mean, Plane* variance)
 {
     const Role var_role = face_of(base, Face::Variance);
     const Role a_role = face_of(base, Face::HalfA), b_role = face_of(base, Face::HalfB);
     for (int c = 0; c < channels; ++c) {
-        mean[c] = Plane(width, height);
-        variance[c] = Plane(width, height);
+        mean[c] = src.blank();
+        variance[c] = src.blank();
         if (!aovs.has(base))
             continue;
-        mean[c] = read_plane(src, aovs.channels(base)[c]);
+        mean[c] = src.plane(aovs.channels(base)[c]);
         if (aovs.has(var_role)) {
-            variance[c] = read_plane(src, aovs.channels(var_role)[c], true);
+            variance[c] = src.plane(aovs.channels(var_role)[c], true);
         } else if (aovs.has(a_role) && aovs.has(b_role)) {
-            Plane a = read_plane(src, aovs.channels(a_role)[c]);
-            Plane b = read_plane(src, aovs.channels(b_role)[c]);
+            Plane a = src.plane(aovs.channels(a_role)[c]);
+            Plane b = src.plane(aovs.channels(b_role)[c]);
             for (size_t i = 0; i < a.size(); ++i) {
                 const float d = a.px[i] - b.px[i];
                 variance[c].px[i] = sanitize_variance(0.25f * d * d);
@@ -104,35 +122,71 @@ void read_feature(const ImageBuf& src, const AovSet& aovs, Role base, int channe
     }
 }
 
+bool cycles_split(const AovSet& aovs)
+{
+    return aovs.has(Role::DiffuseColor) && aovs.has(Role::DiffuseDirect)
+           && aovs.has(Role::DiffuseIndirect);
+}
+
+/// The albedo divided out of the diffuse: DiffCol with Blender's passes, the feature albedo
+/// with the generic preset's diffuse, else 1.
+void read_demod(const WindowReader& src, const AovSet& aovs, Plane demod[3])
+{
+    for (int c = 0; c < 3; ++c)
+        demod[c] = src.blank(1.0f);
+    if (cycles_split(aovs))
+        read_pass(src, aovs.names(Role::DiffuseColor), demod);
+    else if (aovs.has(Role::Diffuse) && aovs.has(Role::Albedo))
+        for (int c = 0; c < 3; ++c)
+            demod[c] = src.plane(aovs.channels(Role::Albedo)[c]);
+}
+
+Rect whole_frame(const ImageBuf& src) { return { 0, 0, src.spec().width, src.spec().height }; }
+
 }  // namespace
 
-bool read_raw_planes(RawPlanes& raw, const ImageBuf& src, const AovSet& aovs, std::string& error)
+void read_colour_and_demod(RawPlanes& raw, const ImageBuf& src, const AovSet& aovs)
 {
+    const WindowReader reader { src, whole_frame(src) };
+    raw.rect = reader.rect;
+    raw.frame_width = reader.rect.width();
+    raw.frame_height = reader.rect.height();
+    for (int c = 0; c < 3; ++c)
+        raw.color[c] = reader.plane(aovs.channels(Role::Color)[c]);
+    raw.split = cycles_split(aovs) || aovs.has(Role::Diffuse);
+    if (raw.split)  // without a split there is no diffuse to multiply
+        read_demod(reader, aovs, raw.demod);
+}
+
+bool read_raw_planes(RawPlanes& raw, const ImageBuf& src, const AovSet& aovs, std::string& error,
+                     Rect rect)
+{
+    const WindowReader reader { src, rect.empty() ? whole_frame(src) : rect };
+    raw.rect = reader.rect;
+    raw.frame_width = src.spec().width;
+    raw.frame_height = src.spec().height;
     const auto& colour = aovs.channels(Role::Color);
     for (int c = 0; c < 3; ++c) {
-        raw.color[c] = read_plane(src, colour[c]);
+        raw.color[c] = reader.plane(colour[c]);
         raw.color_var[c] = aovs.has(Role::ColorVariance)
-                               ? read_plane(src, aovs.channels(Role::ColorVariance)[c], true)
-                               : Plane(raw.color[c].width, raw.color[c].height);
+                               ? reader.plane(aovs.channels(Role::ColorVariance)[c], true)
+                               : reader.blank();
     }
     const int w = raw.width(), h = raw.height();
     for (int c = 0; c < 3; ++c) {
         raw.diffuse[c] = Plane(w, h);
         raw.diffuse_var[c] = Plane(w, h);
         raw.specular_var[c] = Plane(w, h);
-        raw.demod[c] = Plane(w, h, 1.0f);
     }
+    read_demod(reader, aovs, raw.demod);
     bool diffuse_var_complete = true, specular_var_complete = true;
 
-    const bool cycles_split = aovs.has(Role::DiffuseColor) && aovs.has(Role::DiffuseDirect)
-                              && aovs.has(Role::DiffuseIndirect);
-    if (cycles_split) {
+    if (cycles_split(aovs)) {
         // §4.3 with Blender's passes: diffuse = DiffCol (DiffDir + DiffInd).
         const std::vector<std::string> diffuse[3] = { aovs.names(Role::DiffuseColor),
                                                       aovs.names(Role::DiffuseDirect),
                                                       aovs.names(Role::DiffuseIndirect) };
-        add_product(src, diffuse, raw.diffuse, raw.diffuse_var, diffuse_var_complete);
-        read_pass(src, diffuse[0], raw.demod);
+        add_product(reader, diffuse, raw.diffuse, raw.diffuse_var, diffuse_var_complete);
         // Specular = Combined − diffuse: glossy and transmission products, emission,
         // environment. Only their variances are needed (the value is the difference).
         Plane unused[3] = { Plane(w, h), Plane(w, h), Plane(w, h) };
@@ -141,19 +195,19 @@ bool read_raw_planes(RawPlanes& raw, const ImageBuf& src, const AovSet& aovs, st
             const std::vector<std::string> glossy[3] = { aovs.names(Role::GlossyColor),
                                                          aovs.names(Role::GlossyDirect),
                                                          aovs.names(Role::GlossyIndirect) };
-            add_product(src, glossy, unused, raw.specular_var, specular_var_complete);
+            add_product(reader, glossy, unused, raw.specular_var, specular_var_complete);
         }
         // Cycles' transmission passes have no role; they sit beside DiffCol in the same layer.
         const auto& diffcol = diffuse[0];
         const std::vector<std::string> trans[3] = { renamed(diffcol, "DiffCol", "TransCol"),
                                                     renamed(diffcol, "DiffCol", "TransDir"),
                                                     renamed(diffcol, "DiffCol", "TransInd") };
-        add_product(src, trans, unused, raw.specular_var, specular_var_complete);
+        add_product(reader, trans, unused, raw.specular_var, specular_var_complete);
         for (Role added : { Role::Emission, Role::Environment }) {
             if (!aovs.has(added))
                 continue;
             Plane mean[3], var[3];
-            if (!read_pass(src, aovs.names(added), mean, var)) {
+            if (!read_pass(reader, aovs.names(added), mean, var)) {
                 specular_var_complete = false;
                 continue;
             }
@@ -165,18 +219,16 @@ bool read_raw_planes(RawPlanes& raw, const ImageBuf& src, const AovSet& aovs, st
     } else if (aovs.has(Role::Diffuse)) {
         // Generic preset: the diffuse component given, divided by the feature albedo.
         Plane mean[3], var[3];
-        diffuse_var_complete = read_pass(src, aovs.names(Role::Diffuse), mean, var);
+        diffuse_var_complete = read_pass(reader, aovs.names(Role::Diffuse), mean, var);
         if (!diffuse_var_complete)
-            read_pass(src, aovs.names(Role::Diffuse), mean);
+            read_pass(reader, aovs.names(Role::Diffuse), mean);
         for (int c = 0; c < 3; ++c) {
             raw.diffuse[c] = mean[c];
             if (diffuse_var_complete)
                 raw.diffuse_var[c] = var[c];
-            if (aovs.has(Role::Albedo))
-                raw.demod[c] = read_plane(src, aovs.channels(Role::Albedo)[c]);
         }
         specular_var_complete = aovs.has(Role::Specular)
-                                && read_pass(src, aovs.names(Role::Specular), mean, var);
+                                && read_pass(reader, aovs.names(Role::Specular), mean, var);
         if (specular_var_complete)
             for (int c = 0; c < 3; ++c)
                 raw.specular_var[c] = var[c];
@@ -206,22 +258,45 @@ bool read_raw_planes(RawPlanes& raw, const ImageBuf& src, const AovSet& aovs, st
             raw.albedo_var[c] = Plane(w, h);
         }
     } else {
-        read_feature(src, aovs, albedo, 3, raw.albedo, raw.albedo_var, w, h);
+        read_feature(reader, aovs, albedo, 3, raw.albedo, raw.albedo_var);
     }
-    read_feature(src, aovs, Role::Normal, 3, raw.normal, raw.normal_var, w, h);
-    read_feature(src, aovs, Role::Depth, 1, &raw.depth, &raw.depth_var, w, h);
+    read_feature(reader, aovs, Role::Normal, 3, raw.normal, raw.normal_var);
+    read_feature(reader, aovs, Role::Depth, 1, &raw.depth, &raw.depth_var);
     error.clear();
     return true;
 }
 
-void scale_depth(RawPlanes& raw)
+DepthRange depth_range(const Plane& depth)
 {
     float lo = INFINITY, hi = -INFINITY;
-    for (float d : raw.depth.px) {
+    for (float d : depth.px) {
         lo = std::min(lo, d);
         hi = std::max(hi, d);
     }
-    const float span = hi - lo;
+    return { lo, hi - lo };
+}
+
+DepthRange depth_range(const ImageBuf& src, const AovSet& aovs)
+{
+    if (!aovs.has(Role::Depth))
+        return {};  // zero depth
+    // Bands of rows: the range without a whole-frame plane (133 MB at 8K).
+    constexpr int kBandRows = 64;
+    const int channel = aovs.channels(Role::Depth)[0];
+    float lo = INFINITY, hi = -INFINITY;
+    for (int y = 0; y < src.spec().height; y += kBandRows) {
+        const WindowReader band { src, { 0, y, src.spec().width,
+                                         std::min(y + kBandRows, src.spec().height) } };
+        const DepthRange r = depth_range(band.plane(channel));
+        lo = std::min(lo, r.lo);
+        hi = std::max(hi, r.lo + r.span);
+    }
+    return { lo, hi - lo };
+}
+
+void scale_depth(RawPlanes& raw, const DepthRange& range)
+{
+    const float lo = range.lo, span = range.span;
     if (!(span > 0)) {
         std::fill(raw.depth.px.begin(), raw.depth.px.end(), 0.0f);
         std::fill(raw.depth_var.px.begin(), raw.depth_var.px.end(), 0.0f);
@@ -231,95 +306,6 @@ void scale_depth(RawPlanes& raw)
         raw.depth.px[i] = (raw.depth.px[i] - lo) / span;
         raw.depth_var.px[i] = raw.depth_var.px[i] / (span * span);
     }
-}
-
-namespace {
-
-float finite_input(float v)
-{
-    if (!(v == v))
-        return 0.0f;
-    return std::min(std::max(v, -kInputLimit), kInputLimit);
-}
-
-float relu(float v) { return v > 0 ? v : 0.0f; }
-
-}  // namespace
-
-void branch_inputs(const RawPlanes& raw, Branch branch, nn::Tensor& features, nn::Tensor& image)
-{
-    const int w = raw.width(), h = raw.height();
-    const size_t n = size_t(w) * h;
-    // Colour in the network domain (0-2), its variance there (3), and the image the kernels
-    // filter. Variances move by the Taylor rule of §5.1: Var h(X) ~ h'(mu)² Var X.
-    constexpr int kGuides = 10;  // colour 3, albedo 3, normal 3, depth 1: their gradients
-    std::vector<float> guides;
-    guides.reserve(n * kGuides);
-    nn::advise_huge_pages(guides.data(), n * kGuides * sizeof(float));  // a frame: ~80 MB
-    guides.resize(n * kGuides);
-    features = nn::Tensor();
-    nn::reshape(features, h, w, kInputChannels);  // on 2 MB pages: ~300 MB for a frame
-    image = nn::Tensor(h, w, 3);
-    // Threaded over rows (a frame is ~2M pixels); each value is one thread's, so the result
-    // does not depend on the thread count.
-    auto for_rows = [h](auto row) {
-        tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& r) {
-            for (int y = r.begin(); y != r.end(); ++y)
-                row(y);
-        });
-    };
-    for_rows([&](int y) {
-        for (size_t i = size_t(y) * w; i < size_t(y + 1) * w; ++i) {
-            float* f = features.data.data() + i * kInputChannels;
-            float* g = guides.data() + i * kGuides;
-            float colour_var_sum = 0;
-            for (int c = 0; c < 3; ++c) {
-                float colour, variance;
-                if (branch == Branch::diffuse) {
-                    const float demod = relu(raw.demod[c].px[i]) + kAlbedoEpsilon;
-                    const float irradiance = relu(raw.diffuse[c].px[i]) / demod;
-                    const float irradiance_var = raw.diffuse_var[c].px[i] / (demod * demod);
-                    colour = std::log1p(irradiance);
-                    variance = irradiance_var / ((1 + irradiance) * (1 + irradiance));
-                    image.data[i * 3 + c] = irradiance;
-                } else {
-                    const float specular = relu(raw.specular[c].px[i]);
-                    colour = std::log1p(specular);
-                    variance = raw.specular_var[c].px[i] / ((1 + specular) * (1 + specular));
-                    image.data[i * 3 + c] = colour;
-                }
-                f[c] = colour;
-                g[c] = colour;
-                colour_var_sum += variance;
-            }
-            f[3] = std::log1p(relu(colour_var_sum / 3));
-            float albedo_var = 0, normal_var = 0;
-            for (int c = 0; c < 3; ++c) {
-                f[4 + c] = g[3 + c] = std::log1p(relu(raw.albedo[c].px[i]));
-                f[7 + c] = g[6 + c] = raw.normal[c].px[i];
-                albedo_var += raw.albedo_var[c].px[i];
-                normal_var += raw.normal_var[c].px[i];
-            }
-            f[10] = g[9] = raw.depth.px[i];
-            f[11] = std::log1p(relu(albedo_var / 3));
-            f[12] = std::log1p(relu(normal_var / 3));
-            f[13] = std::log1p(relu(raw.depth_var.px[i]));
-        }
-    });
-    // Gradients (§5.1): forward differences, zero in the last column / row.
-    for_rows([&](int y) {
-        for (int x = 0; x < w; ++x) {
-            const size_t i = size_t(y) * w + x;
-            float* f = features.data.data() + i * kInputChannels;
-            const float* g = guides.data() + i * kGuides;
-            for (int k = 0; k < kGuides; ++k) {
-                f[14 + k] = x + 1 < w ? g[kGuides + k] - g[k] : 0.0f;
-                f[24 + k] = y + 1 < h ? g[size_t(w) * kGuides + k] - g[k] : 0.0f;
-            }
-            for (int k = 0; k < kInputChannels; ++k)
-                f[k] = finite_input(f[k]);
-        }
-    });
 }
 
 }  // namespace kpcn

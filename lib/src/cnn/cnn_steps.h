@@ -4,12 +4,15 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "core/planar.h"
 #include "mcdn/aov.h"
 #include "mcdn/nn.h"
 
 namespace mcdn {
+struct ExtraPlanes;  // core/extra_aovs.h
+
 namespace kpcn {
 
 constexpr const char* kInputLayout = "kpcn-cpu-1";  // model.py INPUT_LAYOUT
@@ -18,10 +21,13 @@ constexpr float kAlbedoEpsilon = 0.00316f;          // §4.3
 constexpr float kInputLimit = 1e3f;                 // network inputs clamped to +-this
 constexpr int kKernel = 5;                          // each reconstruction step is 5×5
 
-/// What the op reads, one plane per channel, sanitized (finite). Depth is unscaled until
-/// scale_depth(). Without a split, diffuse is zero and specular is the colour.
+/// What the op reads, one plane per channel, sanitized (finite), on a rectangle of the frame
+/// (a network tile's window, or the whole frame). Depth is unscaled until scale_depth().
+/// Without a split, diffuse is zero and specular is the colour.
 struct RawPlanes {
     bool split = false;
+    Rect rect;                             // where the planes lie in the frame
+    int frame_width = 0, frame_height = 0;
     Plane color[3], color_var[3];
     Plane diffuse[3], diffuse_var[3];
     Plane specular[3], specular_var[3];
@@ -31,20 +37,52 @@ struct RawPlanes {
     int height() const { return color[0].height; }
 };
 
-/// Reads the raw planes (training/cnn/data.py load_render). Component variances: the delta
-/// method over the passes, Var[C (D + I)] ~ C² (Var D + Var I) + (D + I)² Var C, passes
-/// taken as independent; where a pass has no variance channel, the colour's variance.
+/// Reads the raw planes (training/cnn/data.py load_render) of `rect` (empty: the whole
+/// frame). Component variances: the delta method over the passes, Var[C (D + I)] ~ C² (Var D
+/// + Var I) + (D + I)² Var C, passes taken as independent; where a pass has no variance
+/// channel, the colour's variance.
 bool read_raw_planes(RawPlanes& raw, const ImageBuf& src, const AovSet& aovs,
-                     std::string& error);
+                     std::string& error, Rect rect = {});
+/// What eq. 4 needs of the render on the whole frame besides the networks' outputs: the
+/// colour (kept on converged tiles), the split, and with it the albedo divided out of the
+/// diffuse.
+void read_colour_and_demod(RawPlanes& raw, const ImageBuf& src, const AovSet& aovs);
 
-/// §5.1: depth scaled linearly to [0, 1] over the frame (its variance by the same factor²).
-void scale_depth(RawPlanes& raw);
+/// §5.1 scales depth linearly to [0, 1] over the frame: the one input statistic of the
+/// whole frame, so it is taken before the tiles. span <= 0: constant depth (scaled to 0).
+struct DepthRange {
+    float lo = 0, span = 0;
+};
+/// The range of the (sanitized) depth feature of src; read in bands, no whole-frame plane.
+DepthRange depth_range(const ImageBuf& src, const AovSet& aovs);
+DepthRange depth_range(const Plane& depth);
+/// Depth to [0, 1] by the frame's range (its variance by the same factor²).
+void scale_depth(RawPlanes& raw, const DepthRange& range);
+inline void scale_depth(RawPlanes& raw) { scale_depth(raw, depth_range(raw.depth)); }
 
 enum class Branch { diffuse, specular };
 
+/// The frame pixels a network tile's inputs are computed from: the window clipped to the
+/// frame (past it, the last row and column stand for the rest), and one more column and row
+/// (the forward differences of its last ones).
+Rect inputs_rect(const nn::Region& window, int frame_width, int frame_height);
+
 /// The 34 network input channels of a branch (layout in training/cnn/model.py) and the image
-/// its kernels filter: irradiance = diffuse / (demod + eps), or log(1 + specular).
+/// its kernels filter: irradiance = diffuse / (demod + eps), or log(1 + specular); on the
+/// `window` of the frame extended as nn::run_tiled extends it (rows and columns past the
+/// frame repeat its last), from raw planes covering inputs_rect(window). The tensors' storage
+/// is reused.
+void branch_inputs(const RawPlanes& raw, Branch branch, const nn::Region& window,
+                   nn::Tensor& features, nn::Tensor& image);
+/// The same on the whole frame of `raw` (the bench's and the tests' whole-frame inputs).
 void branch_inputs(const RawPlanes& raw, Branch branch, nn::Tensor& features, nn::Tensor& image);
+
+/// The op's nn::TileInputs: read_raw_planes, scale_depth and branch_inputs on a tile's
+/// window, in strips of rows (each read and computed in cache, threaded), the extras' parts
+/// appended to the image (extras.h).
+bool tile_inputs(const ImageBuf& src, const AovSet& aovs, const DepthRange& depth, Branch branch,
+                 const std::vector<ExtraPlanes>& extras, const nn::Region& window,
+                 nn::Tensor& features, nn::Tensor& image, std::string& error);
 
 /// The two branch networks of a weights file ("diffuse.*", "specular.*" tensors).
 struct Model {

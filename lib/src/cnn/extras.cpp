@@ -18,26 +18,27 @@ float diffuse_fraction(const RawPlanes& raw, int c, size_t i)
 
 }  // namespace
 
-nn::Tensor with_extra_parts(const nn::Tensor& image, const RawPlanes& raw,
-                            const std::vector<ExtraPlanes>& extras, Branch branch)
+void add_extra_parts(nn::Tensor& image, const RawPlanes& raw, const std::vector<ExtraPlanes>& extras,
+                     Branch branch, const nn::Region& window, int first, int last)
 {
-    const int parts = 1 + int(extras.size());
-    nn::Tensor out(image.height, image.width, 3 * (1 + parts));
-    const size_t n = size_t(image.height) * image.width;
-    for (size_t i = 0; i < n; ++i) {
-        float* o = out.data.data() + i * out.channels;
-        for (int c = 0; c < 3; ++c) {
-            o[c] = image.data[i * 3 + c];
-            const float r = diffuse_fraction(raw, c, i);
-            const float share = branch == Branch::diffuse
-                                    ? r / (std::max(raw.demod[c].px[i], 0.0f) + kAlbedoEpsilon)
-                                    : 1.0f - r;
-            o[3 + c] = share * raw.color[c].px[i];
-            for (int e = 0; e < int(extras.size()); ++e)
-                o[6 + 3 * e + c] = share * extras[e].mean[c].px[i];
+    for (int wy = first; wy < last; ++wy)
+        for (int wx = 0; wx < image.width; ++wx) {
+            // The frame pixel (past the frame: its last row and column, as run_tiled extends).
+            const int y = std::min(window.y0 + wy, raw.frame_height - 1);
+            const int x = std::min(window.x0 + wx, raw.frame_width - 1);
+            const size_t i = size_t(y - raw.rect.y0) * raw.width() + (x - raw.rect.x0);
+            const size_t frame_i = size_t(y) * raw.frame_width + x;
+            float* o = image.pixel(wy, wx);
+            for (int c = 0; c < 3; ++c) {
+                const float r = diffuse_fraction(raw, c, i);
+                const float share = branch == Branch::diffuse
+                                        ? r / (std::max(raw.demod[c].px[i], 0.0f) + kAlbedoEpsilon)
+                                        : 1.0f - r;
+                o[3 + c] = share * raw.color[c].px[i];
+                for (int e = 0; e < int(extras.size()); ++e)
+                    o[6 + 3 * e + c] = share * extras[e].mean[c].px[frame_i];
+            }
         }
-    }
-    return out;
 }
 
 void write_extras(ImageBuf& dst, ROI roi, const std::vector<ExtraPlanes>& extras,

@@ -15,10 +15,12 @@
 namespace mcdn {
 namespace kpcn {
 
-/// The branch's image with the parts its kernels filter for the extras appended: the
-/// colour's part, then each extra's (3 channels each; the diffuse parts demodulated).
-nn::Tensor with_extra_parts(const nn::Tensor& image, const RawPlanes& raw,
-                            const std::vector<ExtraPlanes>& extras, Branch branch);
+/// Rows [first, last) of the image of a tile's `window` (branch_inputs wrote channels 0-2;
+/// 3 × (2 + extras) channels in all): the parts the branch's kernels filter for the extras,
+/// the colour's part, then each extra's (3 channels each; the diffuse parts demodulated).
+/// `raw` covers inputs_rect of those rows; the extras' planes are the whole frame's.
+void add_extra_parts(nn::Tensor& image, const RawPlanes& raw, const std::vector<ExtraPlanes>& extras,
+                     Branch branch, const nn::Region& window, int first, int last);
 
 /// One branch's result: its denoised component (3 planes, in the beauty's units) and the
 /// filtered image of with_extra_parts (the parts from channel 3 on).

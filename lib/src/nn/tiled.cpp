@@ -2,7 +2,8 @@
 // pixels so that every output pixel of the tile's core sees exactly what it would see in a
 // whole-image run. Tile windows are clamped to the image (so the image border is the same
 // zero padding as in a whole-image run) and start at multiples of alignment() (so the
-// pooling grid is the same). Memory is bounded by the tile, not the image.
+// pooling grid is the same). Memory is bounded by the tile, not the image; with a TileInputs
+// callback (KPCN) not even the inputs exist for the whole image.
 #include <algorithm>
 
 #include "mcdn/nn.h"
@@ -46,6 +47,22 @@ bool run_tiled(Net& net, const std::vector<Tensor>& inputs, std::vector<Tensor>&
             error = "network '" + net.name() + "': run_tiled inputs differ in size";
             return false;
         }
+    auto cut = [&](const Region& window, std::vector<Tensor>& tile_inputs, std::string&) {
+        tile_inputs.resize(inputs.size());
+        for (size_t i = 0; i < inputs.size(); ++i)
+            extract_window(inputs[i], window.y0, window.y1, window.x0, window.x1, tile_inputs[i]);
+        return true;
+    };
+    return run_tiled(net, height, width, cut, outputs, error, options);
+}
+
+bool run_tiled(Net& net, int height, int width, const TileInputs& make_inputs,
+               std::vector<Tensor>& outputs, std::string& error, const TileOptions& options)
+{
+    if (height <= 0 || width <= 0) {
+        error = "network '" + net.name() + "': run_tiled needs a non-empty image";
+        return false;
+    }
     const int alignment = net.alignment();
     const int halo = round_up(net.receptive_radius(), alignment);
     const int tile = round_up(std::max(options.tile_size, 1), alignment);
@@ -86,10 +103,10 @@ bool run_tiled(Net& net, const std::vector<Tensor>& inputs, std::vector<Tensor>&
 
     outputs.clear();
     // Kept across tiles: the windows' storage, and the outputs', which run() reuses.
-    std::vector<Tensor> tile_inputs(inputs.size()), tile_outputs;
+    std::vector<Tensor> tile_inputs, tile_outputs;
     for (const Tile& t : order) {
-        for (size_t i = 0; i < inputs.size(); ++i)
-            extract_window(inputs[i], t.y0, t.y1, t.x0, t.x1, tile_inputs[i]);
+        if (!make_inputs({ t.x0, t.y0, t.x1, t.y1 }, tile_inputs, error))
+            return false;
         if (!net.run(tile_inputs, tile_outputs, error, options.backend))
             return false;
         if (outputs.empty())
