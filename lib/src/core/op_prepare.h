@@ -7,6 +7,11 @@
 
 namespace mcdn {
 
+/// The checks of prepare_op without the copy (for ops that read src in bands): on failure
+/// `error` names `op`.
+bool check_op_input(const ImageBuf& src, const AovSpec& spec, AovSet& aovs, const char* op,
+                    std::string& error);
+
 /// On failure sets an error on dst naming `op` and returns false.
 bool prepare_op(ImageBuf& dst, const ImageBuf& src, const AovSpec& spec, AovSet& aovs,
                 const char* op);
