@@ -50,9 +50,11 @@ struct SureOptions {
     /// whole-frame run's, and memory follows the band (core/bands.h). -1 (not known: the
     /// cnn, a Python callable): the whole frame at once.
     int denoiser_radius = -1;
-    /// Pixels of one band, its halos included (so that a denoiser with the same band_pixels,
-    /// as prefilter and nfor have, runs each band whole instead of cutting it again).
-    int64_t band_pixels = int64_t(1) << 22;
+    /// Pixels of one band, halos not counted: half of prefilter's and nfor's band_pixels, so
+    /// that a band with its halos (up to 136 rows each side at 7680 wide) stays within theirs
+    /// and they run it whole instead of cutting it again. At 7680x4320 with --prefilter the
+    /// frame, its output and one band's work peak at ~14 GB (README).
+    int64_t band_pixels = int64_t(1) << 21;
 };
 
 /// Channel names the op writes (besides replacing the colour role by y = F(x)).

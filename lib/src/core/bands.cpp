@@ -11,7 +11,7 @@
 
 namespace mcdn {
 
-std::vector<Band> plan_bands(const ROI& whole, int halo, int64_t band_pixels, bool halo_counts)
+std::vector<Band> plan_bands(const ROI& whole, int halo, int64_t band_pixels)
 {
     const int64_t width = std::max<int64_t>(1, whole.width());
     const int height = whole.height();
@@ -23,10 +23,7 @@ std::vector<Band> plan_bands(const ROI& whole, int halo, int64_t band_pixels, bo
     const int grid = kConvergedTileSize;
     auto round_up = [grid](int64_t v) { return int((v + grid - 1) / grid * grid); };
     halo = round_up(halo);
-    int max_rows = int(band_pixels / width) / grid * grid;
-    if (halo_counts)
-        max_rows -= 2 * halo;
-    max_rows = std::max(grid, max_rows);
+    const int max_rows = std::max(grid, int(band_pixels / width) / grid * grid);
     const int nbands = (height + max_rows - 1) / max_rows;
     const int rows = round_up((height + nbands - 1) / nbands);
     std::vector<Band> bands;

@@ -28,11 +28,8 @@ struct Band {
 
 /// The bands run_in_bands cuts `whole` into: one band (the whole frame) when it has at most
 /// band_pixels pixels or band_pixels <= 0; else equal bands of at most band_pixels own
-/// pixels, starts and halos rounded to whole converged tiles (mcdn/skip.h). With
-/// `halo_counts`, band_pixels bounds the band with its halos instead (at least one tile row
-/// of its own), so that an op run inside the band with the same band_pixels runs it whole.
-std::vector<Band> plan_bands(const ROI& whole, int halo, int64_t band_pixels,
-                             bool halo_counts = false);
+/// pixels, starts and halos rounded to whole converged tiles (mcdn/skip.h).
+std::vector<Band> plan_bands(const ROI& whole, int halo, int64_t band_pixels);
 
 /// Rows `rows` of channel `channel` of `src` into a plane of the rows' size, sanitized as
 /// read_plane does (core/planar.h): read_plane of one band without copying the band.

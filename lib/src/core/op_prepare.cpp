@@ -30,6 +30,16 @@ void advise_huge_pages(void* data, size_t bytes)
 
 }  // namespace
 
+void allocate_frame(ImageBuf& dst, const ImageSpec& spec, bool zero)
+{
+    dst.reset(spec, OIIO::InitializePixels::No);
+    if (!dst.localpixels())
+        return;
+    advise_huge_pages(dst.localpixels(), dst.spec().image_bytes());
+    if (zero)
+        std::memset(dst.localpixels(), 0, dst.spec().image_bytes());
+}
+
 bool check_op_input(const ImageBuf& src, const AovSpec& spec, AovSet& aovs, const char* op,
                     std::string& error)
 {

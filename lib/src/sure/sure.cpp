@@ -45,7 +45,8 @@ ImageBuf copy_rows(const ImageBuf& src, const ROI& cut)
     spec.set_format(OIIO::TypeDesc::FLOAT);
     spec.y = cut.ybegin;
     spec.height = cut.height();
-    ImageBuf band(spec, OIIO::InitializePixels::No);
+    ImageBuf band;
+    allocate_frame(band, spec, false);
     ROI all = cut;
     all.chbegin = 0;
     all.chend = spec.nchannels;
@@ -91,7 +92,7 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
     // Bands only when the denoiser says how far it reaches (SureOptions::denoiser_radius).
     const std::vector<Band> bands =
         options.denoiser_radius >= 0
-            ? plan_bands(frame.whole, options.denoiser_radius, options.band_pixels, true)
+            ? plan_bands(frame.whole, options.denoiser_radius, options.band_pixels)
             : plan_bands(frame.whole, 0, 0);
     ImageBuf out;
     for (const Band& band : bands) {

@@ -5,6 +5,7 @@
 #include <OpenImageIO/strutil.h>
 
 #include "core/converged_tiles.h"
+#include "core/op_prepare.h"
 #include "core/random.h"
 #include "sure/sure_steps.h"
 
@@ -45,7 +46,7 @@ void allocate_output(ImageBuf& dst, const ImageSpec& denoised, const SureFrame& 
     const ROI& w = frame.where;
     const bool written_everywhere = w.xbegin <= frame.whole.xbegin && w.xend >= frame.whole.xend
                                     && w.ybegin <= frame.whole.ybegin && w.yend >= frame.whole.yend;
-    dst.reset(spec, written_everywhere ? OIIO::InitializePixels::No : OIIO::InitializePixels::Yes);
+    allocate_frame(dst, spec, !written_everywhere);
 }
 
 // The denoised band's own rows, every channel, into the leading channels of dst.
