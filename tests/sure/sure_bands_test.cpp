@@ -87,3 +87,13 @@ TEST(SureBands, TooSmallARadiusShows)
     ImageBuf a = sure_of(src, box_denoiser(2), whole), b = sure_of(src, box_denoiser(2), banded);
     EXPECT_GT(max_difference(a, b), 1e-4f);
 }
+
+TEST(SureBands, ChainRadiusCoversEachStageOnTheInputItGets)
+{
+    // nfor prefilters itself (75) unless a prefilter ran before it (13 + 62); a stage of
+    // unknown reach (the cnn, a callable) makes the chain's unknown: SURE runs it whole.
+    EXPECT_EQ(chain_radius({ stage_reach(NforOptions()) }), 75);
+    EXPECT_EQ(chain_radius({ stage_reach(PrefilterOptions()), stage_reach(NforOptions()) }), 75);
+    EXPECT_EQ(chain_radius({ stage_reach(NforOptions()), stage_reach(PrefilterOptions()) }), 88);
+    EXPECT_EQ(chain_radius({ stage_reach(PrefilterOptions()), StageReach() }), -1);
+}
