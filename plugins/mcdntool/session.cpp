@@ -36,8 +36,8 @@ bool Session::load(std::string& error)
     return true;
 }
 
-bool Session::take_denoiser_chain(mcdn::Denoiser& chain, ImageBuf& chain_input,
-                                  std::string& error)
+bool Session::take_denoiser_chain(mcdn::Denoiser& chain, int& chain_radius,
+                                  ImageBuf& chain_input, std::string& error)
 {
     if (!load_inputs(error))
         return false;
@@ -53,6 +53,10 @@ bool Session::take_denoiser_chain(mcdn::Denoiser& chain, ImageBuf& chain_input,
     m_image = ImageBuf();
     m_queue.clear();
     std::vector<std::pair<std::string, mcdn::Denoiser>> denoisers;
+    std::vector<mcdn::StageReach> reach;
+    for (const auto& stage : stages)
+        reach.push_back(stage.reach);
+    chain_radius = mcdn::chain_radius(reach);
     for (const auto& stage : stages)
         denoisers.emplace_back(stage.name, [op = stage.op, threads = nthreads](
                                                ImageBuf& dst, const ImageBuf& src) {

@@ -10,6 +10,7 @@
 
 #include "mcdn/aov.h"
 #include "mcdn/io.h"
+#include "mcdn/settings.h"
 #include "mcdn/sure.h"
 
 #include "command.h"
@@ -33,14 +34,19 @@ public:
     /// afterwards image() is the current result.
     bool load(std::string& error);
 
-    /// Queues a denoiser (--prefilter, --nfor) to run at the next load().
-    void queue(const std::string& name, StageOp op) { m_queue.push_back({ name, std::move(op) }); }
+    /// Queues a denoiser (--prefilter, --nfor) to run at the next load(); `reach`: how far
+    /// it reaches (unknown by default), for SURE's bands.
+    void queue(const std::string& name, StageOp op, mcdn::StageReach reach = {})
+    {
+        m_queue.push_back({ name, std::move(op), reach });
+    }
     /// The denoisers run (or queued) since the inputs were read, as one Denoiser for SURE,
-    /// and the image they started from, moved out of the session: the caller replaces the
-    /// current image (apply_to); an error if there is none. Denoisers that already ran (an
-    /// --info or --metrics came between) run again inside SURE.
-    bool take_denoiser_chain(mcdn::Denoiser& chain, OIIO::ImageBuf& chain_input,
-                             std::string& error);
+    /// with how far they reach (mcdn::chain_radius, -1 unknown), and the image they started
+    /// from, moved out of the session: the caller replaces the current image (apply_to); an
+    /// error if there is none. Denoisers that already ran (an --info or --metrics came
+    /// between) run again inside SURE.
+    bool take_denoiser_chain(mcdn::Denoiser& chain, int& chain_radius,
+                             OIIO::ImageBuf& chain_input, std::string& error);
     /// Loads, then replaces the current image by op(current image).
     bool apply(const std::string& name, const StageOp& op, std::string& error);
     /// Loads, then replaces the current image by op(input), timing it like apply().
@@ -58,6 +64,7 @@ private:
     struct Queued {
         std::string name;
         StageOp op;
+        mcdn::StageReach reach;
     };
     bool load_inputs(std::string& error);
     bool m_loaded = false;

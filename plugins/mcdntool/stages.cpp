@@ -47,7 +47,7 @@ bool queue_prefilter(Session& s, const Command& c, std::string& error)
     o.aovs = s.aov_spec;
     s.queue("prefilter", [o](ImageBuf& dst, const ImageBuf& src, int nthreads) {
         return mcdn::prefilter(dst, src, o, {}, nthreads);
-    });
+    }, mcdn::stage_reach(o));
     return true;
 }
 
@@ -59,7 +59,7 @@ bool queue_nfor(Session& s, const Command& c, std::string& error)
     o.aovs = o.prefilter.aovs = s.aov_spec;
     s.queue("nfor", [o](ImageBuf& dst, const ImageBuf& src, int nthreads) {
         return mcdn::nfor(dst, src, o, {}, nthreads);
-    });
+    }, mcdn::stage_reach(o));
     return true;
 }
 
@@ -83,7 +83,7 @@ bool run_sure(Session& s, const Command& c, std::string& error)
     o.aovs = s.aov_spec;
     mcdn::Denoiser denoiser;
     ImageBuf render;
-    if (!s.take_denoiser_chain(denoiser, render, error))
+    if (!s.take_denoiser_chain(denoiser, o.denoiser_radius, render, error))
         return false;
     return s.apply_to("sure", render, [&](ImageBuf& dst, const ImageBuf& src, int nthreads) {
         return mcdn::sure(dst, src, denoiser, o, {}, nthreads);

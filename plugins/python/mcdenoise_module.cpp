@@ -66,9 +66,11 @@ template<class Op> ImageBuf run(const ImageBuf& src, Op op)
     return dst;
 }
 
+// A denoiser by name, and how far it reaches (SureOptions::denoiser_radius).
 mcdn::Denoiser named_denoiser(const std::string& chain, const mcdn::AovSpec& spec,
-                              const mcdn::SkipOptions& skip, int nthreads)
+                              const mcdn::SkipOptions& skip, int nthreads, int& radius)
 {
+    radius = -1;
     if (chain == "cnn")
         return [spec, skip, nthreads](ImageBuf& dst, const ImageBuf& src) {
             mcdn::CnnOptions o;
@@ -76,7 +78,8 @@ mcdn::Denoiser named_denoiser(const std::string& chain, const mcdn::AovSpec& spe
             o.skip = skip;
             return mcdn::cnn(dst, src, o, {}, nthreads);
         };
-    if (chain == "nfor" || chain == "prefilter,nfor")
+    if (chain == "nfor" || chain == "prefilter,nfor") {
+        radius = mcdn::chain_radius({ mcdn::stage_reach(mcdn::NforOptions()) });
         return [spec, skip, nthreads](ImageBuf& dst, const ImageBuf& src) {
             mcdn::NforOptions o;
             o.aovs = spec;
@@ -84,6 +87,7 @@ mcdn::Denoiser named_denoiser(const std::string& chain, const mcdn::AovSpec& spe
             o.prefilter.aovs = spec;
             return mcdn::nfor(dst, src, o, {}, nthreads);
         };
+    }
     throw std::runtime_error("sure: unknown denoiser '" + chain + "' (use 'nfor', 'cnn' or a callable)");
 }
 
@@ -226,7 +230,8 @@ PYBIND11_MODULE(mcdenoise, m)
                     { "converged", text(converged) } });
               mcdn::Denoiser f;
               if (py::isinstance<py::str>(denoiser))
-                  f = named_denoiser(denoiser.cast<std::string>(), o.aovs, o.skip, nthreads);
+                  f = named_denoiser(denoiser.cast<std::string>(), o.aovs, o.skip, nthreads,
+                                     o.denoiser_radius);
               else {
                   // A Python callable ImageBuf -> ImageBuf; called with the GIL held.
                   auto callable = denoiser.cast<py::function>();

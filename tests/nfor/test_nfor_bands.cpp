@@ -14,19 +14,6 @@ using namespace mcdn;
 
 namespace {
 
-// box16 stacked four times: 64×256, tall enough for bands of whole 32-row tiles whose
-// 96-row halos still cut the frame.
-ImageBuf tall_box16()
-{
-    ImageBuf one = mcdn_test::box16();
-    ImageSpec spec = one.spec();
-    spec.height = spec.full_height = 4 * one.spec().height;
-    ImageBuf tall(spec);
-    for (int i = 0; i < 4; ++i)
-        EXPECT_TRUE(OIIO::ImageBufAlgo::paste(tall, 0, i * one.spec().height, 0, 0, one));
-    return tall;
-}
-
 // Largest difference over every channel and pixel, relative to the channel's largest value.
 float max_relative_difference(const ImageBuf& a, const ImageBuf& b)
 {
@@ -46,7 +33,7 @@ float max_relative_difference(const ImageBuf& a, const ImageBuf& b)
 
 TEST(Bands, NforInBandsEqualsTheWholeFrame)
 {
-    ImageBuf src = tall_box16();
+    ImageBuf src = mcdn_test::tall_box16();
     NforOptions whole;
     whole.band_pixels = 0;
     NforOptions banded;
@@ -60,7 +47,7 @@ TEST(Bands, NforInBandsEqualsTheWholeFrame)
 
 TEST(Bands, PrefilterInBandsEqualsTheWholeFrame)
 {
-    ImageBuf src = tall_box16();
+    ImageBuf src = mcdn_test::tall_box16();
     PrefilterOptions whole, banded;
     whole.band_pixels = 0;
     banded.band_pixels = int64_t(src.spec().width) * 32;  // 8 bands of 32 rows, halo 13 -> 32
@@ -77,7 +64,7 @@ TEST(Bands, PrefilterInBandsEqualsTheWholeFrame)
 // image.)
 TEST(Bands, TooSmallAHaloShows)
 {
-    ImageBuf src = tall_box16();
+    ImageBuf src = mcdn_test::tall_box16();
     NforOptions o;
     o.band_pixels = 0;
     ImageBuf a = nfor(src, o, {}, 2);

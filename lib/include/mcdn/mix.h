@@ -58,6 +58,12 @@ struct MixOptions {
     /// (mcdn/skip.h). z is the same as without skipping. The t-test's α' = 0 elsewhere is
     /// not known before α (it tests α(y − x)), so those tiles still run.
     SkipOptions skip;
+
+    /// Frames with more pixels run in horizontal bands of at most this many pixels, each
+    /// with alpha's reach of extra rows above and below (the model's neighbourhood plus the
+    /// t-test's, rounded up to 32): the same output (the network's within float round-off:
+    /// its tiles fall differently), memory that follows the band. 0: the whole frame.
+    int64_t band_pixels = int64_t(1) << 22;
 };
 
 /// The mixing network's default weights file: $MCDN_MODELS/mix.mcdnw when the environment

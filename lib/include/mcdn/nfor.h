@@ -79,4 +79,9 @@ bool nfor(ImageBuf& dst, const ImageBuf& src, const NforOptions& options = {}, R
 ImageBuf nfor(const ImageBuf& src, const NforOptions& options = {}, ROI roi = {},
               int nthreads = 0);
 
+/// How far an output pixel reaches into the input, in pixels: 75 at the defaults, 62 when
+/// the input is already prefiltered ("mcdn:prefiltered", as after a prefilter stage). The
+/// halo of its bands, and its share of a chain's SureOptions::denoiser_radius.
+int receptive_radius(const NforOptions& options, bool prefiltered);
+
 }  // namespace mcdn

@@ -55,4 +55,8 @@ bool prefilter(ImageBuf& dst, const ImageBuf& src, const PrefilterOptions& optio
 ImageBuf prefilter(const ImageBuf& src, const PrefilterOptions& options = {}, ROI roi = {},
                    int nthreads = 0);
 
+/// How far an output pixel reaches into the input, in pixels (13 at the defaults): the halo
+/// of its bands, and its share of a chain's SureOptions::denoiser_radius.
+int receptive_radius(const PrefilterOptions& options);
+
 }  // namespace mcdn

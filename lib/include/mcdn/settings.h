@@ -43,4 +43,17 @@ bool parse_finite(const std::string& text, double& value);
 /// error is reported as "name: error".
 Denoiser compose(std::vector<std::pair<std::string, Denoiser>> stages);
 
+/// How far one denoiser of a chain reaches (its stage's receptive_radius()): on an input not
+/// yet prefiltered and on one that is; -1 when not known (the cnn, a callable).
+struct StageReach {
+    int radius = -1, prefiltered_radius = -1;
+    bool prefilters = false;  // its output is prefiltered (the prefilter stage)
+};
+StageReach stage_reach(const PrefilterOptions& options);
+StageReach stage_reach(const NforOptions& options);
+
+/// How far a chain of denoisers reaches, for SureOptions::denoiser_radius: the sum of its
+/// stages' reach, each on the input it gets; -1 when any stage's is not known.
+int chain_radius(const std::vector<StageReach>& stages);
+
 }  // namespace mcdn

@@ -11,14 +11,12 @@
 
 namespace mcdn {
 
-bool run_in_bands(ImageBuf& dst, const ImageBuf& src, int halo, int64_t band_pixels,
-                  const BandOp& op)
+std::vector<Band> plan_bands(const ROI& whole, int halo, int64_t band_pixels)
 {
-    const ROI whole = src.roi();
     const int64_t width = std::max<int64_t>(1, whole.width());
     const int height = whole.height();
     if (band_pixels <= 0 || int64_t(whole.npixels()) <= band_pixels)
-        return op(dst, src);
+        return { Band{ whole, whole.ybegin, whole.yend } };
     // Equal bands: as many as band_pixels needs, the rows spread evenly between them.
     // Band starts, cuts and halos are whole converged tiles (mcdn/skip.h), so every band sees
     // the whole frame's tile grid and makes the same skip decisions.
@@ -28,13 +26,56 @@ bool run_in_bands(ImageBuf& dst, const ImageBuf& src, int halo, int64_t band_pix
     const int max_rows = std::max(grid, int(band_pixels / width) / grid * grid);
     const int nbands = (height + max_rows - 1) / max_rows;
     const int rows = round_up((height + nbands - 1) / nbands);
-
-    ImageBuf out;
+    std::vector<Band> bands;
     for (int y0 = whole.ybegin; y0 < whole.yend; y0 += rows) {
-        const int y1 = std::min(y0 + rows, whole.yend);
-        ROI cut = whole;
-        cut.ybegin = std::max(whole.ybegin, y0 - halo);
-        cut.yend = std::min(whole.yend, y1 + halo);
+        Band band{ whole, y0, std::min(y0 + rows, whole.yend) };
+        band.cut.ybegin = std::max(whole.ybegin, y0 - halo);
+        band.cut.yend = std::min(whole.yend, band.own_end + halo);
+        bands.push_back(band);
+    }
+    return bands;
+}
+
+Plane read_rows(const ImageBuf& src, int channel, const ROI& rows, bool is_variance)
+{
+    Plane plane(rows.width(), rows.height());
+    ROI one = rows;
+    one.chbegin = channel;
+    one.chend = channel + 1;
+    src.get_pixels(one, OIIO::TypeDesc::FLOAT, plane.data());
+    for (float& v : plane.px)
+        v = is_variance ? sanitize_variance(v) : sanitize(v);
+    return plane;
+}
+
+void write_rows(ImageBuf& frame, int channel, const Plane& band_plane, int band_y, ROI roi)
+{
+    const ImageSpec& spec = frame.spec();
+    ROI rows(spec.x, spec.x + band_plane.width, band_y, band_y + band_plane.height, spec.z,
+             spec.z + 1, channel, channel + 1);
+    roi = OIIO::roi_intersection(roi.defined() ? roi : rows, rows);
+    roi.chbegin = channel;
+    roi.chend = channel + 1;
+    if (roi.xend <= roi.xbegin || roi.yend <= roi.ybegin)
+        return;
+    // The plane's rows are contiguous: one set_pixels with the plane's strides.
+    const float* first = band_plane.row(roi.ybegin - band_y) + (roi.xbegin - spec.x);
+    frame.set_pixels(roi, OIIO::TypeDesc::FLOAT, first, sizeof(float),
+                     OIIO::stride_t(band_plane.width * sizeof(float)));
+}
+
+bool run_in_bands(ImageBuf& dst, const ImageBuf& src, int halo, int64_t band_pixels,
+                  const BandOp& op)
+{
+    const ROI whole = src.roi();
+    const int64_t width = std::max<int64_t>(1, whole.width());
+    const int height = whole.height();
+    if (band_pixels <= 0 || int64_t(whole.npixels()) <= band_pixels)
+        return op(dst, src);
+    ImageBuf out;
+    for (const Band& planned : plan_bands(whole, halo, band_pixels)) {
+        const int y0 = planned.own_begin, y1 = planned.own_end;
+        const ROI& cut = planned.cut;
         ImageBuf band_out;
         {
             ImageBuf band = OIIO::ImageBufAlgo::copy(src, OIIO::TypeUnknown, cut);

@@ -8,6 +8,7 @@
 
 #include <OpenImageIO/imagebuf.h>
 
+#include "core/planar.h"
 #include "mcdn/aov.h"
 
 namespace mcdn {
@@ -17,6 +18,26 @@ using OIIO::ImageSpec;
 using OIIO::ROI;
 
 using BandOp = std::function<bool(ImageBuf& dst, const ImageBuf& src)>;
+
+/// One horizontal band of a frame: the rows it computes, [own_begin, own_end), and the rows
+/// it reads, `cut` (its own rows and up to `halo` more above and below, clipped to the frame).
+struct Band {
+    ROI cut;
+    int own_begin = 0, own_end = 0;
+};
+
+/// The bands run_in_bands cuts `whole` into: one band (the whole frame) when it has at most
+/// band_pixels pixels or band_pixels <= 0; else equal bands of at most band_pixels own
+/// pixels, starts and halos rounded to whole converged tiles (mcdn/skip.h).
+std::vector<Band> plan_bands(const ROI& whole, int halo, int64_t band_pixels);
+
+/// Rows `rows` of channel `channel` of `src` into a plane of the rows' size, sanitized as
+/// read_plane does (core/planar.h): read_plane of one band without copying the band.
+Plane read_rows(const ImageBuf& src, int channel, const ROI& rows, bool is_variance = false);
+
+/// Writes the rows of `band_plane` (whose row 0 is frame row band_y) inside `roi` into
+/// channel `channel` of `frame`.
+void write_rows(ImageBuf& frame, int channel, const Plane& band_plane, int band_y, ROI roi);
 
 /// Runs `op` on src whole when src has at most `band_pixels` pixels (or band_pixels <= 0).
 /// Otherwise cuts src into horizontal bands of at most band_pixels pixels, each with `halo`

@@ -56,13 +56,16 @@ bool check_settings(const ChainOptions& o, std::string& error)
            && stage_options(m, o, "mix", error);
 }
 
+// One denoiser of the chain, and how far it reaches (`reach`, for sure's bands).
 std::pair<std::string, Denoiser> denoiser_stage(const std::string& name, const ChainOptions& o,
-                                                int nthreads)
+                                                int nthreads, StageReach& reach)
 {
     std::string unused;  // check_settings has checked them
+    reach = StageReach();
     if (name == "prefilter") {
         PrefilterOptions p;
         stage_options(p, o, name, unused);
+        reach = stage_reach(p);
         return { name, [p, nthreads](ImageBuf& dst, const ImageBuf& src) {
                     return prefilter(dst, src, p, {}, nthreads);
                 } };
@@ -77,6 +80,7 @@ std::pair<std::string, Denoiser> denoiser_stage(const std::string& name, const C
     NforOptions n;
     stage_options(n, o, name, unused);
     n.prefilter.aovs = o.aovs;
+    reach = stage_reach(n);
     return { name, [n, nthreads](ImageBuf& dst, const ImageBuf& src) {
                 return nfor(dst, src, n, {}, nthreads);
             } };
@@ -117,11 +121,13 @@ bool run_chain(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, ROI ro
     }
     ImageBuf current = src;
     std::vector<std::pair<std::string, Denoiser>> pending;  // denoisers since the last sure/mix
+    std::vector<StageReach> pending_reach;
     for (const std::string& name : o.stages) {
         if (name == "prefilter" || name == "nfor" || name == "cnn") {
             // Denoisers wait: a sure after them runs them itself (K + 1 times), else they
             // run at the end.
-            pending.push_back(denoiser_stage(name, o, nthreads));
+            pending_reach.emplace_back();
+            pending.push_back(denoiser_stage(name, o, nthreads, pending_reach.back()));
             continue;
         }
         ImageBuf next;
@@ -129,8 +135,10 @@ bool run_chain(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, ROI ro
         if (name == "sure") {
             SureOptions s;
             stage_options(s, o, name, error);
+            s.denoiser_radius = chain_radius(pending_reach);
             ok = sure(next, current, compose(std::move(pending)), s, roi, nthreads);
             pending.clear();
+            pending_reach.clear();
         } else {  // mix
             MixOptions m;
             stage_options(m, o, name, error);

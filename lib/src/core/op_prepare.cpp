@@ -3,6 +3,8 @@
 #include <cstdint>
 #include <cstring>
 
+#include <OpenImageIO/strutil.h>
+
 #if defined(__linux__)
 #    include <sys/mman.h>
 #endif
@@ -28,20 +30,41 @@ void advise_huge_pages(void* data, size_t bytes)
 
 }  // namespace
 
-bool prepare_op(ImageBuf& dst, const ImageBuf& src, const AovSpec& spec, AovSet& aovs,
-                const char* op)
+void allocate_frame(ImageBuf& dst, const ImageSpec& spec, bool zero)
+{
+    dst.reset(spec, OIIO::InitializePixels::No);
+    if (!dst.localpixels())
+        return;
+    advise_huge_pages(dst.localpixels(), dst.spec().image_bytes());
+    if (zero)
+        std::memset(dst.localpixels(), 0, dst.spec().image_bytes());
+}
+
+bool check_op_input(const ImageBuf& src, const AovSpec& spec, AovSet& aovs, const char* op,
+                    std::string& error)
 {
     if (!src.initialized()) {
-        dst.errorfmt("{}: the input image is empty (nothing was read)", op);
+        error = OIIO::Strutil::fmt::format("{}: the input image is empty (nothing was read)", op);
         return false;
     }
     if (src.spec().depth > 1) {
-        dst.errorfmt("{}: volume images are not supported", op);
+        error = OIIO::Strutil::fmt::format("{}: volume images are not supported", op);
         return false;
     }
+    std::string why;
+    if (!resolve_aovs(aovs, spec, src.spec(), why)) {
+        error = OIIO::Strutil::fmt::format("{}: {}", op, why);
+        return false;
+    }
+    return true;
+}
+
+bool prepare_op(ImageBuf& dst, const ImageBuf& src, const AovSpec& spec, AovSet& aovs,
+                const char* op)
+{
     std::string error;
-    if (!resolve_aovs(aovs, spec, src.spec(), error)) {
-        dst.errorfmt("{}: {}", op, error);
+    if (!check_op_input(src, spec, aovs, op, error)) {
+        dst.errorfmt("{}", error);
         return false;
     }
     if (&dst == &src)

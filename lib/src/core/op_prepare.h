@@ -7,6 +7,15 @@
 
 namespace mcdn {
 
+/// dst's pixels for `spec`, zero-filled or not, with transparent huge pages asked for
+/// before the first write (a fresh frame otherwise costs a page fault per 4 KB written).
+void allocate_frame(ImageBuf& dst, const ImageSpec& spec, bool zero);
+
+/// The checks of prepare_op without the copy (for ops that read src in bands): on failure
+/// `error` names `op`.
+bool check_op_input(const ImageBuf& src, const AovSpec& spec, AovSet& aovs, const char* op,
+                    std::string& error);
+
 /// On failure sets an error on dst naming `op` and returns false.
 bool prepare_op(ImageBuf& dst, const ImageBuf& src, const AovSpec& spec, AovSet& aovs,
                 const char* op);

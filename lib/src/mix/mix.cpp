@@ -1,6 +1,13 @@
 // Progressive mix (PD §4): alpha from a model, bounded by the t-test, z = x + alpha'(y - x).
+// Everything but the t-test's sigma_s is local (alpha reaches the model's neighbourhood and
+// the t-test's 11x11 around a pixel), so a large frame runs in bands of
+// MixOptions::band_pixels with that reach as halo, sigma_s fixed on the whole frame first:
+// memory follows the band, the result is the whole frame's.
 #include "mcdn/mix.h"
 
+#include <OpenImageIO/strutil.h>
+
+#include "core/bands.h"
 #include "core/channels.h"
 #include "core/op_prepare.h"
 #include "mcdn/sure.h"
@@ -10,31 +17,56 @@ namespace mcdn {
 
 namespace {
 
+// Where the planes of MixInputs are in src: the colour role holds y; sure wrote the rest.
+struct MixChannels {
+    int y[3], variance[3], x[3], sure[3], divergence[3], residual[3];
+};
+
 // The channels sure wrote, by name; a missing one is an error that says to run --sure.
-bool read_mix_inputs(MixInputs& in, const ImageBuf& src, const AovSet& aovs, std::string& error)
+bool find_mix_channels(MixChannels& ch, const ImageSpec& spec, const AovSet& aovs,
+                       std::string& error)
 {
-    const ImageSpec& spec = src.spec();
     for (int c = 0; c < 3; ++c) {
-        in.y[c] = read_plane(src, aovs.channels(Role::Color)[c]);
-        in.variance[c] = read_plane(src, aovs.channels(Role::ColorVariance)[c], true);
-        const std::pair<Plane*, const char*> named[] = {
-            { &in.x[c], sure_channels::kNoisy[c] },
-            { &in.sure[c], sure_channels::kSure[c] },
-            { &in.divergence[c], sure_channels::kDivergence[c] },
-            { &in.residual[c], sure_channels::kResidual[c] },
+        ch.y[c] = aovs.channels(Role::Color)[c];
+        ch.variance[c] = aovs.channels(Role::ColorVariance)[c];
+        const std::pair<int*, const char*> named[] = {
+            { &ch.x[c], sure_channels::kNoisy[c] },
+            { &ch.sure[c], sure_channels::kSure[c] },
+            { &ch.divergence[c], sure_channels::kDivergence[c] },
+            { &ch.residual[c], sure_channels::kResidual[c] },
         };
-        for (const auto& [plane, name] : named) {
-            int channel = spec.channelindex(name);
-            if (channel < 0) {
+        for (const auto& [channel, name] : named) {
+            *channel = spec.channelindex(name);
+            if (*channel < 0) {
                 error = OIIO::Strutil::fmt::format(
                     "mix: channel '{}' not found: run sure first (mcdntool ... --nfor --sure --mix)",
                     name);
                 return false;
             }
-            *plane = read_plane(src, channel);
         }
     }
     return true;
+}
+
+MixInputs read_mix_inputs(const ImageBuf& src, const MixChannels& ch, const ROI& rows)
+{
+    MixInputs in;
+    for (int c = 0; c < 3; ++c) {
+        in.y[c] = read_rows(src, ch.y[c], rows);
+        in.variance[c] = read_rows(src, ch.variance[c], rows, true);
+        in.x[c] = read_rows(src, ch.x[c], rows);
+        in.sure[c] = read_rows(src, ch.sure[c], rows);
+        in.divergence[c] = read_rows(src, ch.divergence[c], rows);
+        in.residual[c] = read_rows(src, ch.residual[c], rows);
+    }
+    return in;
+}
+
+// How far alpha' at a pixel reaches into the inputs: the model's neighbourhood, then the
+// t-test's (it reads the neighbours' alpha).
+int mix_radius(const MixOptions& o, const nn::Net* net)
+{
+    return (net ? net->receptive_radius() : o.analytic_radius) + (o.t_test ? o.t_radius : 0);
 }
 
 }  // namespace
@@ -45,70 +77,64 @@ bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options, ROI roi,
     if (!prepare_op(dst, src, options.aovs, aovs, "mix"))
         return false;
     std::string error;
-    MixInputs in;
+    MixChannels channels;
     if (!aovs.require({ Role::Color, Role::ColorVariance }, src.spec(), error)
-        || !read_mix_inputs(in, src, aovs, error)) {
+        || !find_mix_channels(channels, src.spec(), aovs, error)) {
         dst.errorfmt("{}", error);
         return false;
     }
-
-    // mcdn/skip.h: tiles where z can only be x.
-    const ConvergedTiles passed = tiles_mixing_to_x(in, options.skip);
-    const Plane zero(in.x[0].width, in.x[0].height);
-    Plane alpha[3];
-    if (passed.all()) {
-        for (int c = 0; c < 3; ++c)
-            alpha[c] = zero;
-    } else if (options.model == MixOptions::Model::Net) {
-        nn::Net net;
+    // Fixed on the whole frame before the bands.
+    const float sigma_s = t_test_sigma(src, channels.x, options.t_sigma_scale);
+    nn::Net net;
+    const bool use_net = options.model == MixOptions::Model::Net;
+    if (use_net) {
         const std::string path = options.weights.empty() ? default_mix_weights() : options.weights;
-        if (!load_mix_net(net, path, error)
-            || !net_alpha(alpha, in, net, error, nullptr, network_regions(passed, net, 256))) {
+        if (!load_mix_net(net, path, error)) {
             dst.errorfmt("{}", error);
             return false;
         }
-        if (options.outlier_relative_variance > 0)
-            for (int c = 0; c < 3; ++c)
-                outlier_floor(alpha[c], in.variance[c], in.y[c], in.divergence[c],
-                              in.residual[c], options.outlier_relative_variance);
-    } else {
-        analytic_alpha(alpha, in, options.analytic_radius);
     }
 
-    if (options.t_test) {
-        float sigma_s = t_test_sigma(in, options.t_sigma_scale);
-        for (int c = 0; c < 3; ++c)
-            t_test_bound(alpha[c], in.x[c], in.y[c], in.variance[c], sigma_s, options);
-    }
-    for (int c = 0; c < 3; ++c)
-        pass_through_converged(alpha[c], zero, passed);
-
-    // z = x + alpha' (y - x)
-    ROI where = output_roi(src, roi);
+    const ROI where = output_roi(src, roi);
     std::vector<int> alpha_channels;
     if (options.output_alpha)
         alpha_channels = add_channels(dst, { "mix.alpha.R", "mix.alpha.G", "mix.alpha.B" });
-    for (int c = 0; c < 3; ++c) {
-        Plane z(in.x[c].width, in.x[c].height);
-        for (size_t i = 0; i < z.size(); ++i)
-            z.px[i] = sanitize(in.x[c].px[i] + alpha[c].px[i] * (in.y[c].px[i] - in.x[c].px[i]));
-        pass_through_converged(z, in.x[c], passed);
-        write_plane(dst, aovs.channels(Role::Color)[c], z, where);
-        if (options.output_alpha)
-            write_plane(dst, alpha_channels[c], alpha[c], where);
-    }
-    // Extra AOVs that sure recorded x for: the same alpha', so they still add up to z.
-    for (const AovSet::Extra& extra : aovs.extras()) {
-        if (extra.channels.size() != 3)
-            continue;
+    const int radius = mix_radius(options, use_net ? &net : nullptr);
+    for (const Band& band : plan_bands(src.roi(), radius, options.band_pixels)) {
+        const MixInputs in = read_mix_inputs(src, channels, band.cut);
+        Plane alpha[3];
+        ConvergedTiles passed;
+        if (!mix_alpha(alpha, passed, in, options, use_net ? &net : nullptr, sigma_s, error)) {
+            dst.errorfmt("{}", error);
+            return false;
+        }
+        // z = x + alpha' (y - x) on the band's own rows.
+        ROI own = where;
+        own.ybegin = std::max(where.ybegin, band.own_begin);
+        own.yend = std::min(where.yend, band.own_end);
+        const int band_y = band.cut.ybegin;
         for (int c = 0; c < 3; ++c) {
-            const int noisy = src.spec().channelindex(sure_channels::noisy_extra(extra.names[c]));
-            if (noisy < 0)
-                break;
-            Plane x = read_plane(src, noisy), y = read_plane(src, extra.channels[c]);
-            for (size_t i = 0; i < x.size(); ++i)
-                x.px[i] = sanitize(x.px[i] + alpha[c].px[i] * (y.px[i] - x.px[i]));
-            write_plane(dst, extra.channels[c], x, where);
+            Plane z(in.x[c].width, in.x[c].height);
+            for (size_t i = 0; i < z.size(); ++i)
+                z.px[i] = sanitize(in.x[c].px[i] + alpha[c].px[i] * (in.y[c].px[i] - in.x[c].px[i]));
+            pass_through_converged(z, in.x[c], passed);
+            write_rows(dst, channels.y[c], z, band_y, own);
+            if (options.output_alpha)
+                write_rows(dst, alpha_channels[c], alpha[c], band_y, own);
+        }
+        // Extra AOVs that sure recorded x for: the same alpha', so they still add up to z.
+        for (const AovSet::Extra& extra : aovs.extras()) {
+            if (extra.channels.size() != 3)
+                continue;
+            for (int c = 0; c < 3; ++c) {
+                const int noisy = src.spec().channelindex(sure_channels::noisy_extra(extra.names[c]));
+                if (noisy < 0)
+                    break;
+                Plane x = read_rows(src, noisy, band.cut), y = read_rows(src, extra.channels[c], band.cut);
+                for (size_t i = 0; i < x.size(); ++i)
+                    x.px[i] = sanitize(x.px[i] + alpha[c].px[i] * (y.px[i] - x.px[i]));
+                write_rows(dst, extra.channels[c], x, band_y, own);
+            }
         }
     }
     return true;

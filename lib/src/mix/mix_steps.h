@@ -42,8 +42,14 @@ ConvergedTiles tiles_mixing_to_x(const MixInputs& in, const SkipOptions& skip);
 void outlier_floor(Plane& alpha, const Plane& variance, const Plane& y, const Plane& divergence,
                    const Plane& residual, float relative_variance);
 
-/// sigma_s of eq. 15: min(sqrt(spatial variance of x), 1) * scale.
-float t_test_sigma(const MixInputs& in, float scale);
+/// sigma_s of eq. 15: min(sqrt(spatial variance of x), 1) * scale, x the channels
+/// `x_channels` of the whole of src (read a few rows at a time).
+float t_test_sigma(const OIIO::ImageBuf& src, const int x_channels[3], float scale);
+
+/// alpha' of one band: the model's alpha (`net` for Model::Net, loaded by load_mix_net),
+/// the t-test bound with the frame's sigma_s, 0 on `passed` (set to tiles_mixing_to_x).
+bool mix_alpha(Plane alpha[3], ConvergedTiles& passed, const MixInputs& in,
+               const MixOptions& options, nn::Net* net, float sigma_s, std::string& error);
 
 /// Eq. 12-18: scales alpha by 1 - S(a(|t| - c)) in place.
 void t_test_bound(Plane& alpha, const Plane& x, const Plane& y, const Plane& variance,

@@ -15,6 +15,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "core/bands.h"
 #include "mix/mix_steps.h"
 
 namespace mcdn {
@@ -87,17 +88,25 @@ std::vector<size_t> highest_variance_neighbour(const Plane& variance, int radius
 
 }  // namespace
 
-float t_test_sigma(const MixInputs& in, float scale)
+float t_test_sigma(const OIIO::ImageBuf& src, const int x_channels[3], float scale)
 {
     // "Var[x-bar], x-bar the image mean": the spatial variance of the render's values over
-    // all pixels and channels (capped at 1 before the square root, as in the paper).
+    // all pixels and channels (capped at 1 before the square root, as in the paper). Summed
+    // channel by channel in row order, as the whole planes were: the same for any band size.
+    const ROI whole = src.roi();
+    const int rows_per_read = std::max(1, int((int64_t(1) << 20) / std::max(1, whole.width())));
     double sum = 0, sum2 = 0;
     size_t n = 0;
     for (int c = 0; c < 3; ++c)
-        for (float v : in.x[c].px) {
-            sum += v;
-            sum2 += double(v) * v;
-            ++n;
+        for (int y = whole.ybegin; y < whole.yend; y += rows_per_read) {
+            ROI rows = whole;
+            rows.ybegin = y;
+            rows.yend = std::min(y + rows_per_read, whole.yend);
+            for (float v : read_rows(src, x_channels[c], rows).px) {
+                sum += v;
+                sum2 += double(v) * v;
+                ++n;
+            }
         }
     double mean = n ? sum / n : 0, variance = n ? std::max(0.0, sum2 / n - mean * mean) : 0;
     return float(std::min(std::sqrt(variance), 1.0) * scale);

@@ -332,8 +332,6 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
 
 }  // namespace
 
-namespace {
-
 // How far NFOR reaches, stage by stage: the feature prefilter (two NL-means steps, unless it
 // ran already); a collaborative pass (an output pixel averages the fits of every window that
 // holds it, each fit weighted by patches around its window: 2 windows + 1 patch); the two
@@ -349,8 +347,6 @@ int receptive_radius(const NforOptions& o, bool prefiltered)
            + 2 * (o.map_window_radius + o.map_patch_radius) + 2 * o.second_window_radius
            + o.second_patch_radius;
 }
-
-}  // namespace
 
 bool nfor(ImageBuf& dst, const ImageBuf& src, const NforOptions& options, ROI roi, int nthreads)
 {

@@ -64,15 +64,11 @@ bool prefilter_in_working_space(ImageBuf& dst, const ImageBuf& src,
 
 }  // namespace
 
-namespace {
-
 // How far the two NL-means steps reach: window plus patch, twice.
 int receptive_radius(const PrefilterOptions& o)
 {
     return o.window_radius + o.patch_radius + o.second_window_radius + o.second_patch_radius;
 }
-
-}  // namespace
 
 bool prefilter(ImageBuf& dst, const ImageBuf& src, const PrefilterOptions& options, ROI roi, int nthreads)
 {

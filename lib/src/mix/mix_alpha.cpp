@@ -1,0 +1,35 @@
+// alpha' of the progressive mix (PD §4) on one band's inputs: the model's alpha (eq. 9 or
+// the network, §4.3), bounded by the t-test (eq. 12-18), 0 where z can only be x.
+#include "mix/mix_steps.h"
+
+namespace mcdn {
+
+bool mix_alpha(Plane alpha[3], ConvergedTiles& passed, const MixInputs& in,
+               const MixOptions& options, nn::Net* net, float sigma_s, std::string& error)
+{
+    // mcdn/skip.h: tiles where z can only be x.
+    passed = tiles_mixing_to_x(in, options.skip);
+    const Plane zero(in.x[0].width, in.x[0].height);
+    if (passed.all()) {
+        for (int c = 0; c < 3; ++c)
+            alpha[c] = zero;
+    } else if (net) {
+        if (!net_alpha(alpha, in, *net, error, nullptr, network_regions(passed, *net, 256)))
+            return false;
+        if (options.outlier_relative_variance > 0)
+            for (int c = 0; c < 3; ++c)
+                outlier_floor(alpha[c], in.variance[c], in.y[c], in.divergence[c],
+                              in.residual[c], options.outlier_relative_variance);
+    } else {
+        analytic_alpha(alpha, in, options.analytic_radius);
+    }
+
+    if (options.t_test)
+        for (int c = 0; c < 3; ++c)
+            t_test_bound(alpha[c], in.x[c], in.y[c], in.variance[c], sigma_s, options);
+    for (int c = 0; c < 3; ++c)
+        pass_through_converged(alpha[c], zero, passed);
+    return true;
+}
+
+}  // namespace mcdn

@@ -1,0 +1,209 @@
+// One band of Monte-Carlo SURE (PD §2.3 eq. 1, §3.2 eq. 2; sure_steps.h): denoise once,
+// probe K times, assemble SURE per pixel and channel, write the band's own rows.
+#include <cmath>
+
+#include <OpenImageIO/strutil.h>
+
+#include "core/converged_tiles.h"
+#include "core/op_prepare.h"
+#include "core/random.h"
+#include "sure/sure_steps.h"
+
+namespace mcdn {
+
+namespace {
+
+using OIIO::Strutil::fmt::format;
+
+// The channels sure adds, in the order sure_band writes them: 4 groups of 3, then extras.
+std::vector<std::string> sure_channel_names(const SureFrame& frame)
+{
+    std::vector<std::string> names;
+    for (const auto* group : { sure_channels::kNoisy, sure_channels::kSure,
+                               sure_channels::kDivergence, sure_channels::kResidual })
+        names.insert(names.end(), group, group + 3);
+    for (const std::string& name : frame.extra_names)
+        names.push_back(sure_channels::noisy_extra(name));
+    return names;
+}
+
+// dst for the frame: the denoiser's channels (its first band's spec), then sure's own
+// (an existing one of the same name is reused, as add_channels does). Zero-filled only when
+// sure's channels are not written everywhere (they are zero outside `where`): the bands
+// write every row of the rest.
+void allocate_output(ImageBuf& dst, const ImageSpec& denoised, const SureFrame& frame)
+{
+    ImageSpec spec = denoised;
+    spec.set_format(OIIO::TypeDesc::FLOAT);
+    spec.y = frame.whole.ybegin;
+    spec.height = frame.whole.height();
+    spec.erase_attribute(kConvergedAttribute);
+    for (const std::string& name : sure_channel_names(frame))
+        if (spec.channelindex(name) < 0) {
+            spec.channelnames.push_back(name);
+            ++spec.nchannels;
+        }
+    const ROI& w = frame.where;
+    const bool written_everywhere = w.xbegin <= frame.whole.xbegin && w.xend >= frame.whole.xend
+                                    && w.ybegin <= frame.whole.ybegin && w.yend >= frame.whole.yend;
+    allocate_frame(dst, spec, !written_everywhere);
+}
+
+// The denoised band's own rows, every channel, into the leading channels of dst.
+bool write_denoised_rows(ImageBuf& dst, const ImageBuf& denoised, const Band& band,
+                         const SureFrame& frame, std::string& error)
+{
+    if (!dst.initialized())
+        allocate_output(dst, denoised.spec(), frame);
+    const ImageSpec& spec = denoised.spec();
+    const std::vector<std::string>& names = dst.spec().channelnames;
+    if (spec.x != frame.whole.xbegin || spec.width != frame.whole.width()
+        || spec.y != band.cut.ybegin || spec.height != band.cut.height()
+        || spec.nchannels > dst.nchannels()
+        || !std::equal(spec.channelnames.begin(), spec.channelnames.end(), names.begin())) {
+        error = format("sure: the denoiser's result ({}x{} at y={}, {} channels) does not match "
+                       "its input ({}x{} at y={}) or its result on the band above",
+                       spec.width, spec.height, spec.y, spec.nchannels, frame.whole.width(),
+                       band.cut.height(), band.cut.ybegin);
+        return false;
+    }
+    ROI rows = frame.whole;
+    rows.ybegin = band.own_begin;
+    rows.yend = band.own_end;
+    rows.chbegin = 0;
+    rows.chend = spec.nchannels;
+    // Straight into dst's pixels, with dst's strides: no band-sized copy on the way.
+    if (!denoised.get_pixels(rows, OIIO::TypeDesc::FLOAT, dst.pixeladdr(rows.xbegin, rows.ybegin),
+                             dst.pixel_stride(), dst.scanline_stride())) {
+        error = format("sure: could not read the denoiser's result: {}", denoised.geterror());
+        return false;
+    }
+    return true;
+}
+
+// Adds eps*b to the given channels of `buf` (b is one probe, one plane per colour channel).
+void add_probe(ImageBuf& buf, const std::vector<int>& channels, const Plane probe[3],
+               double eps)
+{
+    for (int c = 0; c < 3; ++c) {
+        Plane plane = read_plane(buf, channels[c]);
+        for (size_t i = 0; i < plane.size(); ++i)
+            plane.px[i] += float(eps * probe[c].px[i]);
+        write_plane(buf, channels[c], plane, buf.roi());
+    }
+}
+
+}  // namespace
+
+bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser& denoiser,
+               const SureOptions& options, const SureFrame& frame, std::string& error)
+{
+    Plane x[3], variance[3];
+    for (int c = 0; c < 3; ++c) {
+        x[c] = read_plane(noisy, frame.color[c]);
+        variance[c] = read_plane(noisy, frame.variance[c], true);
+    }
+
+    // mcdn/skip.h: the denoiser's runs all skip the tiles of this map (bands start on whole
+    // tiles, so a band's map is the frame's).
+    const ConvergedTiles converged = converged_tiles_of(noisy, x, variance, options.skip);
+    if (options.skip.enabled)
+        noisy.specmod().attribute(kConvergedAttribute, encode_converged_tiles(converged));
+
+    // y = F(x): the result we report SURE for. Written to dst at once, its colour kept.
+    Plane y[3];
+    {
+        ImageBuf denoised;
+        if (!denoiser(denoised, noisy)) {
+            error = format("sure: the denoiser failed: {}", denoised.geterror());
+            return false;
+        }
+        if (!write_denoised_rows(dst, denoised, band, frame, error))
+            return false;
+        for (int c = 0; c < 3; ++c)
+            y[c] = read_plane(denoised, frame.color[c]);
+    }
+    // Of those, the tiles the denoiser did pass through (a callable may not skip): no probes.
+    const ConvergedTiles passed = tiles_where_equal(y, x, &converged);
+    const int w = x[0].width, h = x[0].height;
+    const Plane no_probe(w, h);
+
+    // Eq. 2: probe with b ~ N(0, Sigma); the render and both halves move together. b of a
+    // pixel is drawn by its index in the frame, so every band sees the same probe there.
+    const uint64_t first_index = uint64_t(noisy.spec().y - frame.whole.ybegin) * uint64_t(w);
+    const double eps = frame.eps;
+    Plane divergence[3] = { Plane(w, h), Plane(w, h), Plane(w, h) };
+    // The moved channels' exact bits (read_plane would sanitize), restored after each probe.
+    std::vector<std::vector<float>> unprobed(frame.moved.size());
+    auto channel_roi = [&](int channel) {
+        ROI r = noisy.roi();
+        r.chbegin = channel;
+        r.chend = channel + 1;
+        return r;
+    };
+    if (eps > 0)
+        for (size_t m = 0; m < frame.moved.size(); ++m) {
+            unprobed[m].resize(size_t(w) * h);
+            noisy.get_pixels(channel_roi(frame.moved[m]), OIIO::TypeDesc::FLOAT, unprobed[m].data());
+        }
+    for (int k = 0; eps > 0 && k < options.probes; ++k) {
+        Plane b[3];
+        for (int c = 0; c < 3; ++c) {
+            b[c] = Plane(w, h);
+            for (size_t i = 0; i < b[c].size(); ++i)
+                b[c].px[i] = std::sqrt(variance[c].px[i])
+                             * standard_normal(options.seed, uint64_t(k), (first_index + i) * 3 + c);
+            pass_through_converged(b[c], no_probe, passed);
+        }
+        // Probed in place and restored after (a copy of every channel per probe cost as
+        // much as the denoiser's own work on half-converged frames).
+        noisy.specmod().attribute(sure_channels::kProbeAttribute, 1);
+        for (size_t g = 0; g < frame.moved.size(); g += 3)
+            add_probe(noisy, { frame.moved[g], frame.moved[g + 1], frame.moved[g + 2] }, b, eps);
+        ImageBuf response;
+        const bool probe_ok = denoiser(response, noisy);
+        for (size_t m = 0; m < frame.moved.size(); ++m)
+            noisy.set_pixels(channel_roi(frame.moved[m]), OIIO::TypeDesc::FLOAT, unprobed[m].data());
+        noisy.specmod().erase_attribute(sure_channels::kProbeAttribute);
+        if (!probe_ok) {
+            error = format("sure: the denoiser failed on probe {}: {}", k, response.geterror());
+            return false;
+        }
+        for (int c = 0; c < 3; ++c) {
+            Plane f = read_plane(response, frame.color[c]);
+            for (size_t i = 0; i < f.size(); ++i)
+                divergence[c].px[i] += float(b[c].px[i] * (double(f.px[i]) - y[c].px[i])
+                                             / (eps * options.probes));
+        }
+    }
+
+    // Eq. 1 per pixel and channel (d = 1): SURE = (y - x)^2 + 2 sigma^2 f'(x) - sigma^2.
+    for (int c = 0; c < 3; ++c)  // the pass-through's f'(x) = 1
+        pass_through_converged(divergence[c], variance[c], passed);
+    const std::vector<std::string> names = sure_channel_names(frame);
+    std::vector<int> out;
+    for (const std::string& name : names)
+        out.push_back(dst.spec().channelindex(name));
+    ROI where = frame.where;
+    where.ybegin = std::max(where.ybegin, band.own_begin);
+    where.yend = std::min(where.yend, band.own_end);
+    const int band_y = noisy.spec().y;
+    for (size_t e = 0; e < frame.extras.size(); ++e)
+        write_rows(dst, out[12 + e], read_plane(noisy, frame.extras[e]), band_y, where);
+    for (int c = 0; c < 3; ++c) {
+        Plane residual(w, h), estimate(w, h);
+        for (size_t i = 0; i < residual.size(); ++i) {
+            double d = double(y[c].px[i]) - x[c].px[i];
+            residual.px[i] = sanitize(float(d * d));
+            divergence[c].px[i] = sanitize(divergence[c].px[i]);
+            estimate.px[i] = sanitize(residual.px[i] + 2 * divergence[c].px[i] - variance[c].px[i]);
+        }
+        write_rows(dst, out[c], x[c], band_y, where);
+        write_rows(dst, out[3 + c], estimate, band_y, where);
+        write_rows(dst, out[6 + c], divergence[c], band_y, where);
+        write_rows(dst, out[9 + c], residual, band_y, where);
+    }
+    return true;
+}
+
+}  // namespace mcdn

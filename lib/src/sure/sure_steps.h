@@ -1,0 +1,42 @@
+// The steps of Monte-Carlo SURE (sure.cpp runs them): what is fixed on the whole frame first
+// (the probe step, the output's channels), then each band's denoiser runs and probes.
+// A small frame is one band; a large one runs in bands of SureOptions::band_pixels with the
+// denoiser's radius as halo, and gets the same result because nothing a band computes
+// depends on where the band starts: eps is the frame's, and probe b is drawn by the pixel's
+// index in the frame (core/random.h), so a pixel sees the same probe in every band.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <OpenImageIO/imagebuf.h>
+
+#include "core/bands.h"
+#include "mcdn/aov.h"
+#include "mcdn/sure.h"
+
+namespace mcdn {
+
+/// What every band of one frame shares.
+struct SureFrame {
+    ROI whole;                   // the frame's data window (the probes' index space)
+    ROI where;                   // where the SURE channels are written (zero outside)
+    std::vector<int> color, variance;
+    std::vector<int> moved;      // colour and half buffers: what a probe moves
+    std::vector<int> extras;     // x of the RGB extra AOVs, recorded as noisy.<name>
+    std::vector<std::string> extra_names;
+    double eps = 0;              // the probe step (probe_step)
+};
+
+/// eps such that RMS(eps * b) = epsilon_relative * mean|x| over the whole frame (see
+/// SureOptions), read a few rows at a time; 0 when there is nothing to probe.
+double probe_step(const ImageBuf& src, const SureFrame& frame, float epsilon_relative);
+
+/// Runs the denoiser on `noisy` (one band of the frame, its own float copy: probed in place)
+/// K + 1 times and writes the band's own rows of dst: the denoised channels, noisy.*, sure.*,
+/// sure.divergence.*, sure.residual.*, noisy.<extra>. The first band allocates dst (the
+/// frame's window, the denoiser's channels plus those). False with `error` on failure.
+bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser& denoiser,
+               const SureOptions& options, const SureFrame& frame, std::string& error);
+
+}  // namespace mcdn
