@@ -278,7 +278,7 @@ int main(int argc, char** argv)
             std::fprintf(stderr, "%s: %s\n", in.scene.c_str(), with_sure.geterror().c_str());
             continue;
         }
-        Row row { in, {}, {}, {}, {} };
+        Row row { in, {}, {}, {}, {}, {}, 0 };
         bool ok = metrics_of(row.render, src, ref) && metrics_of(row.nfor, with_sure, ref);
         for (int m = 0; m < kMixes && ok; ++m) {
             MixOptions mo;

@@ -41,9 +41,11 @@ TEST(MixOutlierFloor, AFireflyTheNetworkKeptGoesToTheDenoised)
     s.apply();
     EXPECT_NEAR(s.alpha(8, 8), 1.0f, 1e-6);
     for (int y = 0; y < 16; ++y)
-        for (int x = 0; x < 16; ++x)
-            if (x != 8 || y != 8)
+        for (int x = 0; x < 16; ++x) {
+            if (x != 8 || y != 8) {
                 EXPECT_EQ(s.alpha(x, y), 0.0f) << x << "," << y;  // ordinary pixels untouched
+            }
+        }
 }
 
 TEST(MixOutlierFloor, NeverLowersAlpha)
