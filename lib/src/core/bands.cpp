@@ -36,18 +36,6 @@ std::vector<Band> plan_bands(const ROI& whole, int halo, int64_t band_pixels)
     return bands;
 }
 
-Plane read_rows(const ImageBuf& src, int channel, const ROI& rows, bool is_variance)
-{
-    Plane plane(rows.width(), rows.height());
-    ROI one = rows;
-    one.chbegin = channel;
-    one.chend = channel + 1;
-    src.get_pixels(one, OIIO::TypeDesc::FLOAT, plane.data());
-    for (float& v : plane.px)
-        v = is_variance ? sanitize_variance(v) : sanitize(v);
-    return plane;
-}
-
 void write_rows(ImageBuf& frame, int channel, const Plane& band_plane, int band_y, ROI roi)
 {
     const ImageSpec& spec = frame.spec();

@@ -31,10 +31,6 @@ struct Band {
 /// pixels, starts and halos rounded to whole converged tiles (mcdn/skip.h).
 std::vector<Band> plan_bands(const ROI& whole, int halo, int64_t band_pixels);
 
-/// Rows `rows` of channel `channel` of `src` into a plane of the rows' size, sanitized as
-/// read_plane does (core/planar.h): read_plane of one band without copying the band.
-Plane read_rows(const ImageBuf& src, int channel, const ROI& rows, bool is_variance = false);
-
 /// Writes the rows of `band_plane` (whose row 0 is frame row band_y) inside `roi` into
 /// channel `channel` of `frame`.
 void write_rows(ImageBuf& frame, int channel, const Plane& band_plane, int band_y, ROI roi);

@@ -36,16 +36,23 @@ void parallel_for_index(int n, int nthreads, const std::function<void(int)>& bod
     });
 }
 
-Plane read_plane(const OIIO::ImageBuf& src, int channel, bool is_variance)
+Plane read_rows(const OIIO::ImageBuf& src, int channel, const OIIO::ROI& rows, bool is_variance)
 {
-    const OIIO::ImageSpec& spec = src.spec();
-    Plane plane(spec.width, spec.height);
-    OIIO::ROI roi(spec.x, spec.x + spec.width, spec.y, spec.y + spec.height, spec.z, spec.z + 1,
-                  channel, channel + 1);
-    src.get_pixels(roi, OIIO::TypeDesc::FLOAT, plane.data());
+    Plane plane(rows.width(), rows.height());
+    OIIO::ROI one = rows;
+    one.chbegin = channel;
+    one.chend = channel + 1;
+    src.get_pixels(one, OIIO::TypeDesc::FLOAT, plane.data());
     for (float& v : plane.px)
         v = is_variance ? sanitize_variance(v) : sanitize(v);
     return plane;
+}
+
+Plane read_plane(const OIIO::ImageBuf& src, int channel, bool is_variance)
+{
+    const OIIO::ImageSpec& spec = src.spec();
+    return read_rows(src, channel, OIIO::ROI(spec.x, spec.x + spec.width, spec.y, spec.y + spec.height,
+                                             spec.z, spec.z + 1), is_variance);
 }
 
 void write_plane(OIIO::ImageBuf& dst, int channel, const Plane& plane, OIIO::ROI roi)

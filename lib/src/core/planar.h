@@ -66,6 +66,9 @@ inline float sanitize_variance(float v)
 
 /// Reads channel `channel` of `src` (data window) into a plane, sanitized.
 Plane read_plane(const OIIO::ImageBuf& src, int channel, bool is_variance = false);
+/// The same for the rows `rows` of the data window only (a band, without copying the band):
+/// a plane of the rows' size.
+Plane read_rows(const OIIO::ImageBuf& src, int channel, const OIIO::ROI& rows, bool is_variance = false);
 /// Writes a plane into channel `channel` of `dst` (same data window), inside `roi` only.
 void write_plane(OIIO::ImageBuf& dst, int channel, const Plane& plane, OIIO::ROI roi);
 
