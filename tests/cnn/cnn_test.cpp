@@ -147,6 +147,17 @@ TEST(Cnn, KeepsOtherChannelsAndRoi)
     EXPECT_EQ(src.getchannel(3, 5, 0, albedo), dst.getchannel(3, 5, 0, albedo));
 }
 
+TEST(Cnn, InPlaceEqualsACopy)
+{
+    // Tiles write their results while other tiles still read the render around them: in
+    // place, the op must read a copy, never a neighbour's result.
+    ImageBuf src = read_render();
+    ImageBuf copy, in_place = src.copy(OIIO::TypeDesc::FLOAT);
+    ASSERT_TRUE(cnn(copy, src, tiny_options(8), {}, 2)) << copy.geterror();
+    ASSERT_TRUE(cnn(in_place, in_place, tiny_options(8), {}, 2)) << in_place.geterror();
+    EXPECT_EQ(colour_tensor(in_place).data, colour_tensor(copy).data);
+}
+
 TEST(Cnn, FiniteOnNanAndHugeFeatures)
 {
     ImageBuf src = read_render();

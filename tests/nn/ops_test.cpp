@@ -153,3 +153,27 @@ TEST(NnOps, FusedResidualAddsMatchReference)
 }
 
 }  // namespace
+
+namespace {
+
+// A 1×1 kernel head read only through slices of its logits (KPCN's) is never run as a conv:
+// each apply_kernel computes its slice's logits from the head's input (net.cpp Schedule
+// fused_head). Against the reference, which runs the conv; a second head that is also an
+// output must still be computed.
+TEST(NnOps, FusedKernelHeadMatchesReference)
+{
+    Net net("head");
+    Value x = net.input("x", 6);
+    Value features = net.conv(x, "features", 16, 3);
+    Value logits = net.conv(features, "head", 2 * 9, 1, Activation::none);
+    Value image = net.slice(x, 0, 3);
+    for (int step = 0; step < 2; ++step)
+        image = net.apply_kernel(net.slice(logits, step * 9, 9), image, 3);
+    net.output("y", image);
+    Value shown = net.conv(features, "shown", 9, 1, Activation::none);
+    net.output("z", net.apply_kernel(net.slice(shown, 0, 9), image, 3));
+    net.output("shown", shown);
+    EXPECT_LT(onednn_vs_reference(net, { random_tensor(20, 37, 6, 12) }), tolerance);
+}
+
+}  // namespace

@@ -217,6 +217,29 @@ struct TileOptions {
     std::vector<Region> regions;
 };
 
+/// One tile of a tiled run: the output rectangle it owns (`core`, aligned; it may reach past
+/// the image into the extension below) and the input `window` computed for it (the core
+/// grown by the halo, clipped to the extended image).
+struct Tile {
+    Region core, window;
+};
+
+/// The tiles run_tiled computes for a height × width image, largest window first (so the
+/// buffers of a Net's first tile hold every later tile's values). False and `error` for
+/// regions that do not start at multiples of net.alignment().
+bool plan_tiles(const Net& net, int height, int width, const TileOptions& options,
+                std::vector<Tile>& tiles, std::string& error);
+
+/// Runs work(index, worker) for every index in [0, count), in order on this thread when
+/// workers <= 1; else on `workers` OpenMP threads, indices handed out one at a time, each
+/// worker numbered in [0, workers) so it can keep its own Net and buffers (a Net runs one
+/// image at a time). Inside, convolutions and ops run on their worker alone. False from
+/// any call stops the rest and is returned.
+bool for_each_tile(int count, int workers, const std::function<bool(int index, int worker)>& work);
+
+/// The OpenMP threads of this thread's parallel regions (1 without OpenMP).
+int max_threads();
+
 /// Runs `net` over whole images tile by tile; each tile is computed with a halo of
 /// receptive_radius() pixels (rounded to alignment()) so the result equals an untiled run.
 /// Any image size is accepted: the image is extended to a multiple of alignment() by

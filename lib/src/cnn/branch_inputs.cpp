@@ -138,16 +138,20 @@ Rect inputs_rect(const nn::Region& window, int frame_width, int frame_height)
              std::min(window.x1 + 1, frame_width), std::min(window.y1 + 1, frame_height) };
 }
 
-bool tile_inputs(const ImageBuf& src, const AovSet& aovs, const DepthRange& depth, Branch branch,
+bool tile_inputs(const ImageBuf& src, const AovSet& aovs, const DepthRange& depth,
                  const std::vector<ExtraPlanes>& extras, const nn::Region& window,
-                 nn::Tensor& features, nn::Tensor& image, std::string& error)
+                 BranchInputs* diffuse, BranchInputs& specular, std::string& error)
 {
-    nn::reshape(features, window.y1 - window.y0, window.x1 - window.x0, kInputChannels);
-    nn::reshape(image, features.height, features.width,
-                extras.empty() ? 3 : 3 * (2 + int(extras.size())));
-    // Each strip reads and computes in cache, on every thread.
+    const int image_channels = extras.empty() ? 3 : 3 * (2 + int(extras.size()));
+    for (BranchInputs* b : { diffuse, &specular })
+        if (b) {
+            nn::reshape(b->features(), window.y1 - window.y0, window.x1 - window.x0,
+                        kInputChannels);
+            nn::reshape(b->image(), b->features().height, b->features().width, image_channels);
+        }
+    // Each strip reads the AOVs once for both branches and computes in cache, on every thread.
     std::atomic<bool> read { true };
-    for_strips(features.height, [&](int first, int last) {
+    for_strips(specular.features().height, [&](int first, int last) {
         const nn::Region rows { window.x0, window.y0 + first, window.x1, window.y0 + last };
         RawPlanes raw;
         std::string strip_error;
@@ -157,9 +161,14 @@ bool tile_inputs(const ImageBuf& src, const AovSet& aovs, const DepthRange& dept
             return;
         }
         scale_depth(raw, depth);
-        strip_inputs(raw, branch, window, first, last, features, image);
-        if (!extras.empty())
-            add_extra_parts(image, raw, extras, branch, window, first, last);
+        for (Branch branch : { Branch::diffuse, Branch::specular }) {
+            BranchInputs* b = branch == Branch::diffuse ? diffuse : &specular;
+            if (!b)
+                continue;
+            strip_inputs(raw, branch, window, first, last, b->features(), b->image());
+            if (!extras.empty())
+                add_extra_parts(b->image(), raw, extras, branch, window, first, last);
+        }
     });
     if (!read)
         error = "cannot read the AOVs of a tile";

@@ -1,12 +1,14 @@
 // The KPCN op (Bako et al. 2017, Fig. 2), top to bottom: per network tile, read the render's
 // window, split its light (§4.3) and make the branch's inputs (§5.1) for the branch network
-// (§4.2); then undo the transforms and add the branches (eq. 4) on the whole frame.
+// (§4.2), then undo the transforms and add the branches (eq. 4) into the output — one tile
+// per worker thread, each with its own copy of the networks.
 #include "mcdn/cnn.h"
 
 #include <dlfcn.h>
 
 #include <cmath>
 #include <cstdlib>
+#include <mutex>
 
 #include <tbb/task_arena.h>
 
@@ -59,11 +61,95 @@ bool with_threads(int nthreads, Body&& body)
     return ok;
 }
 
+/// What one worker keeps across its tiles: its own copy of the two networks (a Net runs
+/// one image at a time) and the storage of their inputs and outputs.
+struct Worker {
+    kpcn::Model model;
+    kpcn::BranchInputs diffuse_inputs, specular_inputs;
+    std::vector<nn::Tensor> irradiance, log_specular;  // the networks' outputs
+};
+
+/// Eq. 4 on `rect` (frame pixels inside the tile's core): colour = (albedo + eps) ·
+/// irradiance + exp(log specular) − 1, written into the frame; with extras, their shares of
+/// the two components too.
+void recombine(kpcn::OutputFrame& frame, Rect rect, const nn::Region& window, const Worker& worker,
+               bool split, const ImageBuf& src, const AovSet& aovs,
+               const std::vector<ExtraPlanes>& extras)
+{
+    Plane demod[3];
+    if (split)
+        kpcn::read_demod(demod, src, aovs, rect);
+    kpcn::BranchResult diffuse, specular;
+    const bool keep_components = !extras.empty();
+    for (int c = 0; c < 3 && keep_components; ++c) {
+        specular.component[c] = Plane(rect.width(), rect.height());
+        if (split)
+            diffuse.component[c] = Plane(rect.width(), rect.height());
+    }
+    const nn::Tensor& log_spec = worker.log_specular[0];
+    const nn::Tensor* irradiance = split ? &worker.irradiance[0] : nullptr;
+    const auto& colour = aovs.channels(Role::Color);
+    for (int y = rect.y0; y < rect.y1; ++y)
+        for (int x = rect.x0; x < rect.x1; ++x) {
+            const float* ls = log_spec.pixel(y - window.y0, x - window.x0);
+            const float* irr = split ? irradiance->pixel(y - window.y0, x - window.x0) : nullptr;
+            float* out = frame.pixel(x, y);
+            const size_t i = size_t(y - rect.y0) * rect.width() + (x - rect.x0);
+            for (int c = 0; c < 3; ++c) {
+                const float s = std::expm1(ls[c]);
+                const float d = split ? (std::max(demod[c].px[i], 0.0f) + kpcn::kAlbedoEpsilon) * irr[c]
+                                      : 0.0f;
+                out[colour[c]] = sanitize(s + d);
+                if (keep_components) {
+                    specular.component[c].px[i] = s;
+                    if (split)
+                        diffuse.component[c].px[i] = d;
+                }
+            }
+        }
+    if (!keep_components)
+        return;
+    for (auto [result, filtered] : { std::pair{ &diffuse, irradiance }, std::pair{ &specular, &log_spec } }) {
+        result->filtered = filtered;
+        result->window_x0 = window.x0;
+        result->window_y0 = window.y0;
+    }
+    kpcn::write_extras(frame, rect, extras, split ? &diffuse : nullptr, specular);
+}
+
+/// The frame pixels of a tile's core that the op writes: inside the image and the ROI.
+Rect output_rect(const nn::Region& core, const ImageBuf& dst, ROI where)
+{
+    const ImageSpec& spec = dst.spec();
+    return { std::max(core.x0, where.xbegin - spec.x), std::max(core.y0, where.ybegin - spec.y),
+             std::min(core.x1, where.xend - spec.x), std::min(core.y1, where.yend - spec.y) };
+}
+
+/// The colour of the converged tiles inside `where` is the render's, sanitized (the frame
+/// holds the render there: it is sanitized in place).
+void pass_through_colour(kpcn::OutputFrame& frame, const ImageBuf& dst, const AovSet& aovs, ROI where,
+                         const ConvergedTiles& converged)
+{
+    if (!converged.any())
+        return;
+    const ImageSpec& spec = dst.spec();
+    const auto& colour = aovs.channels(Role::Color);
+    for (int y = where.ybegin - spec.y; y < where.yend - spec.y; ++y)
+        for (int x = where.xbegin - spec.x; x < where.xend - spec.x; ++x)
+            if (converged.pixel(x, y))
+                for (int c : colour)
+                    frame.pixel(x, y)[c] = sanitize(frame.pixel(x, y)[c]);
+}
+
 bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& options,
                           ROI roi, int nthreads)
 {
+    if (&dst == &src) {  // the tiles read the render while others write their results
+        const ImageBuf render = src.copy(OIIO::TypeDesc::FLOAT);
+        return cnn_in_working_space(dst, render, options, roi, nthreads);
+    }
     AovSet aovs;
-    if (!prepare_op(dst, src, options.aovs, aovs, "cnn"))
+    if (!prepare_op(dst, src, options.aovs, aovs, "cnn", nthreads))
         return false;
     std::string error;
     if (!aovs.require({ Role::Color }, src.spec(), error)) {
@@ -76,88 +162,80 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
         return false;
     }
     // mcdn/skip.h: nothing to do where every tile is converged (dst is the render).
-    const ConvergedTiles converged = converged_tiles_of(dst, aovs, options.skip);
+    const ConvergedTiles converged = converged_tiles_of(src, aovs, options.skip);
     if (converged.all())
         return true;
-    kpcn::Model model;
+    kpcn::OutputFrame frame(dst);
+    if (!frame.valid()) {
+        dst.errorfmt("cnn: the output frame is not in memory");
+        return false;
+    }
     const std::string path = options.weights.empty() ? default_cnn_weights() : options.weights;
     const int image_channels = extras.empty() ? 3 : 3 * (2 + int(extras.size()));
-    if (!kpcn::load_model(model, path, error, image_channels)) {
+    kpcn::Model first;
+    if (!kpcn::load_model(first, path, error, image_channels)) {
         dst.errorfmt("{}", error);
         return false;
     }
 
     // §5.1: the depth range is the one input statistic of the whole frame; everything else
-    // (§4.3's split, the 34 input channels) is made per network tile from its window.
-    const kpcn::DepthRange depth = kpcn::depth_range(dst, aovs);
-    const int width = dst.spec().width, height = dst.spec().height;
+    // (§4.3's split, the 34 input channels, eq. 4) is made per network tile from its window.
+    const kpcn::DepthRange depth = kpcn::depth_range(src, aovs);
+    const bool split = kpcn::has_split(aovs);
+    const ROI where = output_roi(src, roi);
+    nn::TileOptions tile_options;
+    tile_options.tile_size = options.tile_size;
+    tile_options.regions = network_regions(converged, first.specular, options.tile_size);
+    std::vector<nn::Tile> planned, tiles;
+    if (!nn::plan_tiles(first.specular, src.spec().height, src.spec().width, tile_options, planned,
+                        error)) {
+        dst.errorfmt("cnn: {}", error);
+        return false;
+    }
+    for (const nn::Tile& tile : planned)
+        if (!output_rect(tile.core, dst, where).empty())
+            tiles.push_back(tile);
 
-    // §4.2: each branch's network, tiled so memory is bounded by the tile.
-    nn::TileOptions tiles;
-    tiles.tile_size = options.tile_size;
-    nn::Tensor irradiance, log_specular;
-    auto run_branch = [&](nn::Net& net, kpcn::Branch branch, nn::Tensor& result) {
-        auto make_inputs = [&](const nn::Region& window, std::vector<nn::Tensor>& inputs,
-                               std::string& tile_error) {
-            inputs.resize(2);
-            return kpcn::tile_inputs(dst, aovs, depth, branch, extras, window, inputs[0],
-                                     inputs[1], tile_error);
-        };
-        std::vector<nn::Tensor> outputs;
-        tiles.regions = network_regions(converged, net, options.tile_size);
-        if (!nn::run_tiled(net, height, width, make_inputs, outputs, error, tiles)) {
-            error = "cnn: '" + path + "': " + error;
-            return false;
-        }
-        result = std::move(outputs[0]);
-        return true;
-    };
-    kpcn::RawPlanes raw;  // the colour and the demodulation, for eq. 4
-    kpcn::read_colour_and_demod(raw, dst, aovs);
+    // §4.2 then eq. 4, a tile at a time: one tile per worker, each with its own networks.
     const bool ran = with_threads(nthreads, [&] {
-        if (raw.split && !run_branch(model.diffuse, kpcn::Branch::diffuse, irradiance))
-            return false;
-        model.diffuse.give_buffers(model.specular);  // same shapes: no new memory
-        return run_branch(model.specular, kpcn::Branch::specular, log_specular);
+        const int workers = std::min(nn::max_threads(), int(tiles.size()));
+        std::vector<Worker> worker(std::max(workers, 1));
+        worker[0].model = std::move(first);
+        for (size_t w = 1; w < worker.size(); ++w)
+            if (!kpcn::load_model(worker[w].model, path, error, image_channels))
+                return false;
+        std::mutex failed;
+        auto run_tile = [&](int index, int w) {
+            Worker& k = worker[w];
+            const nn::Tile& tile = tiles[index];
+            std::string tile_error;
+            bool ok = kpcn::tile_inputs(src, aovs, depth, extras, tile.window,
+                                        split ? &k.diffuse_inputs : nullptr, k.specular_inputs,
+                                        tile_error);
+            if (ok && split) {
+                ok = k.model.diffuse.run(k.diffuse_inputs.tensors, k.irradiance, tile_error);
+                k.model.diffuse.give_buffers(k.model.specular);  // same shapes: no new memory
+            }
+            ok = ok && k.model.specular.run(k.specular_inputs.tensors, k.log_specular, tile_error);
+            k.model.specular.give_buffers(k.model.diffuse);
+            if (!ok) {
+                std::lock_guard<std::mutex> lock(failed);
+                if (error.empty())
+                    error = "cnn: '" + path + "': " + tile_error;
+                return false;
+            }
+            recombine(frame, output_rect(tile.core, dst, where), tile.window, k, split, src, aovs,
+                      extras);
+            return true;
+        };
+        return nn::for_each_tile(int(tiles.size()), workers, run_tile);
     });
     if (!ran) {
         dst.errorfmt("{}", error);
         return false;
     }
-
-    // Eq. 4: (albedo + eps) · irradiance + exp(log specular) − 1, a channel at a time; the
-    // components are kept as planes only for the extras' shares (0.4 GB each at 8K).
-    kpcn::BranchResult diffuse, specular;
-    diffuse.filtered = &irradiance;
-    specular.filtered = &log_specular;
-    const bool keep_components = !extras.empty();
-    const size_t stride = size_t(log_specular.channels);
-    const ROI where = output_roi(src, roi);
-    const auto& colour = aovs.channels(Role::Color);
-    for (int c = 0; c < 3; ++c) {
-        Plane out(width, height);
-        if (keep_components) {
-            specular.component[c] = Plane(width, height);
-            if (raw.split)
-                diffuse.component[c] = Plane(width, height);
-        }
-        for (size_t i = 0; i < out.size(); ++i) {
-            const float s = std::expm1(log_specular.data[i * stride + c]);
-            const float d = raw.split ? (std::max(raw.demod[c].px[i], 0.0f) + kpcn::kAlbedoEpsilon)
-                                            * irradiance.data[i * stride + c]
-                                      : 0.0f;
-            out.px[i] = sanitize(s + d);
-            if (keep_components) {
-                specular.component[c].px[i] = s;
-                if (raw.split)
-                    diffuse.component[c].px[i] = d;
-            }
-        }
-        pass_through_converged(out, raw.color[c], converged);
-        write_plane(dst, colour[c], out, where);
-    }
-    // The extras' shares of the same components: they add up to the beauty.
-    kpcn::write_extras(dst, where, extras, raw.split ? &diffuse : nullptr, specular);
+    // Converged tiles keep the render (sanitized), the extras' too.
+    pass_through_colour(frame, dst, aovs, where, converged);
     pass_through_extras(dst, where, extras, converged);
     return true;
 }

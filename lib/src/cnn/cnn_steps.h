@@ -43,10 +43,12 @@ struct RawPlanes {
 /// channel, the colour's variance.
 bool read_raw_planes(RawPlanes& raw, const ImageBuf& src, const AovSet& aovs,
                      std::string& error, Rect rect = {});
-/// What eq. 4 needs of the render on the whole frame besides the networks' outputs: the
-/// colour (kept on converged tiles), the split, and with it the albedo divided out of the
-/// diffuse.
-void read_colour_and_demod(RawPlanes& raw, const ImageBuf& src, const AovSet& aovs);
+/// Whether the render has the diffuse/specular split of §4.3 (Blender's diffuse passes, or
+/// the generic preset's diffuse role): then eq. 4 adds two branches, else the specular
+/// branch denoises the colour alone.
+bool has_split(const AovSet& aovs);
+/// Eq. 4's factor on `rect` of the frame: the albedo divided out of the diffuse (sanitized).
+void read_demod(Plane demod[3], const ImageBuf& src, const AovSet& aovs, Rect rect);
 
 /// §5.1 scales depth linearly to [0, 1] over the frame: the one input statistic of the
 /// whole frame, so it is taken before the tiles. span <= 0: constant depth (scaled to 0).
@@ -61,6 +63,28 @@ void scale_depth(RawPlanes& raw, const DepthRange& range);
 inline void scale_depth(RawPlanes& raw) { scale_depth(raw, depth_range(raw.depth)); }
 
 enum class Branch { diffuse, specular };
+
+/// The op's output frame, a float copy of the render in memory (prepare_op): each tile
+/// writes its own pixels straight into it, from any worker.
+class OutputFrame {
+public:
+    explicit OutputFrame(ImageBuf& dst)
+        : base_(static_cast<char*>(dst.localpixels())),
+          pixel_bytes_(size_t(dst.pixel_stride())),
+          row_bytes_(size_t(dst.scanline_stride()))
+    {
+    }
+    bool valid() const { return base_ != nullptr; }
+    /// The channels of pixel (x, y), counted from the data window's corner.
+    float* pixel(int x, int y)
+    {
+        return reinterpret_cast<float*>(base_ + size_t(y) * row_bytes_ + size_t(x) * pixel_bytes_);
+    }
+
+private:
+    char* base_;
+    size_t pixel_bytes_, row_bytes_;
+};
 
 /// The frame pixels a network tile's inputs are computed from: the window clipped to the
 /// frame (past it, the last row and column stand for the rest), and one more column and row
@@ -77,12 +101,21 @@ void branch_inputs(const RawPlanes& raw, Branch branch, const nn::Region& window
 /// The same on the whole frame of `raw` (the bench's and the tests' whole-frame inputs).
 void branch_inputs(const RawPlanes& raw, Branch branch, nn::Tensor& features, nn::Tensor& image);
 
-/// The op's nn::TileInputs: read_raw_planes, scale_depth and branch_inputs on a tile's
-/// window, in strips of rows (each read and computed in cache, threaded), the extras' parts
-/// appended to the image (extras.h).
-bool tile_inputs(const ImageBuf& src, const AovSet& aovs, const DepthRange& depth, Branch branch,
+/// A branch network's two inputs for one tile: the 34 feature channels and the image its
+/// kernels filter (with extras, their parts after the colour's: extras.h).
+struct BranchInputs {
+    std::vector<nn::Tensor> tensors = std::vector<nn::Tensor>(2);  // as Net::run takes them
+    nn::Tensor& features() { return tensors[0]; }
+    nn::Tensor& image() { return tensors[1]; }
+};
+
+/// The inputs of both branches on a tile's window (diffuse null: the specular branch alone,
+/// as without a split): read_raw_planes, scale_depth and branch_inputs in strips of rows,
+/// each strip read once for both and computed in cache, threaded; the extras' parts
+/// appended to the images (extras.h). The tensors' storage is reused.
+bool tile_inputs(const ImageBuf& src, const AovSet& aovs, const DepthRange& depth,
                  const std::vector<ExtraPlanes>& extras, const nn::Region& window,
-                 nn::Tensor& features, nn::Tensor& image, std::string& error);
+                 BranchInputs* diffuse, BranchInputs& specular, std::string& error);
 
 /// The two branch networks of a weights file ("diffuse.*", "specular.*" tensors).
 struct Model {

@@ -41,27 +41,28 @@ void add_extra_parts(nn::Tensor& image, const RawPlanes& raw, const std::vector<
         }
 }
 
-void write_extras(ImageBuf& dst, ROI roi, const std::vector<ExtraPlanes>& extras,
+void write_extras(OutputFrame& frame, Rect rect, const std::vector<ExtraPlanes>& extras,
                   const BranchResult* diffuse, const BranchResult& specular)
 {
-    // The extra's share of one branch's component at pixel i (0 where the colour's filtered
+    // The extra's share of one branch's component at (x, y) (0 where the colour's filtered
     // part vanishes: there the component has nothing to share).
-    auto share = [](const BranchResult& b, int e, int c, size_t i) {
-        const float* f = b.filtered->data.data() + i * b.filtered->channels;
+    auto share = [&](const BranchResult& b, int e, int c, int x, int y) {
+        const float* f = b.filtered->pixel(y - b.window_y0, x - b.window_x0);
         const float whole = f[3 + c];
-        return std::abs(whole) > 1e-12f ? b.component[c].px[i] * (f[6 + 3 * e + c] / whole)
-                                        : 0.0f;
+        return std::abs(whole) > 1e-12f
+                   ? b.component[c](x - rect.x0, y - rect.y0) * (f[6 + 3 * e + c] / whole)
+                   : 0.0f;
     };
-    for (int e = 0; e < int(extras.size()); ++e)
-        for (int c = 0; c < 3; ++c) {
-            Plane out = specular.component[c];
-            for (size_t i = 0; i < out.size(); ++i) {
-                float v = share(specular, e, c, i);
-                if (diffuse)
-                    v += share(*diffuse, e, c, i);
-                out.px[i] = sanitize(v);
-            }
-            write_plane(dst, extras[e].channels[c], out, roi);
+    for (int y = rect.y0; y < rect.y1; ++y)
+        for (int x = rect.x0; x < rect.x1; ++x) {
+            float* out = frame.pixel(x, y);
+            for (int e = 0; e < int(extras.size()); ++e)
+                for (int c = 0; c < 3; ++c) {
+                    float v = share(specular, e, c, x, y);
+                    if (diffuse)
+                        v += share(*diffuse, e, c, x, y);
+                    out[extras[e].channels[c]] = sanitize(v);
+                }
         }
 }
 

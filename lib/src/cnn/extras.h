@@ -22,16 +22,19 @@ namespace kpcn {
 void add_extra_parts(nn::Tensor& image, const RawPlanes& raw, const std::vector<ExtraPlanes>& extras,
                      Branch branch, const nn::Region& window, int first, int last);
 
-/// One branch's result: its denoised component (3 planes, in the beauty's units) and the
-/// filtered image of with_extra_parts (the parts from channel 3 on).
+/// One branch's result on a tile: its denoised component on the tile's output rectangle
+/// (3 planes, in the beauty's units) and the filtered image of the tile's window, whose
+/// corner is `window` in the frame (the parts from channel 3 on).
 struct BranchResult {
     Plane component[3];
     const nn::Tensor* filtered = nullptr;
+    int window_x0 = 0, window_y0 = 0;
 };
 
-/// Writes each extra's share of the denoised components into its channels of dst inside
-/// roi. `diffuse` is null without a diffuse/specular split.
-void write_extras(ImageBuf& dst, ROI roi, const std::vector<ExtraPlanes>& extras,
+/// Writes each extra's share of the denoised components into its channels of `frame` on
+/// `rect` (frame pixels, the rectangle of the components). `diffuse` is null without a
+/// diffuse/specular split.
+void write_extras(OutputFrame& frame, Rect rect, const std::vector<ExtraPlanes>& extras,
                   const BranchResult* diffuse, const BranchResult& specular);
 
 }  // namespace kpcn

@@ -1,9 +1,13 @@
 #include "core/op_prepare.h"
 
+#include <algorithm>
+
 #include <cstdint>
 #include <cstring>
 
 #include <OpenImageIO/strutil.h>
+
+#include "core/planar.h"
 
 #if defined(__linux__)
 #    include <sys/mman.h>
@@ -60,7 +64,7 @@ bool check_op_input(const ImageBuf& src, const AovSpec& spec, AovSet& aovs, cons
 }
 
 bool prepare_op(ImageBuf& dst, const ImageBuf& src, const AovSpec& spec, AovSet& aovs,
-                const char* op)
+                const char* op, int nthreads)
 {
     std::string error;
     if (!check_op_input(src, spec, aovs, op, error)) {
@@ -77,7 +81,15 @@ bool prepare_op(ImageBuf& dst, const ImageBuf& src, const AovSpec& spec, AovSet&
         // Not zero-filled: zeroing would fault every 4 KB page before the advice.
         dst.reset(src.spec(), OIIO::InitializePixels::No);
         advise_huge_pages(dst.localpixels(), src.spec().image_bytes());
-        std::memcpy(dst.localpixels(), src.localpixels(), src.spec().image_bytes());
+        // In 2 MB pieces (a huge page each), as many at once as there are threads.
+        constexpr size_t kPiece = size_t(2) << 20;
+        const size_t bytes = src.spec().image_bytes();
+        char* to = static_cast<char*>(dst.localpixels());
+        const char* from = static_cast<const char*>(src.localpixels());
+        parallel_for_index(int((bytes + kPiece - 1) / kPiece), nthreads, [&](int i) {
+            const size_t begin = size_t(i) * kPiece;
+            std::memcpy(to + begin, from + begin, std::min(kPiece, bytes - begin));
+        });
         return true;
     }
     if (!dst.copy(src, OIIO::TypeDesc::FLOAT)) {

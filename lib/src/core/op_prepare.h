@@ -16,9 +16,11 @@ void allocate_frame(ImageBuf& dst, const ImageSpec& spec, bool zero);
 bool check_op_input(const ImageBuf& src, const AovSpec& spec, AovSet& aovs, const char* op,
                     std::string& error);
 
-/// On failure sets an error on dst naming `op` and returns false.
+/// On failure sets an error on dst naming `op` and returns false. The copy runs on
+/// `nthreads` threads (0 = all cores): touching a fresh frame is page clearing, ~1.4 s for
+/// a 1080p render with 78 channels on this project's VMs, and it parallelises.
 bool prepare_op(ImageBuf& dst, const ImageBuf& src, const AovSpec& spec, AovSet& aovs,
-                const char* op);
+                const char* op, int nthreads = 1);
 
 /// The ROI an op writes: `roi` clipped to src's data window (all of it when undefined).
 ROI output_roi(const ImageBuf& src, ROI roi);

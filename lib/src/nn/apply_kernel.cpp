@@ -53,32 +53,66 @@ void make_planes(const Tensor& image, int pad, PaddedPlanes& planes)
 /// Per-thread scratch of one row: the weights tap-major, the per-pixel max and total, the
 /// per-channel sums.
 struct RowScratch {
-    std::vector<float> weights, max_logit, total, sums;
+    std::vector<float> weights, max_logit, total, sums, features;
 };
 
+/// Where the logits come from: channels [first, first + k²) of a tensor, or (the fused
+/// head) a 1×1 convolution of `features` computed here, row by row, so the k²-channel
+/// logits of the whole tile never exist in memory (they were KPCN's widest value: 125
+/// channels of every window pixel, written once and read once).
 struct Job {
-    const Tensor* logits;
-    int first;  // logits channel of tap 0
+    const Tensor* logits;  // or nullptr: the head below
+    int first;             // logits channel of tap 0
+    const Tensor* features = nullptr;
+    const float* head_weights = nullptr;  // [tap][feature channel]
+    const float* head_bias = nullptr;     // [tap]
     const PaddedPlanes* planes;
     int kernel;
     Tensor* out;
 };
 
+/// Tap-major logits of row y into s.weights; the lanes past the row's end get 0 (finite,
+/// never written out).
+MCDN_INLINE void row_logits(const Job& job, int y, int lanes_width, RowScratch& s)
+{
+    const int width = job.out->width, taps = job.kernel * job.kernel;
+    if (job.logits) {
+        for (int px = 0; px < lanes_width; ++px) {
+            const float* z = px < width ? job.logits->pixel(y, px) + job.first : nullptr;
+            for (int t = 0; t < taps; ++t)
+                s.weights[size_t(t) * lanes_width + px] = z ? z[t] : 0.0f;
+        }
+        return;
+    }
+    // The head: z_t = bias_t + sum_k w_tk f_k, 16 pixels per vector, over the features
+    // made channel-major first.
+    const Tensor& features = *job.features;
+    const int inputs = features.channels;
+    s.features.resize(size_t(inputs) * lanes_width);
+    for (int px = 0; px < lanes_width; ++px) {
+        const float* f = px < width ? features.pixel(y, px) : nullptr;
+        for (int k = 0; k < inputs; ++k)
+            s.features[size_t(k) * lanes_width + px] = f ? f[k] : 0.0f;
+    }
+    for (int x = 0; x < lanes_width; x += kLanes)
+        for (int t = 0; t < taps; ++t) {
+            const float* w = job.head_weights + size_t(t) * inputs;
+            vfloat16 z = splat16(job.head_bias[t]);
+            for (int k = 0; k < inputs; ++k)
+                z += splat16(w[k]) * load16(&s.features[size_t(k) * lanes_width + x]);
+            store16(&s.weights[size_t(t) * lanes_width + x], z);
+        }
+}
+
 MCDN_INLINE void row_impl(const Job& job, int y, RowScratch& s)
 {
-    const Tensor& logits = *job.logits;
     const int width = job.out->width, lanes_width = round_up16(width);
     const int kernel = job.kernel, taps = kernel * kernel, channels = job.planes->channels;
     s.weights.resize(size_t(taps) * lanes_width);
     s.max_logit.resize(lanes_width);
     s.total.resize(lanes_width);
     s.sums.resize(size_t(channels) * lanes_width);
-    // Tap-major logits; the lanes past the row's end get 0 (finite, never written out).
-    for (int px = 0; px < lanes_width; ++px) {
-        const float* z = px < width ? logits.pixel(y, px) + job.first : nullptr;
-        for (int t = 0; t < taps; ++t)
-            s.weights[size_t(t) * lanes_width + px] = z ? z[t] : 0.0f;
-    }
+    row_logits(job, y, lanes_width, s);
     for (int x = 0; x < lanes_width; x += kLanes) {
         // Softmax, shifted by the max so exp cannot overflow; exp_neg16 is good to ~2e-7.
         vfloat16 max = load16(&s.weights[x]);
@@ -117,6 +151,19 @@ MCDN_TARGET_AVX512 void row_avx512(const Job& job, int y, RowScratch& s) { row_i
 MCDN_TARGET_AVX2 void row_avx2(const Job& job, int y, RowScratch& s) { row_impl(job, y, s); }
 void row_baseline(const Job& job, int y, RowScratch& s) { row_impl(job, y, s); }
 
+
+/// The rows of out, each computed by one thread.
+void run_rows(const Job& job, const Tensor& image)
+{
+    const Isa isa = detect_isa();
+    auto row = isa == Isa::Avx512 ? row_avx512 : isa == Isa::Avx2 ? row_avx2 : row_baseline;
+    parallel_row_blocks(image.height, [&](int first, int last) {
+        static thread_local RowScratch scratch;  // kept: no allocation per block
+        for (int y = first; y != last; ++y)
+            row(job, y, scratch);
+    });
+}
+
 }  // namespace
 
 void apply_kernel(const Tensor& logits, int first_channel, const Tensor& image, int kernel,
@@ -125,14 +172,16 @@ void apply_kernel(const Tensor& logits, int first_channel, const Tensor& image, 
     static thread_local PaddedPlanes planes;  // kept: no allocation per call
     make_planes(image, kernel / 2, planes);
     reshape(out, image.height, image.width, image.channels);
-    const Job job { &logits, first_channel, &planes, kernel, &out };
-    const Isa isa = detect_isa();
-    auto row = isa == Isa::Avx512 ? row_avx512 : isa == Isa::Avx2 ? row_avx2 : row_baseline;
-    parallel_row_blocks(image.height, [&](int first, int last) {
-        RowScratch scratch;
-        for (int y = first; y != last; ++y)
-            row(job, y, scratch);
-    });
+    run_rows({ &logits, first_channel, nullptr, nullptr, nullptr, &planes, kernel, &out }, image);
+}
+
+void apply_kernel_head(const Tensor& features, const float* head_weights, const float* head_bias,
+                       const Tensor& image, int kernel, Tensor& out)
+{
+    static thread_local PaddedPlanes planes;
+    make_planes(image, kernel / 2, planes);
+    reshape(out, image.height, image.width, image.channels);
+    run_rows({ nullptr, 0, &features, head_weights, head_bias, &planes, kernel, &out }, image);
 }
 
 void apply_kernel(const Tensor& logits, const Tensor& image, int kernel, Tensor& out)

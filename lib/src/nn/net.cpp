@@ -294,6 +294,10 @@ struct Schedule {
     /// A slice read only as the logits of apply_kernel is never copied out: apply_kernel
     /// reads its channels in place. view_of[slice] = the sliced value, else -1.
     std::vector<int> view_of;
+    /// The kernel head: a 1×1 conv without activation read only through such slices is
+    /// never run; each apply_kernel computes its logits from the conv's input and rows of
+    /// its weights (ops::apply_kernel_head). fused_head[conv] = 1.
+    std::vector<char> fused_head;
 };
 
 Schedule make_schedule(const std::vector<Net::Node>& nodes, const std::vector<int>& outputs,
@@ -301,7 +305,8 @@ Schedule make_schedule(const std::vector<Net::Node>& nodes, const std::vector<in
 {
     const int count = int(nodes.size());
     Schedule schedule { std::vector<int>(count, -1), std::vector<std::vector<int>>(count),
-                        std::vector<int>(count, -1), std::vector<int>(count, -1) };
+                        std::vector<int>(count, -1), std::vector<int>(count, -1),
+                        std::vector<char>(count, 0) };
     std::vector<int> readers(count, 0), kernel_readers(count, 0);
     for (int id = 0; id < count; ++id)
         for (size_t k = 0; k < nodes[id].inputs.size(); ++k) {
@@ -330,8 +335,23 @@ Schedule make_schedule(const std::vector<Net::Node>& nodes, const std::vector<in
         if (nodes[conv].op == Net::Op::conv && readers[conv] == 1 && residual < conv)
             schedule.fused_add[conv] = id;
     }
+    std::vector<int> view_readers(count, 0);
     for (int id = 0; id < count; ++id)
-        if (schedule.last_reader[id] >= 0 && schedule.last_reader[id] < count)
+        if (schedule.view_of[id] >= 0)
+            ++view_readers[schedule.view_of[id]];
+    for (int id = 0; fuse && id < count; ++id) {
+        const Net::Node& node = nodes[id];
+        if (node.op == Net::Op::conv && node.kernel == 1 && node.activation == Activation::none
+            && readers[id] > 0 && readers[id] == view_readers[id]) {
+            schedule.fused_head[id] = 1;
+            const int features = node.inputs[0];  // read by every apply_kernel instead
+            schedule.last_reader[features] = std::max(schedule.last_reader[features],
+                                                      schedule.last_reader[id]);
+        }
+    }
+    for (int id = 0; id < count; ++id)
+        if (schedule.last_reader[id] >= 0 && schedule.last_reader[id] < count
+            && !(schedule.fused_head[id]))
             schedule.free_after[schedule.last_reader[id]].push_back(id);
     return schedule;
 }
@@ -451,6 +471,8 @@ bool Net::run(const std::vector<Tensor>& inputs, std::vector<Tensor>& outputs, s
         switch (node.op) {
         case Op::input: continue;
         case Op::conv:
+            if (schedule.fused_head[id])
+                continue;  // computed inside the apply_kernels that read it
             if (fast && fused_add[id] >= 0) {
                 const Node& add = nodes_[fused_add[id]];
                 const int residual = add.inputs[0] == id ? add.inputs[1] : add.inputs[0];
@@ -501,7 +523,7 @@ bool Net::run(const std::vector<Tensor>& inputs, std::vector<Tensor>& outputs, s
         }
         case Op::slice:
             if (schedule.view_of[id] >= 0) {
-                value[id] = &in(0);  // apply_kernel reads the channels where they are
+                value[id] = value[node.inputs[0]];  // apply_kernel reads the channels where they are
                 continue;
             }
             fresh();
@@ -510,13 +532,21 @@ bool Net::run(const std::vector<Tensor>& inputs, std::vector<Tensor>& outputs, s
             break;
         case Op::apply_kernel:
             fresh();
-            if (!fast)
+            if (!fast) {
                 reference::apply_kernel(in(0), in(1), node.kernel, out);
-            else
-                ops::apply_kernel(in(0),
-                                  schedule.view_of[node.inputs[0]] >= 0
-                                      ? nodes_[node.inputs[0]].first_channel : 0,
-                                  in(1), node.kernel, out);
+                break;
+            }
+            {
+                const int logits = node.inputs[0], sliced = schedule.view_of[logits];
+                const int first = sliced >= 0 ? nodes_[logits].first_channel : 0;
+                if (sliced >= 0 && schedule.fused_head[sliced]) {
+                    const Tensor& features = *value[nodes_[sliced].inputs[0]];
+                    ops::apply_kernel_head(features,
+                                           weights_[sliced].data() + size_t(first) * features.channels,
+                                           biases_[sliced].data() + first, in(1), node.kernel, out);
+                } else
+                    ops::apply_kernel(in(0), first, in(1), node.kernel, out);
+            }
             break;
         }
         value[id] = &out;

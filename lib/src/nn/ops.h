@@ -34,6 +34,11 @@ void apply_kernel(const Tensor& logits, const Tensor& image, int kernel, Tensor&
 /// (a slice that need not be copied out first).
 void apply_kernel(const Tensor& logits, int first_channel, const Tensor& image, int kernel,
                   Tensor& out);
+/// The same with the logits a 1×1 convolution of `features` (no activation), computed row
+/// by row inside (the fused kernel head): head_weights [k²][features.channels] (OIHW rows),
+/// head_bias [k²].
+void apply_kernel_head(const Tensor& features, const float* head_weights, const float* head_bias,
+                       const Tensor& image, int kernel, Tensor& out);
 }  // namespace ops
 
 namespace reference {

@@ -24,8 +24,10 @@ namespace nn {
 template <class Block> void parallel_row_blocks(int height, Block block)
 {
 #ifdef _OPENMP
+    // Inside nn::for_each_tile (one tile per worker) the rows stay on this worker.
+    const bool nested = omp_in_parallel();
     const int rows = std::max(1, std::min(8, height / (4 * omp_get_max_threads())));
-#    pragma omp parallel for schedule(dynamic, 1)
+#    pragma omp parallel for schedule(dynamic, 1) if (!nested)
     for (int first = 0; first < height; first += rows)
         block(first, std::min(first + rows, height));
 #else

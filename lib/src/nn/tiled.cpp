@@ -5,6 +5,11 @@
 // pooling grid is the same). Memory is bounded by the tile, not the image; with a TileInputs
 // callback (KPCN) not even the inputs exist for the whole image.
 #include <algorithm>
+#include <atomic>
+
+#ifdef _OPENMP
+#    include <omp.h>
+#endif
 
 #include "mcdn/nn.h"
 #include "nn/ops.h"
@@ -56,13 +61,9 @@ bool run_tiled(Net& net, const std::vector<Tensor>& inputs, std::vector<Tensor>&
     return run_tiled(net, height, width, cut, outputs, error, options);
 }
 
-bool run_tiled(Net& net, int height, int width, const TileInputs& make_inputs,
-               std::vector<Tensor>& outputs, std::string& error, const TileOptions& options)
+bool plan_tiles(const Net& net, int height, int width, const TileOptions& options,
+                std::vector<Tile>& tiles, std::string& error)
 {
-    if (height <= 0 || width <= 0) {
-        error = "network '" + net.name() + "': run_tiled needs a non-empty image";
-        return false;
-    }
     const int alignment = net.alignment();
     const int halo = round_up(net.receptive_radius(), alignment);
     const int tile = round_up(std::max(options.tile_size, 1), alignment);
@@ -76,12 +77,7 @@ bool run_tiled(Net& net, int height, int width, const TileInputs& make_inputs,
         for (int ty = 0; ty < padded_height; ty += tile)
             for (int tx = 0; tx < padded_width; tx += tile)
                 cores.push_back({ tx, ty, tx + tile, ty + tile });
-    // Each core's window, largest first: the buffers of the first run then hold every later
-    // tile's values (Net::run reuses them), and nothing is allocated after it.
-    struct Tile {
-        int ty, tx, core_y1, core_x1, y0, y1, x0, x1;
-    };
-    std::vector<Tile> order;
+    tiles.clear();
     for (const Region& core : cores) {
         const int tx = core.x0, ty = core.y0;
         if (tx % alignment || ty % alignment) {
@@ -93,25 +89,75 @@ bool run_tiled(Net& net, int height, int width, const TileInputs& make_inputs,
         const int core_x1 = std::min(round_up(core.x1, alignment), padded_width);
         if (tx >= core_x1 || ty >= core_y1)
             continue;
-        order.push_back({ ty, tx, core_y1, core_x1, std::max(ty - halo, 0),
-                          std::min(core_y1 + halo, padded_height), std::max(tx - halo, 0),
-                          std::min(core_x1 + halo, padded_width) });
+        tiles.push_back({ { tx, ty, core_x1, core_y1 },
+                          { std::max(tx - halo, 0), std::max(ty - halo, 0),
+                            std::min(core_x1 + halo, padded_width),
+                            std::min(core_y1 + halo, padded_height) } });
     }
-    std::stable_sort(order.begin(), order.end(), [](const Tile& a, const Tile& b) {
-        return (a.y1 - a.y0) * (a.x1 - a.x0) > (b.y1 - b.y0) * (b.x1 - b.x0);
+    // Largest first: the buffers of the first run then hold every later tile's values
+    // (Net::run reuses them), and nothing is allocated after it.
+    auto area = [](const Region& r) { return (r.y1 - r.y0) * (r.x1 - r.x0); };
+    std::stable_sort(tiles.begin(), tiles.end(), [&](const Tile& a, const Tile& b) {
+        return area(a.window) > area(b.window);
     });
+    return true;
+}
 
+int max_threads()
+{
+#ifdef _OPENMP
+    return omp_get_max_threads();
+#else
+    return 1;
+#endif
+}
+
+bool for_each_tile(int count, int workers, const std::function<bool(int, int)>& work)
+{
+#ifdef _OPENMP
+    if (workers > 1 && count > 1) {
+        // Nested regions (oneDNN's, parallel_row_blocks) see omp_in_parallel() and run on
+        // their worker alone: one tile per core, no barriers between a tile's layers.
+        std::atomic<bool> ok { true };
+#    pragma omp parallel num_threads(workers)
+        {
+            const int worker = omp_get_thread_num();
+#    pragma omp for schedule(dynamic, 1)
+            for (int index = 0; index < count; ++index)
+                if (ok && !work(index, worker))
+                    ok = false;
+        }
+        return ok;
+    }
+#endif
+    for (int index = 0; index < count; ++index)
+        if (!work(index, 0))
+            return false;
+    return true;
+}
+
+bool run_tiled(Net& net, int height, int width, const TileInputs& make_inputs,
+               std::vector<Tensor>& outputs, std::string& error, const TileOptions& options)
+{
+    if (height <= 0 || width <= 0) {
+        error = "network '" + net.name() + "': run_tiled needs a non-empty image";
+        return false;
+    }
+    std::vector<Tile> tiles;
+    if (!plan_tiles(net, height, width, options, tiles, error))
+        return false;
     outputs.clear();
     // Kept across tiles: the windows' storage, and the outputs', which run() reuses.
     std::vector<Tensor> tile_inputs, tile_outputs;
-    for (const Tile& t : order) {
-        if (!make_inputs({ t.x0, t.y0, t.x1, t.y1 }, tile_inputs, error))
+    for (const Tile& t : tiles) {
+        const Region& w = t.window;
+        if (!make_inputs(w, tile_inputs, error))
             return false;
         if (!net.run(tile_inputs, tile_outputs, error, options.backend))
             return false;
         if (outputs.empty())
             for (const Tensor& out : tile_outputs) {
-                if (out.height != t.y1 - t.y0 || out.width != t.x1 - t.x0) {
+                if (out.height != w.y1 - w.y0 || out.width != w.x1 - w.x0) {
                     error = "network '" + net.name()
                             + "': run_tiled needs outputs at the input resolution";
                     return false;
@@ -119,11 +165,12 @@ bool run_tiled(Net& net, int height, int width, const TileInputs& make_inputs,
                 outputs.emplace_back(height, width, out.channels);
             }
         // Keep the tile's core, cropped to the real image.
-        const int core_y1 = std::min(t.core_y1, height), core_x1 = std::min(t.core_x1, width);
+        const int core_y1 = std::min(t.core.y1, height), core_x1 = std::min(t.core.x1, width);
         for (size_t o = 0; o < outputs.size(); ++o)
-            for (int y = t.ty; y < core_y1; ++y)
-                std::copy_n(tile_outputs[o].pixel(y - t.y0, t.tx - t.x0),
-                            size_t(core_x1 - t.tx) * outputs[o].channels, outputs[o].pixel(y, t.tx));
+            for (int y = t.core.y0; y < core_y1; ++y)
+                std::copy_n(tile_outputs[o].pixel(y - w.y0, t.core.x0 - w.x0),
+                            size_t(core_x1 - t.core.x0) * outputs[o].channels,
+                            outputs[o].pixel(y, t.core.x0));
     }
     return true;
 }
