@@ -15,37 +15,61 @@ namespace kpcn {
 namespace {
 
 /// Channels of src inside a rectangle of the frame, as read_plane reads them (sanitized).
-struct WindowReader {
-    const ImageBuf& src;
-    Rect rect;
+/// A float frame in memory (the op's own copy) is read in place; any other image (in a file
+/// cache, or half floats) is converted once, every channel of the window in one get_pixels:
+/// get_pixels of a single channel copies a float at a time (~4x the whole KPCN input step).
+class WindowReader {
+public:
+    const Rect rect;
 
-    const ImageSpec& spec() const { return src.spec(); }
+    /// `channels_at_once`: false for a reader of one or two channels (no whole-pixel copy).
+    WindowReader(const ImageBuf& src, Rect rect, bool channels_at_once = true)
+        : rect(rect), src_(src)
+    {
+        const ImageSpec& s = src.spec();
+        if (src.localpixels() && s.format == OIIO::TypeDesc::FLOAT) {
+            first_ = static_cast<const float*>(src.pixeladdr(s.x + rect.x0, s.y + rect.y0));
+            pixel_step_ = size_t(src.pixel_stride()) / sizeof(float);
+            row_step_ = size_t(src.scanline_stride()) / sizeof(float);
+        } else if (channels_at_once) {
+            block_.resize(size_t(rect.width()) * rect.height() * s.nchannels);
+            src.get_pixels(ROI(s.x + rect.x0, s.x + rect.x1, s.y + rect.y0, s.y + rect.y1, s.z,
+                               s.z + 1, 0, s.nchannels),
+                           OIIO::TypeDesc::FLOAT, block_.data());
+            first_ = block_.data();
+            pixel_step_ = size_t(s.nchannels);
+            row_step_ = pixel_step_ * rect.width();
+        }
+    }
+
+    const ImageSpec& spec() const { return src_.spec(); }
     Plane blank(float fill = 0.0f) const { return Plane(rect.width(), rect.height(), fill); }
     Plane plane(int channel, bool is_variance = false) const
     {
-        const ImageSpec& s = src.spec();
         Plane plane = blank();
-        if (src.localpixels() && s.format == OIIO::TypeDesc::FLOAT) {
-            // A float frame in memory (the op's own copy): read in place. get_pixels of one
-            // channel copies a float at a time (~4x the whole KPCN input step).
-            const size_t step = size_t(src.pixel_stride()) / sizeof(float);
+        if (first_) {
             for (int y = 0; y < rect.height(); ++y) {
-                const float* in = static_cast<const float*>(
-                                      src.pixeladdr(s.x + rect.x0, s.y + rect.y0 + y))
-                                  + channel;
+                const float* in = first_ + y * row_step_ + channel;
                 float* out = plane.row(y);
                 for (int x = 0; x < rect.width(); ++x)
-                    out[x] = in[x * step];
+                    out[x] = in[x * pixel_step_];
             }
         } else {
-            src.get_pixels(ROI(s.x + rect.x0, s.x + rect.x1, s.y + rect.y0, s.y + rect.y1, s.z,
-                               s.z + 1, channel, channel + 1),
-                           OIIO::TypeDesc::FLOAT, plane.data());
+            const ImageSpec& s = src_.spec();
+            src_.get_pixels(ROI(s.x + rect.x0, s.x + rect.x1, s.y + rect.y0, s.y + rect.y1, s.z,
+                                s.z + 1, channel, channel + 1),
+                            OIIO::TypeDesc::FLOAT, plane.data());
         }
         for (float& v : plane.px)
             v = is_variance ? sanitize_variance(v) : sanitize(v);
         return plane;
     }
+
+private:
+    const ImageBuf& src_;
+    std::vector<float> block_;  // the window's pixels, when src is not a float frame in memory
+    const float* first_ = nullptr;
+    size_t pixel_step_ = 0, row_step_ = 0;
 };
 
 /// Index of "variance.<channel name>", or -1.
@@ -165,13 +189,13 @@ bool has_split(const AovSet& aovs) { return cycles_split(aovs) || aovs.has(Role:
 
 void read_demod(Plane demod[3], const ImageBuf& src, const AovSet& aovs, Rect rect)
 {
-    read_demod(WindowReader { src, rect }, aovs, demod);
+    read_demod(WindowReader(src, rect), aovs, demod);
 }
 
 bool read_raw_planes(RawPlanes& raw, const ImageBuf& src, const AovSet& aovs, std::string& error,
                      Rect rect)
 {
-    const WindowReader reader { src, rect.empty() ? whole_frame(src) : rect };
+    const WindowReader reader(src, rect.empty() ? whole_frame(src) : rect);
     raw.rect = reader.rect;
     raw.frame_width = src.spec().width;
     raw.frame_height = src.spec().height;
@@ -295,8 +319,9 @@ DepthRange depth_range(const ImageBuf& src, const AovSet& aovs)
     const int channel = aovs.channels(Role::Depth)[0];
     float lo = INFINITY, hi = -INFINITY;
     for (int y = 0; y < src.spec().height; y += kBandRows) {
-        const WindowReader band { src, { 0, y, src.spec().width,
-                                         std::min(y + kBandRows, src.spec().height) } };
+        const WindowReader band(src, { 0, y, src.spec().width,
+                                       std::min(y + kBandRows, src.spec().height) },
+                                false);
         const DepthRange r = depth_range(band.plane(channel));
         lo = std::min(lo, r.lo);
         hi = std::max(hi, r.lo + r.span);
