@@ -217,7 +217,8 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
                 k.model.diffuse.give_buffers(k.model.specular);  // same shapes: no new memory
             }
             ok = ok && k.model.specular.run(k.specular_inputs.tensors, k.log_specular, tile_error);
-            k.model.specular.give_buffers(k.model.diffuse);
+            if (split)  // back for the next tile (without a split they stay: the one net)
+                k.model.specular.give_buffers(k.model.diffuse);
             if (!ok) {
                 std::lock_guard<std::mutex> lock(failed);
                 if (error.empty())
