@@ -71,6 +71,43 @@ struct Job {
     Tensor* out;
 };
 
+/// One round of a 16×16 transpose in registers: for each pair of rows (i, i + d) with bit
+/// d of i clear, the off-diagonal blocks of size d trade places (`low` and `high` pick the
+/// lanes: row i keeps a[j] where bit d of j is clear and takes b[j − d] where it is set,
+/// row i + d takes a[j + d] and keeps b[j]).
+MCDN_INLINE void swap_blocks(vfloat16 r[kLanes], int d, vint16 low, vint16 high)
+{
+    for (int i = 0; i < kLanes; ++i)
+        if (!(i & d)) {
+            const vfloat16 a = r[i], b = r[i + d];
+            r[i] = __builtin_shuffle(a, b, low);
+            r[i + d] = __builtin_shuffle(a, b, high);
+        }
+}
+
+/// Row y of `features` (channels a multiple of 16) channel-major into `out` (rows of
+/// lanes_width, zero past `width`), 16 pixels × 16 channels at a time: four rounds of
+/// swap_blocks (8, 4, 2, 1) instead of 256 scalar moves.
+MCDN_INLINE void transpose_row(const Tensor& features, int y, int width, int lanes_width, float* out)
+{
+    for (int x = 0; x < lanes_width; x += kLanes)
+        for (int k0 = 0; k0 < features.channels; k0 += kLanes) {
+            vfloat16 r[kLanes];
+            for (int i = 0; i < kLanes; ++i)
+                r[i] = x + i < width ? load16(features.pixel(y, x + i) + k0) : vfloat16 {};
+            swap_blocks(r, 8, vint16 { 0, 1, 2, 3, 4, 5, 6, 7, 16, 17, 18, 19, 20, 21, 22, 23 },
+                        vint16 { 8, 9, 10, 11, 12, 13, 14, 15, 24, 25, 26, 27, 28, 29, 30, 31 });
+            swap_blocks(r, 4, vint16 { 0, 1, 2, 3, 16, 17, 18, 19, 8, 9, 10, 11, 24, 25, 26, 27 },
+                        vint16 { 4, 5, 6, 7, 20, 21, 22, 23, 12, 13, 14, 15, 28, 29, 30, 31 });
+            swap_blocks(r, 2, vint16 { 0, 1, 16, 17, 4, 5, 20, 21, 8, 9, 24, 25, 12, 13, 28, 29 },
+                        vint16 { 2, 3, 18, 19, 6, 7, 22, 23, 10, 11, 26, 27, 14, 15, 30, 31 });
+            swap_blocks(r, 1, vint16 { 0, 16, 2, 18, 4, 20, 6, 22, 8, 24, 10, 26, 12, 28, 14, 30 },
+                        vint16 { 1, 17, 3, 19, 5, 21, 7, 23, 9, 25, 11, 27, 13, 29, 15, 31 });
+            for (int i = 0; i < kLanes; ++i)
+                store16(out + size_t(k0 + i) * lanes_width + x, r[i]);
+        }
+}
+
 /// Tap-major logits of row y into s.weights; the lanes past the row's end get 0 (finite,
 /// never written out).
 MCDN_INLINE void row_logits(const Job& job, int y, int lanes_width, RowScratch& s)
@@ -89,18 +126,31 @@ MCDN_INLINE void row_logits(const Job& job, int y, int lanes_width, RowScratch& 
     const Tensor& features = *job.features;
     const int inputs = features.channels;
     s.features.resize(size_t(inputs) * lanes_width);
-    for (int px = 0; px < lanes_width; ++px) {
-        const float* f = px < width ? features.pixel(y, px) : nullptr;
-        for (int k = 0; k < inputs; ++k)
-            s.features[size_t(k) * lanes_width + px] = f ? f[k] : 0.0f;
-    }
-    for (int x = 0; x < lanes_width; x += kLanes)
-        for (int t = 0; t < taps; ++t) {
-            const float* w = job.head_weights + size_t(t) * inputs;
-            vfloat16 z = splat16(job.head_bias[t]);
+    if (inputs % kLanes == 0)
+        transpose_row(features, y, width, lanes_width, s.features.data());
+    else
+        for (int px = 0; px < lanes_width; ++px) {
+            const float* f = px < width ? features.pixel(y, px) : nullptr;
             for (int k = 0; k < inputs; ++k)
-                z += splat16(w[k]) * load16(&s.features[size_t(k) * lanes_width + x]);
-            store16(&s.weights[size_t(t) * lanes_width + x], z);
+                s.features[size_t(k) * lanes_width + px] = f ? f[k] : 0.0f;
+        }
+    // Five taps at a time: five independent sums keep the FMA units busy (one sum alone
+    // waits on each FMA's latency); each sum still runs over k in order.
+    constexpr int kGroup = 5;
+    for (int x = 0; x < lanes_width; x += kLanes)
+        for (int t0 = 0; t0 < taps; t0 += kGroup) {
+            const int group = std::min(kGroup, taps - t0);
+            vfloat16 z[kGroup];
+            for (int g = 0; g < kGroup; ++g)
+                z[g] = splat16(g < group ? job.head_bias[t0 + g] : 0.0f);
+            for (int k = 0; k < inputs; ++k) {
+                const vfloat16 f = load16(&s.features[size_t(k) * lanes_width + x]);
+                for (int g = 0; g < kGroup; ++g)
+                    if (g < group)
+                        z[g] += splat16(job.head_weights[size_t(t0 + g) * inputs + k]) * f;
+            }
+            for (int g = 0; g < group; ++g)
+                store16(&s.weights[size_t(t0 + g) * lanes_width + x], z[g]);
         }
 }
 
