@@ -306,6 +306,19 @@ TEST(SkipCnn, ConvergedTilesPassThroughAndFarPixelsAreUnchanged)
     EXPECT_EQ(max_colour_difference(one, skipped, 0, 128), 0.0f);
 }
 
+TEST(SkipCnn, ConvergedTilesPassThroughWhenTheWholeFrameRuns)
+{
+    // One converged tile column: the network's reach covers the whole frame from the
+    // noisy tiles, so it runs on every tile; the converged ones still keep the render.
+    const ImageBuf src = half_converged_box(1);
+    CnnOptions on;
+    on.aovs = cycles();
+    ImageBuf out = cnn(src, on, {}, 2);
+    ASSERT_FALSE(out.has_error()) << out.geterror();
+    EXPECT_EQ(max_colour_difference(out, src, 0, T), 0.0f);
+    EXPECT_GT(max_colour_difference(out, src, T, 128), 0.0f);
+}
+
 TEST(SkipSureMix, ConvergedTilesAreTheRenderWithTheirExactError)
 {
     const ImageBuf src = half_converged_box();

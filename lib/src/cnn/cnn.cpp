@@ -70,11 +70,12 @@ struct Worker {
 };
 
 /// Eq. 4 on `rect` (frame pixels inside the tile's core): colour = (albedo + eps) ·
-/// irradiance + exp(log specular) − 1, written into the frame; with extras, their shares of
-/// the two components too.
+/// irradiance + exp(log specular) − 1, written into the frame except on converged tiles
+/// (a tile the network ran on for its neighbours keeps the render); with extras, their
+/// shares of the two components too (pass_through_extras restores converged tiles).
 void recombine(kpcn::OutputFrame& frame, Rect rect, const nn::Region& window, const Worker& worker,
                bool split, const ImageBuf& src, const AovSet& aovs,
-               const std::vector<ExtraPlanes>& extras)
+               const std::vector<ExtraPlanes>& extras, const ConvergedTiles& converged)
 {
     Plane demod[3];
     if (split)
@@ -95,11 +96,13 @@ void recombine(kpcn::OutputFrame& frame, Rect rect, const nn::Region& window, co
             const float* irr = split ? irradiance->pixel(y - window.y0, x - window.x0) : nullptr;
             float* out = frame.pixel(x, y);
             const size_t i = size_t(y - rect.y0) * rect.width() + (x - rect.x0);
+            const bool render_stays = converged.pixel(x, y);
             for (int c = 0; c < 3; ++c) {
                 const float s = std::expm1(ls[c]);
                 const float d = split ? (std::max(demod[c].px[i], 0.0f) + kpcn::kAlbedoEpsilon) * irr[c]
                                       : 0.0f;
-                out[colour[c]] = sanitize(s + d);
+                if (!render_stays)
+                    out[colour[c]] = sanitize(s + d);
                 if (keep_components) {
                     specular.component[c].px[i] = s;
                     if (split)
@@ -226,7 +229,7 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
                 return false;
             }
             recombine(frame, output_rect(tile.core, dst, where), tile.window, k, split, src, aovs,
-                      extras);
+                      extras, converged);
             return true;
         };
         return nn::for_each_tile(int(tiles.size()), workers, run_tile);
