@@ -69,8 +69,13 @@ inline ::testing::AssertionResult matches_golden(const OIIO::ImageBuf& result,
                << golden.geterror() << " (create it with MCDN_UPDATE_GOLDENS=1)";
     std::string golden_isa = golden.spec().get_string_attribute("mcdn:isa");
     if (golden_isa != isa) {
-        std::cerr << "golden " << name << " was made with " << golden_isa << " kernels, this "
-                  << "machine runs " << isa << ": not compared (regenerate on this machine type)\n";
+        // Reported as a skip, not a pass: the FMA contraction of each instruction set (and
+        // compiler flags: GCC fuses only from -O2 on) moves NFOR's output by ~1e-3.
+        [&] {
+            GTEST_SKIP() << "golden " << name << " was made with " << golden_isa
+                         << " kernels, this machine runs " << isa
+                         << ": not compared (regenerate on this machine type)";
+        }();
         return ::testing::AssertionSuccess();
     }
     // EXR stores channels sorted by name: match them by name, not position.
