@@ -71,18 +71,25 @@ struct Job {
     Tensor* out;
 };
 
+/// Lane j of the first row of a swap_blocks pair: a[j], or b[j − d] where bit d of j is
+/// set (lanes of b count from 16); of the second row: a[j + d], or b[j] where it is set.
+constexpr int low_lane(int j, int d) { return j & d ? 16 + j - d : j; }
+constexpr int high_lane(int j, int d) { return j & d ? 16 + j : j + d; }
+
 /// One round of a 16×16 transpose in registers: for each pair of rows (i, i + d) with bit
-/// d of i clear, the off-diagonal blocks of size d trade places (`low` and `high` pick the
-/// lanes: row i keeps a[j] where bit d of j is clear and takes b[j − d] where it is set,
-/// row i + d takes a[j + d] and keeps b[j]).
-MCDN_INLINE void swap_blocks(vfloat16 r[kLanes], int d, vint16 low, vint16 high)
+/// d of i clear, the off-diagonal blocks of size d trade places.
+template <int d> MCDN_INLINE void swap_blocks(vfloat16 r[kLanes])
 {
+#define MCDN_LANES(f)                                                                          \
+    f(0, d), f(1, d), f(2, d), f(3, d), f(4, d), f(5, d), f(6, d), f(7, d), f(8, d), f(9, d),  \
+        f(10, d), f(11, d), f(12, d), f(13, d), f(14, d), f(15, d)
     for (int i = 0; i < kLanes; ++i)
         if (!(i & d)) {
             const vfloat16 a = r[i], b = r[i + d];
-            r[i] = __builtin_shuffle(a, b, low);
-            r[i + d] = __builtin_shuffle(a, b, high);
+            r[i] = __builtin_shufflevector(a, b, MCDN_LANES(low_lane));
+            r[i + d] = __builtin_shufflevector(a, b, MCDN_LANES(high_lane));
         }
+#undef MCDN_LANES
 }
 
 /// Row y of `features` (channels a multiple of 16) channel-major into `out` (rows of
@@ -95,14 +102,10 @@ MCDN_INLINE void transpose_row(const Tensor& features, int y, int width, int lan
             vfloat16 r[kLanes];
             for (int i = 0; i < kLanes; ++i)
                 r[i] = x + i < width ? load16(features.pixel(y, x + i) + k0) : vfloat16 {};
-            swap_blocks(r, 8, vint16 { 0, 1, 2, 3, 4, 5, 6, 7, 16, 17, 18, 19, 20, 21, 22, 23 },
-                        vint16 { 8, 9, 10, 11, 12, 13, 14, 15, 24, 25, 26, 27, 28, 29, 30, 31 });
-            swap_blocks(r, 4, vint16 { 0, 1, 2, 3, 16, 17, 18, 19, 8, 9, 10, 11, 24, 25, 26, 27 },
-                        vint16 { 4, 5, 6, 7, 20, 21, 22, 23, 12, 13, 14, 15, 28, 29, 30, 31 });
-            swap_blocks(r, 2, vint16 { 0, 1, 16, 17, 4, 5, 20, 21, 8, 9, 24, 25, 12, 13, 28, 29 },
-                        vint16 { 2, 3, 18, 19, 6, 7, 22, 23, 10, 11, 26, 27, 14, 15, 30, 31 });
-            swap_blocks(r, 1, vint16 { 0, 16, 2, 18, 4, 20, 6, 22, 8, 24, 10, 26, 12, 28, 14, 30 },
-                        vint16 { 1, 17, 3, 19, 5, 21, 7, 23, 9, 25, 11, 27, 13, 29, 15, 31 });
+            swap_blocks<8>(r);
+            swap_blocks<4>(r);
+            swap_blocks<2>(r);
+            swap_blocks<1>(r);
             for (int i = 0; i < kLanes; ++i)
                 store16(out + size_t(k0 + i) * lanes_width + x, r[i]);
         }
