@@ -205,9 +205,15 @@ MCDN_TARGET_AVX2 void row_avx2(const Job& job, int y, RowScratch& s) { row_impl(
 void row_baseline(const Job& job, int y, RowScratch& s) { row_impl(job, y, s); }
 
 
-/// The rows of out, each computed by one thread.
-void run_rows(const Job& job, const Tensor& image)
+/// out from `image` and the logits `job` names: the image padded once, then the rows of
+/// out, each computed by one thread.
+void run_rows(Job job, const Tensor& image, Tensor& out)
 {
+    static thread_local PaddedPlanes planes;  // kept: no allocation per call
+    make_planes(image, job.kernel / 2, planes);
+    reshape(out, image.height, image.width, image.channels);
+    job.planes = &planes;
+    job.out = &out;
     const Isa isa = detect_isa();
     auto row = isa == Isa::Avx512 ? row_avx512 : isa == Isa::Avx2 ? row_avx2 : row_baseline;
     parallel_row_blocks(image.height, [&](int first, int last) {
@@ -222,19 +228,15 @@ void run_rows(const Job& job, const Tensor& image)
 void apply_kernel(const Tensor& logits, int first_channel, const Tensor& image, int kernel,
                   Tensor& out)
 {
-    static thread_local PaddedPlanes planes;  // kept: no allocation per call
-    make_planes(image, kernel / 2, planes);
-    reshape(out, image.height, image.width, image.channels);
-    run_rows({ &logits, first_channel, nullptr, nullptr, nullptr, &planes, kernel, &out }, image);
+    run_rows({ &logits, first_channel, nullptr, nullptr, nullptr, nullptr, kernel, nullptr },
+             image, out);
 }
 
 void apply_kernel_head(const Tensor& features, const float* head_weights, const float* head_bias,
                        const Tensor& image, int kernel, Tensor& out)
 {
-    static thread_local PaddedPlanes planes;
-    make_planes(image, kernel / 2, planes);
-    reshape(out, image.height, image.width, image.channels);
-    run_rows({ nullptr, 0, &features, head_weights, head_bias, &planes, kernel, &out }, image);
+    run_rows({ nullptr, 0, &features, head_weights, head_bias, nullptr, kernel, nullptr }, image,
+             out);
 }
 
 void apply_kernel(const Tensor& logits, const Tensor& image, int kernel, Tensor& out)
