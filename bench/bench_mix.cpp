@@ -6,13 +6,23 @@
 // ratio to one plain oneDNN 3x3 48->48 convolution of the same size, timed in the same run.
 //
 //   bench_mix [--no-speed | --only-speed] [--no-generated] [--crop DIR]... [--blur WIDTH]
-//             [weights.mcdnw]
+//             [--cnn] [--floor V] [--drop V] [--cache DIR] [weights.mcdnw]
 //
 // --blur WIDTH replaces NFOR with a deliberately biased "denoiser": a Gaussian blur of the
 // colour, WIDTH pixels wide (OIIO's make_kernel). It is how the properties that need a
 // denoiser worse than the render at high spp are measured (PD §4: the mix is consistent for
 // any denoiser; α' must fall toward the render as spp grows). Our NFOR never is worse on
 // the data we have.
+//
+// --floor V and --drop V set MixOptions::outlier_relative_variance and drop_relative_variance
+// of the mixes with a floor (default: the options' defaults). --cache DIR keeps each input's
+// render + denoised + SURE frame (the two denoiser runs, most of the time) in DIR and reads it
+// back on later runs with the same denoiser: for comparing mix settings. Delete DIR when the
+// denoiser changes.
+//
+// --cnn denoises with mcdn::cnn (models/kpcn.mcdnw) instead of NFOR: the mixing network was
+// trained on NFOR's outputs only (training/mix), so this is how it carries to another
+// denoiser (issue 5: "with --cnn once it exists").
 //
 // --crop DIR adds every level of one generated crop (DIR/<name>_00NNspp*.exr, DIR/<name>_ref.exr),
 // e.g. a training crop where a mix went wrong (datasets/small/0001_exterior).
@@ -34,6 +44,7 @@
 
 #include <OpenImageIO/imagebufalgo.h>
 
+#include "mcdn/cnn.h"
 #include "mcdn/io.h"
 #include "mcdn/metrics.h"
 #include "mcdn/mix.h"
@@ -234,7 +245,11 @@ int main(int argc, char** argv)
     bool speed = true, generated = true, accuracy = true;
     std::string weights;
     std::vector<std::string> extra_crops;
-    float blur_width = 0;  // 0: NFOR
+    float blur_width = 0;  // 0: NFOR (or the CNN with --cnn)
+    bool use_cnn = false;
+    float floor = MixOptions().outlier_relative_variance;
+    float drop = -1;  // -1: the option's default
+    std::string cache;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         if (a == "--crop" && i + 1 < argc)
@@ -245,6 +260,14 @@ int main(int argc, char** argv)
             accuracy = false;
         else if (a == "--blur" && i + 1 < argc)
             blur_width = std::strtof(argv[++i], nullptr);
+        else if (a == "--cnn")
+            use_cnn = true;
+        else if (a == "--floor" && i + 1 < argc)
+            floor = std::strtof(argv[++i], nullptr);
+        else if (a == "--drop" && i + 1 < argc)
+            drop = std::strtof(argv[++i], nullptr);
+        else if (a == "--cache" && i + 1 < argc)
+            cache = argv[++i];
         else if (a == "--no-generated")
             generated = false;
         else
@@ -252,7 +275,7 @@ int main(int argc, char** argv)
     }
     if (weights.empty())
         weights = default_mix_weights();
-    const std::string den = blur_width > 0 ? "blur" + std::to_string(int(blur_width)) : "NFOR";
+    const std::string den = blur_width > 0 ? "blur" + std::to_string(int(blur_width)) : use_cnn ? "CNN" : "NFOR";
     std::printf("mcdenoise progressive mix benchmark (PD §4, Table 4); network %s; denoiser %s\n\n",
                 weights.c_str(), den.c_str());
 
@@ -268,15 +291,33 @@ int main(int argc, char** argv)
         aovs.preset = in.preset;
         NforOptions no;
         no.aovs = aovs;
+        CnnOptions co;
+        co.aovs = aovs;
         SureOptions so;
         so.aovs = aovs;
         Denoiser denoiser = [&](ImageBuf& dst, const ImageBuf& s) {
-            return blur_width > 0 ? blur_colour(dst, s, blur_width) : nfor(dst, s, no);
+            return blur_width > 0 ? blur_colour(dst, s, blur_width) : use_cnn ? cnn(dst, s, co) : nfor(dst, s, no);
         };
         ImageBuf with_sure;
-        if (!sure(with_sure, src, denoiser, so)) {
+        std::string cached;
+        if (!cache.empty()) {
+            std::string name = in.scene + "_" + std::to_string(in.spp) + "_" + den + ".exr";
+            std::replace(name.begin(), name.end(), '/', '_');
+            cached = (fs::path(cache) / name).string();
+            fs::create_directories(cache);
+        }
+        if (!cached.empty() && fs::exists(cached) && read_image(with_sure, cached)) {
+            // the denoiser runs of an earlier bench_mix --cache
+        } else if (!sure(with_sure, src, denoiser, so)) {
             std::fprintf(stderr, "%s: %s\n", in.scene.c_str(), with_sure.geterror().c_str());
             continue;
+        }
+        if (!cached.empty() && !fs::exists(cached)) {
+            WriteOptions every_channel;
+            every_channel.channels = with_sure.spec().channelnames;
+            std::string error;
+            if (!write_image(with_sure, cached, every_channel, error))
+                std::fprintf(stderr, "%s\n", error.c_str());
         }
         Row row { in, {}, {}, {}, {}, {}, 0 };
         bool ok = metrics_of(row.render, src, ref) && metrics_of(row.nfor, with_sure, ref);
@@ -286,8 +327,9 @@ int main(int argc, char** argv)
             mo.model = m < 2 || m == 4 ? MixOptions::Model::Net : MixOptions::Model::Analytic;
             mo.weights = weights;
             mo.t_test = m % 2 == 0;
-            if (m == 4)
-                mo.outlier_relative_variance = 0;
+            mo.outlier_relative_variance = m == 4 ? 0 : floor;
+            if (drop >= 0 || m == 4)
+                mo.drop_relative_variance = m == 4 ? 0 : drop;
             mo.output_alpha = true;
             ImageBuf z;
             if (!mix(z, with_sure, mo)) {

@@ -2,6 +2,7 @@
 // converged against the same frame all noisy, timed in the same run.
 //
 //   bench_skip [--spp 16|64|256] [--threads N] [--repeat N] [--only CHAIN] [--tile N]
+//              [--converged-spp N]
 //
 // The all-noisy frame is box at the given spp (../shared/data/box, every channel with its
 // variance and halves). The half-converged frame is the same with the left 128 columns (4 of
@@ -52,7 +53,7 @@ double cpu_seconds()
 /// Left `columns` of every channel of the merged render from the reference (mean, halves)
 /// and its variance file.
 ImageBuf converge_left(const ImageBuf& render, const ImageBuf& ref, const ImageBuf& ref_var,
-                       int columns)
+                       int columns, float variance_scale)
 {
     ImageBuf out = render.copy(OIIO::TypeDesc::FLOAT);
     const OIIO::ImageSpec& spec = out.spec();
@@ -68,7 +69,7 @@ ImageBuf converge_left(const ImageBuf& render, const ImageBuf& ref, const ImageB
                     if (targets[t] >= 0)
                         px[targets[t]] = ref.getchannel(x, y, 0, rc);
                 if (targets[3] >= 0 && vc >= 0)
-                    px[targets[3]] = ref_var.getchannel(x, y, 0, vc);
+                    px[targets[3]] = variance_scale * ref_var.getchannel(x, y, 0, vc);
             }
     }
     return out;
@@ -138,7 +139,7 @@ double relmse(const ImageBuf& image, const std::vector<int>& rgb, const ImageBuf
 
 int main(int argc, char** argv)
 {
-    int nthreads = 2, repeat = 3, tile = 1;
+    int nthreads = 2, repeat = 3, tile = 1, converged_spp = 4096;
     std::string spp = "0064", only;
     for (int i = 1; i < argc; ++i) {
         if (!std::strcmp(argv[i], "--threads") && i + 1 < argc)
@@ -147,13 +148,16 @@ int main(int argc, char** argv)
             repeat = std::max(1, std::atoi(argv[++i]));
         else if (!std::strcmp(argv[i], "--tile") && i + 1 < argc)
             tile = std::max(1, std::atoi(argv[++i]));
+        else if (!std::strcmp(argv[i], "--converged-spp") && i + 1 < argc)
+            converged_spp = std::max(1, std::atoi(argv[++i]));
         else if (!std::strcmp(argv[i], "--only") && i + 1 < argc)
             only = argv[++i];
         else if (!std::strcmp(argv[i], "--spp") && i + 1 < argc) {
             spp = argv[++i];
             spp = std::string(4 - std::min<size_t>(4, spp.size()), '0') + spp;
         } else {
-            std::fprintf(stderr, "usage: bench_skip [--spp 16|64|256] [--threads N] [--repeat N] [--only CHAIN] [--tile N]\n");
+            std::fprintf(stderr, "usage: bench_skip [--spp 16|64|256] [--threads N] [--repeat N] [--only CHAIN] [--tile N] "
+                                 "[--converged-spp N]\n");
             return 2;
         }
     }
@@ -175,7 +179,7 @@ int main(int argc, char** argv)
     ref = tiled(ref, tile);
     ref_var = tiled(ref_var, tile);
     const int width = noisy.spec().width;
-    const ImageBuf half = converge_left(noisy, ref, ref_var, width / 2);
+    const ImageBuf half = converge_left(noisy, ref, ref_var, width / 2, 4096.0f / converged_spp);
 
     AovSpec aovs;
     aovs.preset = "cycles";
@@ -184,9 +188,9 @@ int main(int argc, char** argv)
     resolve_aovs(set, aovs, half.spec(), error);
     const ConvergedTiles map = converged_tiles_of(half, set, SkipOptions());
     const ConvergedTiles noisy_map = converged_tiles_of(noisy, set, SkipOptions());
-    std::printf("box %s spp, %dx%d, %d threads, best of %d; converged tiles: half-converged frame "
-                "%d of %d (left half: %d), all-noisy frame %d\n",
-                spp.c_str(), width, noisy.spec().height, nthreads, repeat, map.count(),
+    std::printf("box %s spp, %dx%d, %d threads, best of %d; left half as from %d spp; converged tiles: "
+                "half-converged frame %d of %d (left half: %d), all-noisy frame %d\n",
+                spp.c_str(), width, noisy.spec().height, nthreads, repeat, converged_spp, map.count(),
                 map.tiles_x * map.tiles_y, map.tiles_x * map.tiles_y / 2, noisy_map.count());
 
     auto nfor_chain = [&](bool skip) -> Chain {

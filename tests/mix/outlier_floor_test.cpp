@@ -1,5 +1,6 @@
 // The outlier floor of the network's alpha (lib/src/mix/outlier_floor.cpp): where the render
-// pixel is an outlier of its own variance, alpha >= the pixel's PD eq. 9; nowhere else.
+// pixel is an outlier of its own variance, alpha >= the pixel's PD eq. 9 (alpha = 1 where
+// the variance is larger still); nowhere else.
 #include <cmath>
 #include <limits>
 
@@ -25,9 +26,10 @@ struct Scene {
         for (size_t i = 0; i < x.size(); ++i)
             residual.px[i] = (y.px[i] - x.px[i]) * (y.px[i] - x.px[i]);
     }
-    void apply(float threshold = 10.0f)
+    // The eq. 9 rule alone by default (drop 0): the tests of the drop rule say so.
+    void apply(float threshold = 10.0f, float drop = 0.0f)
     {
-        outlier_floor(alpha, variance, y, divergence, residual, threshold);
+        outlier_floor(alpha, variance, y, divergence, residual, threshold, drop);
     }
 };
 
@@ -92,4 +94,42 @@ TEST(MixOutlierFloor, NonFiniteInputsLeaveAlphaAlone)
         EXPECT_TRUE(std::isfinite(a));
     EXPECT_EQ(s.alpha(8, 8), 0.3f);
     EXPECT_EQ(s.alpha(10, 10), 0.3f);
+}
+
+TEST(MixOutlierFloor, ANoisyDivergenceDoesNotKeepAFirefly)
+{
+    // As 0040_metal at 256 spp (x = 98, y = 9.0, Var = 9583, ||y - x||^2 = 7942, one-probe
+    // sigma^2 f'(x) = 31030, i.e. f' = 3.2): eq. 9 is negative and kept the firefly; past
+    // the drop threshold (Var > 3 (y^2 + 0.01)) alpha = 1, and the t-test keeps it there
+    // (the deviation is within the pixel's own noise: t ~ 0.9).
+    Scene s(0.0f, 98.0f, 9583.0f);
+    s.y(8, 8) = 9.0f;
+    s.residual(8, 8) = 89.0f * 89.0f;
+    s.divergence(8, 8) = 31030.0f;
+    s.apply(0.3f, 0.0f);
+    EXPECT_EQ(s.alpha(8, 8), 0.0f);
+    s.apply(0.3f, 3.0f);
+    EXPECT_EQ(s.alpha(8, 8), 1.0f);
+    t_test_bound(s.alpha, s.x, s.y, s.variance, 100.0f, MixOptions());
+    EXPECT_GT(s.alpha(8, 8), 0.99f);
+}
+
+TEST(MixOutlierFloor, ABrightFeatureTheRenderResolvesIsTheTTestsCase)
+{
+    // The bright feature of ABrightFeatureTheDenoiserBlurredKeepsTheRender is past the drop
+    // threshold too (Var 100 over y^2 + 0.01 = 0.26), so the floor gives it alpha = 1; but its
+    // deviation is 4.65 standard errors, and the t-test (the pixel is its own highest-
+    // variance neighbour) takes alpha' back toward the render: (1 - Phi(2 (4.67 - 4.2))).
+    Scene s(0.0f, 47.0f, 100.0f);
+    s.apply(0.3f, 3.0f);
+    EXPECT_EQ(s.alpha(8, 8), 1.0f);
+    t_test_bound(s.alpha, s.x, s.y, s.variance, 100.0f, MixOptions());
+    EXPECT_LT(s.alpha(8, 8), 0.25f);
+    // Between the two thresholds eq. 9 is the bound, with its divergence term.
+    Scene mid(0.0f, 47.0f, 100.0f);
+    mid.y.px.assign(mid.y.size(), 10.0f);  // y^2 + 0.01 = 100: relative variance 1
+    for (size_t i = 0; i < mid.x.size(); ++i)
+        mid.residual.px[i] = (mid.y.px[i] - mid.x.px[i]) * (mid.y.px[i] - mid.x.px[i]);
+    mid.apply(0.3f, 3.0f);
+    EXPECT_NEAR(mid.alpha(8, 8), (100.0f - 2.0f) / (37.0f * 37.0f), 1e-4);
 }

@@ -40,7 +40,11 @@ struct MixOptions {
     /// outlier of its own variance; the network's arctan error inputs read such pixels as
     /// saturated), alpha is at least the pixel's own eq. 9 (lib/src/mix/outlier_floor.cpp).
     /// 0 disables the bound.
-    float outlier_relative_variance = 10.0f;
+    float outlier_relative_variance = 0.3f;
+    /// Model::Net: where it exceeds this many times y^2 + 0.01, alpha = 1 before the t-test
+    /// (the render pixel's value says little about its mean; eq. 9 is noise there).
+    /// 0 disables it.
+    float drop_relative_variance = 3.0f;
 
     // The t-test bound, eq. 12-18.
     bool t_test = true;

@@ -16,10 +16,9 @@ bool mix_alpha(Plane alpha[3], ConvergedTiles& passed, const MixInputs& in,
     } else if (net) {
         if (!net_alpha(alpha, in, *net, error, nullptr, network_regions(passed, *net, 256)))
             return false;
-        if (options.outlier_relative_variance > 0)
-            for (int c = 0; c < 3; ++c)
-                outlier_floor(alpha[c], in.variance[c], in.y[c], in.divergence[c],
-                              in.residual[c], options.outlier_relative_variance);
+        for (int c = 0; c < 3; ++c)
+            outlier_floor(alpha[c], in.variance[c], in.y[c], in.divergence[c], in.residual[c],
+                          options.outlier_relative_variance, options.drop_relative_variance);
     } else {
         analytic_alpha(alpha, in, options.analytic_radius);
     }

@@ -38,9 +38,10 @@ ConvergedTiles tiles_mixing_to_x(const MixInputs& in, const SkipOptions& skip);
 
 /// Where variance > relative_variance * (y^2 + 0.01) (the render is an outlier of its own
 /// variance, past where the network's arctan inputs saturate), alpha >= the pixel's eq. 9,
-/// clipped to [0, 1]; elsewhere alpha is left alone (outlier_floor.cpp says why).
+/// clipped to [0, 1]; where variance > drop_relative_variance * (y^2 + 0.01), alpha = 1;
+/// elsewhere alpha is left alone (outlier_floor.cpp says why). 0 turns a rule off.
 void outlier_floor(Plane& alpha, const Plane& variance, const Plane& y, const Plane& divergence,
-                   const Plane& residual, float relative_variance);
+                   const Plane& residual, float relative_variance, float drop_relative_variance);
 
 /// sigma_s of eq. 15: min(sqrt(spatial variance of x), 1) * scale, x the channels
 /// `x_channels` of the whole of src (read a few rows at a time).
