@@ -158,6 +158,24 @@ TEST(Cnn, InPlaceEqualsACopy)
     EXPECT_EQ(colour_tensor(in_place).data, colour_tensor(copy).data);
 }
 
+TEST(Cnn, WorkersKeptBetweenCallsGiveTheSameResult)
+{
+    // cnn() hands its workers (networks and buffers) to the next call (worker_pool.h): their
+    // buffers then hold another frame's values and shapes, which must not change a result.
+    ImageBuf src = read_render();
+    release_cnn_workers();
+    ImageBuf fresh, other, again;
+    ASSERT_TRUE(cnn(fresh, src, tiny_options(8), {}, 2)) << fresh.geterror();
+    ROI corner = src.roi();
+    corner.xend = corner.xbegin + 13;
+    corner.yend = corner.ybegin + 9;
+    const ImageBuf small = OIIO::ImageBufAlgo::cut(src, corner);
+    ASSERT_TRUE(cnn(other, small, tiny_options(16), {}, 2)) << other.geterror();
+    ASSERT_TRUE(cnn(again, src, tiny_options(8), {}, 1)) << again.geterror();
+    EXPECT_EQ(colour_tensor(again).data, colour_tensor(fresh).data);
+    release_cnn_workers();
+}
+
 TEST(Cnn, FiniteOnNanAndHugeFeatures)
 {
     ImageBuf src = read_render();

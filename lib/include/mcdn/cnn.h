@@ -55,4 +55,9 @@ bool cnn(ImageBuf& dst, const ImageBuf& src, const CnnOptions& options = {}, ROI
 ImageBuf cnn(const ImageBuf& src, const CnnOptions& options = {}, ROI roi = {},
              int nthreads = 0);
 
+/// cnn() keeps its workers (a copy of the networks and their buffers per thread, ~350 MB
+/// each at the default tile size) for the next call: fresh ones are page faults the kernel
+/// must clear. This frees them (a pipeline done denoising, or short of memory).
+void release_cnn_workers();
+
 }  // namespace mcdn

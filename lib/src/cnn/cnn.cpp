@@ -14,6 +14,7 @@
 
 #include "cnn/cnn_steps.h"
 #include "cnn/extras.h"
+#include "cnn/worker_pool.h"
 #include "core/converged_tiles.h"
 #include "core/op_prepare.h"
 #include "mcdn/color.h"
@@ -61,19 +62,11 @@ bool with_threads(int nthreads, Body&& body)
     return ok;
 }
 
-/// What one worker keeps across its tiles: its own copy of the two networks (a Net runs
-/// one image at a time) and the storage of their inputs and outputs.
-struct Worker {
-    kpcn::Model model;
-    kpcn::BranchInputs diffuse_inputs, specular_inputs;
-    std::vector<nn::Tensor> irradiance, log_specular;  // the networks' outputs
-};
-
 /// Eq. 4 on `rect` (frame pixels inside the tile's core): colour = (albedo + eps) ·
 /// irradiance + exp(log specular) − 1, written into the frame except on converged tiles
 /// (a tile the network ran on for its neighbours keeps the render); with extras, their
 /// shares of the two components too (pass_through_extras restores converged tiles).
-void recombine(kpcn::OutputFrame& frame, Rect rect, const nn::Region& window, const Worker& worker,
+void recombine(kpcn::OutputFrame& frame, Rect rect, const nn::Region& window, const kpcn::Worker& worker,
                bool split, const ImageBuf& src, const AovSet& aovs,
                const std::vector<ExtraPlanes>& extras, const ConvergedTiles& converged)
 {
@@ -175,11 +168,22 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
     }
     const std::string path = options.weights.empty() ? default_cnn_weights() : options.weights;
     const int image_channels = extras.empty() ? 3 : 3 * (2 + int(extras.size()));
-    kpcn::Model first;
-    if (!kpcn::load_model(first, path, error, image_channels)) {
+    // Workers of earlier calls when there are (worker_pool.h), handed back at the end.
+    std::vector<std::unique_ptr<kpcn::Worker>> worker;
+    struct GiveBack {
+        std::vector<std::unique_ptr<kpcn::Worker>>& workers;
+        ~GiveBack()
+        {
+            for (auto& w : workers)
+                kpcn::return_worker(std::move(w));
+        }
+    } give_back { worker };
+    worker.push_back(kpcn::take_worker(path, image_channels, error));
+    if (!worker[0]) {
         dst.errorfmt("{}", error);
         return false;
     }
+    const nn::Net& first = worker[0]->model.specular;
 
     // §5.1: the depth range is the one input statistic of the whole frame; everything else
     // (§4.3's split, the 34 input channels, eq. 4) is made per network tile from its window.
@@ -188,9 +192,9 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
     const ROI where = output_roi(src, roi);
     nn::TileOptions tile_options;
     tile_options.tile_size = options.tile_size;
-    tile_options.regions = network_regions(converged, first.specular, options.tile_size);
+    tile_options.regions = network_regions(converged, first, options.tile_size);
     std::vector<nn::Tile> planned, tiles;
-    if (!nn::plan_tiles(first.specular, src.spec().height, src.spec().width, tile_options, planned,
+    if (!nn::plan_tiles(first, src.spec().height, src.spec().width, tile_options, planned,
                         error)) {
         dst.errorfmt("cnn: {}", error);
         return false;
@@ -202,14 +206,14 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
     // §4.2 then eq. 4, a tile at a time: one tile per worker, each with its own networks.
     const bool ran = with_threads(nthreads, [&] {
         const int workers = std::min(nn::max_threads(), int(tiles.size()));
-        std::vector<Worker> worker(std::max(workers, 1));
-        worker[0].model = std::move(first);
-        for (size_t w = 1; w < worker.size(); ++w)
-            if (!kpcn::load_model(worker[w].model, path, error, image_channels))
+        while (int(worker.size()) < workers) {
+            worker.push_back(kpcn::take_worker(path, image_channels, error));
+            if (!worker.back())
                 return false;
+        }
         std::mutex failed;
         auto run_tile = [&](int index, int w) {
-            Worker& k = worker[w];
+            kpcn::Worker& k = *worker[w];
             const nn::Tile& tile = tiles[index];
             std::string tile_error;
             bool ok = kpcn::tile_inputs(src, aovs, depth, extras, tile.window,

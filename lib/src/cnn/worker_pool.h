@@ -1,0 +1,37 @@
+// KPCN workers kept between calls of the op. A worker is one copy of the two branch
+// networks with the storage of their inputs, layers and outputs: ~350 MB for a 576² window.
+// Fresh, that memory is page faults the kernel must clear (~2 s/GB in our VMs), which was
+// most of the difference between the measured and the ideal cost of a partly converged
+// frame (bench_skip) and a fixed cost of every call on small ones. A pipeline that denoises
+// frame after frame in one process (the Python module, the format plugin) reuses them.
+#pragma once
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "cnn/cnn_steps.h"
+
+namespace mcdn {
+namespace kpcn {
+
+/// What one worker keeps across its tiles (and calls).
+struct Worker {
+    Model model;
+    BranchInputs diffuse_inputs, specular_inputs;
+    std::vector<nn::Tensor> irradiance, log_specular;  // the networks' outputs
+};
+
+/// An idle worker of an earlier call for the same weights file (same path, size and
+/// modification time) and `image_channels`, else a new one loaded from the file; null with
+/// `error` set when it cannot be loaded.
+std::unique_ptr<Worker> take_worker(const std::string& path, int image_channels, std::string& error);
+
+/// Keeps `worker` for later calls (as many as the machine has hardware threads; others are
+/// freed).
+void return_worker(std::unique_ptr<Worker> worker);
+
+/// Frees every idle worker (mcdn::release_cnn_workers()).
+void release_workers();
+
+}  // namespace kpcn
+}  // namespace mcdn
