@@ -218,6 +218,8 @@ PYBIND11_MODULE(mcdenoise, m)
           py::arg("converged") = mcdn::SkipOptions().max_relative_error, py::arg("nthreads") = 0,
           "KPCN: kernel-predicting CNN denoiser with our trained weights. extras: denoise the "
           "extra AOVs (light groups) with the beauty's kernels.");
+    m.def("release_cnn_workers", &mcdn::release_cnn_workers,
+          "Frees the networks and buffers cnn() keeps for its next call (~350 MB per thread).");
 
     m.def("sure",
           [](const ImageBuf& src, py::object denoiser, const std::string& preset,

@@ -58,6 +58,10 @@ class OpsTakeAndReturnImageBufs(unittest.TestCase):
         noisy = mcdenoise.metrics(self.render, self.reference)
         after = mcdenoise.metrics(mcdenoise.cnn(self.render), self.reference)
         self.assertLess(after["relmse"], 0.5 * noisy["relmse"])
+        # The workers kept for the next call: freed on request, and the next call loads anew.
+        mcdenoise.release_cnn_workers()
+        again = mcdenoise.metrics(mcdenoise.cnn(self.render), self.reference)
+        self.assertEqual(again["relmse"], after["relmse"])
 
     def test_chain_prefilter_nfor_sure_mix(self):
         out = mcdenoise.prefilter(self.render)
