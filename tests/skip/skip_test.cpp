@@ -142,6 +142,57 @@ TEST(ConvergedTiles, WorstPixelDecidesTheTile)
     EXPECT_FALSE(find_converged_tiles(mean, variance, 0.0f).any());
 }
 
+TEST(ConvergedTiles, FrameScanEqualsThePlanes)
+{
+    // converged_tiles_of reads a float frame in memory in one pass over its pixels; it must
+    // decide as the planes (read_plane: sanitized) do, NaN, negative and huge values included.
+    const int w = 70, h = 66;
+    ImageSpec spec(w, h, 8, OIIO::TypeDesc::FLOAT);
+    spec.channelnames = { "R", "G", "B", "N.X", "variance.R", "variance.G", "variance.B", "Z" };
+    ImageBuf frame(spec);
+    uint32_t state = 7;
+    auto next = [&] { state = state * 1664525u + 1013904223u; return (state >> 8) * (1.0f / 16777216.0f); };
+    std::vector<float> px(8);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            for (int c = 0; c < 8; ++c)
+                px[c] = c >= 4 && c < 7 ? 1e-6f * next() : next();
+            frame.setpixel(x, y, px.data(), 8);
+        }
+    const float odd[] = { NAN, -1.0f, 1e30f, INFINITY, 0.02f };
+    for (int i = 0; i < 5; ++i) {
+        frame.getpixel(5 + 33 * (i % 3), 3 + 20 * i % h, px.data(), 8);
+        px[4 + i % 3] = odd[i];  // a variance
+        frame.setpixel(5 + 33 * (i % 3), 3 + 20 * i % h, px.data(), 8);
+        frame.getpixel(40, 10 + 11 * i, px.data(), 8);
+        px[i % 3] = odd[i];  // a mean
+        frame.setpixel(40, 10 + 11 * i, px.data(), 8);
+    }
+    AovSpec spec_aovs;
+    spec_aovs.preset = "generic";
+    AovSet aovs;
+    std::string error;
+    ASSERT_TRUE(resolve_aovs(aovs, spec_aovs, frame.spec(), error)) << error;
+    Plane mean[3], variance[3];
+    for (int c = 0; c < 3; ++c) {
+        mean[c] = read_plane(frame, aovs.channels(Role::Color)[c]);
+        variance[c] = read_plane(frame, aovs.channels(Role::ColorVariance)[c], true);
+    }
+    const ConvergedTiles planes = find_converged_tiles(mean, variance, 0.08f);
+    const ConvergedTiles scanned = converged_tiles_of(frame, aovs, SkipOptions());
+    EXPECT_GT(planes.count(), 0);
+    EXPECT_LT(planes.count(), planes.tiles_x * planes.tiles_y);
+    EXPECT_EQ(scanned.converged, planes.converged);
+    // A half frame is read through the planes (its own values).
+    const ImageBuf half = frame.copy(OIIO::TypeDesc::HALF);
+    for (int c = 0; c < 3; ++c) {
+        mean[c] = read_plane(half, aovs.channels(Role::Color)[c]);
+        variance[c] = read_plane(half, aovs.channels(Role::ColorVariance)[c], true);
+    }
+    EXPECT_EQ(converged_tiles_of(half, aovs, SkipOptions()).converged,
+              find_converged_tiles(mean, variance, 0.08f).converged);
+}
+
 TEST(ConvergedTiles, RectanglesCoverExactlyTheUnconvergedPixels)
 {
     ConvergedTiles m;

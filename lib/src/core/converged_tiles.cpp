@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include <OpenImageIO/strutil.h>
 
@@ -42,30 +43,43 @@ float relative_standard_error(float mean, float variance_of_mean)
     return std::sqrt(std::max(variance_of_mean, 0.0f) / (mean * mean + kRelativeFloor));
 }
 
-ConvergedTiles find_converged_tiles(const Plane mean[3], const Plane variance[3],
-                                    float max_relative_error)
+namespace {
+
+/// The map of a width × height image: a tile is converged when at every pixel and channel
+/// at(c, x, y) = {mean, variance} passes. Compared squared, without a square root per pixel;
+/// NaN never counts as converged.
+template <class At>
+ConvergedTiles scan_converged(int width, int height, float max_relative_error, At at)
 {
     ConvergedTiles m;
-    m.width = mean[0].width;
-    m.height = mean[0].height;
+    m.width = width;
+    m.height = height;
     m.tiles_x = (m.width + T - 1) / T;
     m.tiles_y = (m.height + T - 1) / T;
-    // Compared squared, without a square root per pixel; NaN never counts as converged.
     const float limit = max_relative_error * max_relative_error;
     if (!(limit > 0) || m.width <= 0 || m.height <= 0)
         return m;
     m.converged.assign(size_t(m.tiles_x) * m.tiles_y, 1);
     for (int y = 0; y < m.height; ++y)
-        for (int c = 0; c < 3; ++c) {
-            const float* mu = mean[c].row(y);
-            const float* var = variance[c].row(y);
-            for (int x = 0; x < m.width; ++x)
-                if (!(std::max(var[x], 0.0f) <= limit * (mu[x] * mu[x] + kRelativeFloor)))
+        for (int x = 0; x < m.width; ++x)
+            for (int c = 0; c < 3; ++c) {
+                const auto [mu, var] = at(c, x, y);
+                if (!(std::max(var, 0.0f) <= limit * (mu * mu + kRelativeFloor)))
                     m.converged[size_t(y / T) * m.tiles_x + x / T] = 0;
-        }
+            }
     if (!m.any())
         m.converged.clear();
     return m;
+}
+
+}  // namespace
+
+ConvergedTiles find_converged_tiles(const Plane mean[3], const Plane variance[3],
+                                    float max_relative_error)
+{
+    return scan_converged(mean[0].width, mean[0].height, max_relative_error, [&](int c, int x, int y) {
+        return std::pair<float, float>(mean[c](x, y), variance[c](x, y));
+    });
 }
 
 ConvergedTiles converged_tiles_of(const ImageBuf& src, const Plane mean[3],
@@ -85,10 +99,30 @@ ConvergedTiles converged_tiles_of(const ImageBuf& src, const AovSet& aovs, const
     if (!skip.enabled || !aovs.has(Role::Color) || !aovs.has(Role::ColorVariance)
         || aovs.channels(Role::Color).size() != 3 || aovs.channels(Role::ColorVariance).size() != 3)
         return {};
+    const std::vector<int>& colour = aovs.channels(Role::Color);
+    const std::vector<int>& colour_variance = aovs.channels(Role::ColorVariance);
+    const ImageSpec& spec = src.spec();
+    if (src.localpixels() && spec.format == OIIO::TypeDesc::FLOAT
+        && src.pixel_stride() == OIIO::stride_t(spec.pixel_bytes())
+        && src.scanline_stride() == OIIO::stride_t(spec.scanline_bytes())) {
+        // A float frame in memory: one pass over its pixels, sanitized as read_plane does.
+        // (Six planes were six strided passes over a many-channel frame and 24 MB of fresh
+        // memory at 1024²: 0.15-0.6 s with 78 channels in this VM.)
+        ConvergedTiles m;
+        const std::string attached = spec.get_string_attribute(kConvergedAttribute);
+        if (!attached.empty() && decode_converged_tiles(m, attached, spec.width, spec.height))
+            return m;
+        const float* pixels = static_cast<const float*>(src.localpixels());
+        const size_t nchannels = size_t(spec.nchannels);
+        return scan_converged(spec.width, spec.height, skip.max_relative_error, [&](int c, int x, int y) {
+            const float* px = pixels + (size_t(y) * spec.width + x) * nchannels;
+            return std::pair<float, float>(sanitize(px[colour[c]]), sanitize_variance(px[colour_variance[c]]));
+        });
+    }
     Plane mean[3], variance[3];
     for (int c = 0; c < 3; ++c) {
-        mean[c] = read_plane(src, aovs.channels(Role::Color)[c]);
-        variance[c] = read_plane(src, aovs.channels(Role::ColorVariance)[c], true);
+        mean[c] = read_plane(src, colour[c]);
+        variance[c] = read_plane(src, colour_variance[c], true);
     }
     return converged_tiles_of(src, mean, variance, skip);
 }
