@@ -249,6 +249,7 @@ int main(int argc, char** argv)
     bool use_cnn = false;
     float floor = MixOptions().outlier_relative_variance;
     float drop = -1;  // -1: the option's default
+    bool no_analytic_floor = false;
     std::string cache;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
@@ -264,6 +265,8 @@ int main(int argc, char** argv)
             use_cnn = true;
         else if (a == "--floor" && i + 1 < argc)
             floor = std::strtof(argv[++i], nullptr);
+        else if (a == "--no-analytic-floor")
+            no_analytic_floor = true;
         else if (a == "--drop" && i + 1 < argc)
             drop = std::strtof(argv[++i], nullptr);
         else if (a == "--cache" && i + 1 < argc)
@@ -330,6 +333,8 @@ int main(int argc, char** argv)
             mo.outlier_relative_variance = m == 4 ? 0 : floor;
             if (drop >= 0 || m == 4)
                 mo.drop_relative_variance = m == 4 ? 0 : drop;
+            if (no_analytic_floor || m == 4)
+                mo.analytic_floor = false;
             mo.output_alpha = true;
             ImageBuf z;
             if (!mix(z, with_sure, mo)) {
@@ -446,6 +451,7 @@ int main(int argc, char** argv)
         mo.aovs.preset = "generic";
         mo.model = MixOptions::Model::Net;
         mo.weights = weights;
+        mo.analytic_floor = !no_analytic_floor;
         ImageBuf z;
         const mcdn_bench::Timing mix_t = mcdn_bench::fastest_of(2, [&] {
             if (!mix(z, frame, mo))

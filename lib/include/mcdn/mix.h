@@ -36,6 +36,12 @@ struct MixOptions {
     /// noise of <||y - x||^2> (~13%) pulls alpha below 1 on smooth regions and costs ~15%
     /// MSE against the denoiser alone; 21x21 halves that (tests/mix).
     int analytic_radius = 10;
+    /// Model::Net: alpha is at least the analytic model's (eq. 9 on neighbourhood averages).
+    /// Each errs toward the render in its own places — the analytic alpha on smooth regions
+    /// (the noise of its averages), the network on renders unlike its training data (the
+    /// Tungsten scenes) — and neither is high where the denoiser is visibly biased (a large
+    /// ||y - x||^2 lowers eq. 9); the t-test still bounds the result.
+    bool analytic_floor = true;
     /// Model::Net: where the render's variance exceeds this many times y^2 + 0.01 (an
     /// outlier of its own variance; the network's arctan error inputs read such pixels as
     /// saturated), alpha is at least the pixel's own eq. 9 (lib/src/mix/outlier_floor.cpp).

@@ -169,7 +169,7 @@ const std::vector<std::string>& setting_keys(const std::string& stage)
         { "nfor", { "window", "patch", "k", "mse", "selection", "features", "extras", "skip", "converged" } },
         { "cnn", { "weights", "tile", "extras", "skip", "converged" } },
         { "sure", { "probes", "eps", "seed", "skip", "converged" } },
-        { "mix", { "model", "weights", "ttest", "alpha", "outlier", "drop", "skip", "converged" } },
+        { "mix", { "model", "weights", "ttest", "alpha", "afloor", "outlier", "drop", "skip", "converged" } },
     };
     static const std::vector<std::string> none;
     auto it = keys.find(stage);
@@ -240,6 +240,7 @@ bool apply_settings(MixOptions& o, const Settings& s, std::string& error)
         .flag("ttest", o.t_test)
         .flag("alpha", o.output_alpha)
         .number("outlier", o.outlier_relative_variance)
+        .flag("afloor", o.analytic_floor)
         .number("drop", o.drop_relative_variance)
         .skip(o.skip)
         .ok();

@@ -1,5 +1,7 @@
 // alpha' of the progressive mix (PD §4) on one band's inputs: the model's alpha (eq. 9 or
 // the network, §4.3), bounded by the t-test (eq. 12-18), 0 where z can only be x.
+#include <algorithm>
+
 #include "mix/mix_steps.h"
 
 namespace mcdn {
@@ -16,6 +18,14 @@ bool mix_alpha(Plane alpha[3], ConvergedTiles& passed, const MixInputs& in,
     } else if (net) {
         if (!net_alpha(alpha, in, *net, error, nullptr, network_regions(passed, *net, 256)))
             return false;
+        if (options.analytic_floor) {
+            // The network's alpha is at least the analytic model's (MixOptions::analytic_floor).
+            Plane analytic[3];
+            analytic_alpha(analytic, in, options.analytic_radius);
+            for (int c = 0; c < 3; ++c)
+                for (size_t i = 0; i < alpha[c].size(); ++i)
+                    alpha[c].px[i] = std::max(alpha[c].px[i], analytic[c].px[i]);
+        }
         for (int c = 0; c < 3; ++c)
             outlier_floor(alpha[c], in.variance[c], in.y[c], in.divergence[c], in.residual[c],
                           options.outlier_relative_variance, options.drop_relative_variance);
