@@ -115,25 +115,36 @@ struct CropErrors {
     Metrics render, denoised, mixed;
 };
 
-bool run_crop(CropErrors& out, const std::string& crop, int spp, MixOptions options,
-              std::string& error)
+/// One level of a generated crop: the render with its variance and halves.
+bool read_level(ImageBuf& src, const std::string& crop, int spp)
 {
     char level[32];
     std::snprintf(level, sizeof level, "_%04dspp", spp);
     const std::string stem = mcdn_test::test_data("generated/" + crop + "/" + crop + level);
+    return read_inputs(src, { { stem + ".exr", InputKind::Mean },
+                              { stem + "_var.exr", InputKind::Variance },
+                              { stem + "_A.exr", InputKind::HalfA },
+                              { stem + "_B.exr", InputKind::HalfB } });
+}
+
+/// The render with NFOR's output and its SURE (K = 1): what mix reads.
+bool nfor_with_sure(ImageBuf& with_sure, const ImageBuf& src)
+{
+    Denoiser denoiser = [](ImageBuf& dst, const ImageBuf& s) { return nfor(dst, s); };
+    return sure(with_sure, src, denoiser);
+}
+
+bool run_crop(CropErrors& out, const std::string& crop, int spp, MixOptions options,
+              std::string& error)
+{
     ImageBuf src, ref;
-    if (!read_inputs(src, { { stem + ".exr", InputKind::Mean },
-                            { stem + "_var.exr", InputKind::Variance },
-                            { stem + "_A.exr", InputKind::HalfA },
-                            { stem + "_B.exr", InputKind::HalfB } })
+    if (!read_level(src, crop, spp)
         || !read_image(ref, mcdn_test::test_data("generated/" + crop + "/" + crop + "_ref.exr"))) {
         error = src.geterror() + ref.geterror();
         return false;
     }
-    NforOptions no;
-    Denoiser denoiser = [&](ImageBuf& dst, const ImageBuf& s) { return nfor(dst, s, no); };
     ImageBuf with_sure, mixed;
-    if (!sure(with_sure, src, denoiser) || !mix(mixed, with_sure, options)) {
+    if (!nfor_with_sure(with_sure, src) || !mix(mixed, with_sure, options)) {
         error = with_sure.geterror() + mixed.geterror();
         return false;
     }
@@ -159,16 +170,9 @@ bool run_crop(CropErrors& out, const std::string& crop, int spp, MixOptions opti
 
 TEST(MixNet, DeterministicAndFinite)
 {
-    const std::string stem = mcdn_test::test_data("generated/0003_bump/0003_bump_0016spp");
-    ImageBuf src;
-    ASSERT_TRUE(read_inputs(src, { { stem + ".exr", InputKind::Mean },
-                                   { stem + "_var.exr", InputKind::Variance },
-                                   { stem + "_A.exr", InputKind::HalfA },
-                                   { stem + "_B.exr", InputKind::HalfB } }))
-        << src.geterror();
-    Denoiser denoiser = [](ImageBuf& dst, const ImageBuf& s) { return nfor(dst, s); };
-    ImageBuf with_sure;
-    ASSERT_TRUE(sure(with_sure, src, denoiser)) << with_sure.geterror();
+    ImageBuf src, with_sure;
+    ASSERT_TRUE(read_level(src, "0003_bump", 16)) << src.geterror();
+    ASSERT_TRUE(nfor_with_sure(with_sure, src)) << with_sure.geterror();
     MixOptions options;
     options.model = MixOptions::Model::Net;
     options.output_alpha = true;
@@ -187,16 +191,9 @@ TEST(MixNet, AlphaIsAtLeastTheAnalyticModels)
 {
     // MixOptions::analytic_floor: before the outlier floor and the t-test (both off here),
     // alpha = max(network, analytic eq. 9), channel by channel.
-    const std::string stem = mcdn_test::test_data("generated/0003_bump/0003_bump_0004spp");
-    ImageBuf src;
-    ASSERT_TRUE(read_inputs(src, { { stem + ".exr", InputKind::Mean },
-                                   { stem + "_var.exr", InputKind::Variance },
-                                   { stem + "_A.exr", InputKind::HalfA },
-                                   { stem + "_B.exr", InputKind::HalfB } }))
-        << src.geterror();
-    Denoiser denoiser = [](ImageBuf& dst, const ImageBuf& s) { return nfor(dst, s); };
-    ImageBuf with_sure;
-    ASSERT_TRUE(sure(with_sure, src, denoiser)) << with_sure.geterror();
+    ImageBuf src, with_sure;
+    ASSERT_TRUE(read_level(src, "0003_bump", 4)) << src.geterror();
+    ASSERT_TRUE(nfor_with_sure(with_sure, src)) << with_sure.geterror();
     auto alpha_of = [&](MixOptions::Model model, bool analytic_floor) {
         MixOptions o;
         o.model = model;
