@@ -3,7 +3,8 @@
 sample count, runs our denoiser and its SURE through mcdntool and stores what the network
 reads and what the loss compares with.
 
-    /usr/bin/python3 training/mix/prepare.py [--datasets full,small] [--watch MINUTES]
+    /usr/bin/python3 training/mix/prepare.py [--datasets full,small] [--denoiser nfor|cnn]
+                                             [--watch MINUTES]
 
 Reads   $CACHE/datasets/<set>/<crop>/<crop>_00NNspp{,_var,_A,_B}.exr and <crop>_ref.exr
         ($CACHE = $MCDN_CACHE or ~/.cache/mcdenoise; training/datagen makes them).
@@ -11,7 +12,9 @@ Writes  $CACHE/mix/prepared/<set>/<crop>_00NNspp.npz, float32 arrays [3, H, W]:
         x (render), y (NFOR), variance (of the mean of x), sure, divergence (sigma^2 f'(x)),
         residual (||y - x||^2), reference; plus spp. Written atomically; crops already
         prepared are skipped, so the script can be rerun (or left running with --watch) while
-        the generator adds crops.
+        the generator adds crops. With --denoiser cnn, y is the KPCN op's output (--cnn,
+        models/kpcn.mcdnw) and the files go to $CACHE/mix/prepared/<set>.cnn/ (train.py
+        --datasets full,small,full.cnn,small.cnn trains on both denoisers' outputs).
 
 One mcdntool run per file:  -i X -i:as=variance X_var -i:as=halfA X_A -i:as=halfB X_B
 --aov:preset=cycles --nfor --sure:probes=1 --ch <the 18 channels> -o tmp.exr
@@ -63,14 +66,14 @@ def read_channels(path, names):
     return np.stack(out).astype(np.float32)
 
 
-def prepare_one(stem, reference, out_path, probes=1):
-    """Runs NFOR + SURE on the files of `stem` and writes out_path (.npz)."""
+def prepare_one(stem, reference, out_path, probes=1, denoiser="nfor"):
+    """Runs the denoiser + SURE on the files of `stem` and writes out_path (.npz)."""
     all_channels = [c for names in PLANES.values() for c in names]
     with tempfile.TemporaryDirectory(prefix="mcdn_mix_") as tmp:
         exr = os.path.join(tmp, "sure.exr")
         cmd = [MCDNTOOL, "-i", stem + ".exr", "-i:as=variance", stem + "_var.exr",
                "-i:as=halfA", stem + "_A.exr", "-i:as=halfB", stem + "_B.exr",
-               "--aov:preset=cycles", "--nfor", "--sure:probes=%d" % probes,
+               "--aov:preset=cycles", "--" + denoiser, "--sure:probes=%d" % probes,
                "--ch", ",".join(all_channels), "-o", exr]
         run = subprocess.run(cmd, capture_output=True, text=True)
         if run.returncode != 0:
@@ -84,12 +87,12 @@ def prepare_one(stem, reference, out_path, probes=1):
     os.replace(tmp_path, out_path)
 
 
-def todo(datasets):
+def todo(datasets, denoiser="nfor"):
     """(stem, reference, out_path) of every crop/level not yet prepared."""
     jobs = []
     for name in datasets:
         root = os.path.join(CACHE, "datasets", name)
-        out_dir = os.path.join(CACHE, "mix", "prepared", name)
+        out_dir = os.path.join(CACHE, "mix", "prepared", name + ("" if denoiser == "nfor" else "." + denoiser))
         os.makedirs(out_dir, exist_ok=True)
         for crop_dir in sorted(glob.glob(os.path.join(root, "*", ""))):
             crop = os.path.basename(os.path.dirname(crop_dir))
@@ -110,6 +113,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--datasets", default="full,small")
     ap.add_argument("--probes", type=int, default=1, help="SURE's K (PD §3.2)")
+    ap.add_argument("--denoiser", choices=("nfor", "cnn"), default="nfor",
+                    help="the mcdntool stage whose output the mix learns to combine")
     ap.add_argument("--watch", type=float, default=0,
                     help="keep rescanning for new crops for this many minutes")
     args = ap.parse_args()
@@ -117,11 +122,11 @@ def main():
     deadline = time.time() + 60 * args.watch
     done = 0
     while True:
-        jobs = todo(datasets)
+        jobs = todo(datasets, args.denoiser)
         for stem, reference, out_path in jobs:
             t0 = time.time()
             try:
-                prepare_one(stem, reference, out_path, args.probes)
+                prepare_one(stem, reference, out_path, args.probes, args.denoiser)
             except RuntimeError as e:
                 print("prepare: %s" % e, file=sys.stderr, flush=True)
                 continue
