@@ -13,69 +13,45 @@ namespace kpcn {
 
 namespace {
 
-/// Which weights a worker holds: a rewritten file (a new training step) is a new key.
-struct Key {
-    std::string path;
-    long long size = -1, modified_ns = -1;
-    int image_channels = 0;
-    bool operator==(const Key& o) const
-    {
-        return path == o.path && size == o.size && modified_ns == o.modified_ns
-               && image_channels == o.image_channels;
-    }
-};
-
-Key key_of(const std::string& path, int image_channels)
+/// Which weights a worker holds: a rewritten file (a new training step) is another key.
+std::string key_of(const std::string& path, int image_channels)
 {
-    Key key { path, -1, -1, image_channels };
     struct stat st {};
+    long long size = -1, modified_ns = -1;
     if (::stat(path.c_str(), &st) == 0) {
-        key.size = st.st_size;
-        key.modified_ns = (long long)st.st_mtim.tv_sec * 1000000000LL + st.st_mtim.tv_nsec;
+        size = st.st_size;
+        modified_ns = (long long)st.st_mtim.tv_sec * 1000000000LL + st.st_mtim.tv_nsec;
     }
-    return key;
+    return path + "|" + std::to_string(size) + "|" + std::to_string(modified_ns) + "|"
+           + std::to_string(image_channels);
 }
-
-struct Idle {
-    Key key;
-    std::unique_ptr<Worker> worker;
-};
 
 std::mutex pool_mutex;
-std::vector<Idle>& idle_workers()
+std::vector<std::unique_ptr<Worker>>& idle_workers()
 {
-    static std::vector<Idle> pool;
+    static std::vector<std::unique_ptr<Worker>> pool;
     return pool;
-}
-// The key of each worker handed out, by address, so return_worker knows where it belongs.
-std::vector<std::pair<const Worker*, Key>>& lent_workers()
-{
-    static std::vector<std::pair<const Worker*, Key>> lent;
-    return lent;
 }
 
 }  // namespace
 
 std::unique_ptr<Worker> take_worker(const std::string& path, int image_channels, std::string& error)
 {
-    const Key key = key_of(path, image_channels);
-    std::unique_ptr<Worker> worker;
+    const std::string key = key_of(path, image_channels);
     {
         std::lock_guard<std::mutex> lock(pool_mutex);
         auto& pool = idle_workers();
-        auto it = std::find_if(pool.begin(), pool.end(), [&](const Idle& i) { return i.key == key; });
+        auto it = std::find_if(pool.begin(), pool.end(), [&](const auto& w) { return w->weights_key == key; });
         if (it != pool.end()) {
-            worker = std::move(it->worker);
+            std::unique_ptr<Worker> worker = std::move(*it);
             pool.erase(it);
+            return worker;
         }
     }
-    if (!worker) {
-        worker = std::make_unique<Worker>();
-        if (!load_model(worker->model, path, error, image_channels))
-            return nullptr;
-    }
-    std::lock_guard<std::mutex> lock(pool_mutex);
-    lent_workers().emplace_back(worker.get(), key);
+    auto worker = std::make_unique<Worker>();
+    if (!load_model(worker->model, path, error, image_channels))
+        return nullptr;
+    worker->weights_key = key;
     return worker;
 }
 
@@ -84,26 +60,18 @@ void return_worker(std::unique_ptr<Worker> worker)
     if (!worker)
         return;
     std::lock_guard<std::mutex> lock(pool_mutex);
-    auto& lent = lent_workers();
-    auto it = std::find_if(lent.begin(), lent.end(), [&](const auto& l) { return l.first == worker.get(); });
-    if (it == lent.end())
-        return;
-    Key key = it->second;
-    lent.erase(it);
     auto& pool = idle_workers();
     const size_t keep = std::max(1u, std::thread::hardware_concurrency());
     if (pool.size() >= keep)
         pool.erase(pool.begin());  // the longest idle goes
-    pool.push_back({ std::move(key), std::move(worker) });
+    pool.push_back(std::move(worker));
 }
 
 void release_workers()
 {
-    std::vector<Idle> freed;
-    {
-        std::lock_guard<std::mutex> lock(pool_mutex);
-        freed.swap(idle_workers());
-    }
+    std::vector<std::unique_ptr<Worker>> freed;
+    std::lock_guard<std::mutex> lock(pool_mutex);
+    freed.swap(idle_workers());
 }
 
 }  // namespace kpcn

@@ -19,6 +19,7 @@ struct Worker {
     Model model;
     BranchInputs diffuse_inputs, specular_inputs;
     std::vector<nn::Tensor> irradiance, log_specular;  // the networks' outputs
+    std::string weights_key;  // the file (path, size, modification time) and channel count
 };
 
 /// An idle worker of an earlier call for the same weights file (same path, size and

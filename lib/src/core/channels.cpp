@@ -5,6 +5,8 @@
 
 #include <OpenImageIO/imagebufalgo.h>
 
+#include "core/planar.h"
+
 namespace mcdn {
 
 std::vector<int> add_channels(OIIO::ImageBuf& buf, const std::vector<std::string>& names)
@@ -23,10 +25,7 @@ std::vector<int> add_channels(OIIO::ImageBuf& buf, const std::vector<std::string
             fill.push_back(0.0f);
             all.push_back(name);
         }
-    if (all.size() != spec.channelnames.size() && buf.localpixels()
-        && spec.format == OIIO::TypeDesc::FLOAT
-        && buf.pixel_stride() == OIIO::stride_t(spec.pixel_bytes())
-        && buf.scanline_stride() == OIIO::stride_t(spec.scanline_bytes())) {
+    if (all.size() != spec.channelnames.size() && float_frame_pixels(buf)) {
         // Fast path for a float buffer in memory: one memcpy per pixel (IBA::channels goes
         // value by value, ~0.15 s for 156 channels at 256×256).
         OIIO::ImageSpec grown_spec = spec;

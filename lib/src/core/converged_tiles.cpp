@@ -82,14 +82,22 @@ ConvergedTiles find_converged_tiles(const Plane mean[3], const Plane variance[3]
     });
 }
 
+namespace {
+
+/// The map a chain attached to src (kConvergedAttribute), if it has one of this size.
+bool attached_map(ConvergedTiles& m, const ImageBuf& src, int width, int height)
+{
+    const std::string attached = src.spec().get_string_attribute(kConvergedAttribute);
+    return !attached.empty() && decode_converged_tiles(m, attached, width, height);
+}
+
+}  // namespace
+
 ConvergedTiles converged_tiles_of(const ImageBuf& src, const Plane mean[3],
                                   const Plane variance[3], const SkipOptions& skip)
 {
     ConvergedTiles m;
-    if (!skip.enabled)
-        return m;
-    std::string attached = src.spec().get_string_attribute(kConvergedAttribute);
-    if (!attached.empty() && decode_converged_tiles(m, attached, mean[0].width, mean[0].height))
+    if (!skip.enabled || attached_map(m, src, mean[0].width, mean[0].height))
         return m;
     return find_converged_tiles(mean, variance, skip.max_relative_error);
 }
@@ -102,17 +110,13 @@ ConvergedTiles converged_tiles_of(const ImageBuf& src, const AovSet& aovs, const
     const std::vector<int>& colour = aovs.channels(Role::Color);
     const std::vector<int>& colour_variance = aovs.channels(Role::ColorVariance);
     const ImageSpec& spec = src.spec();
-    if (src.localpixels() && spec.format == OIIO::TypeDesc::FLOAT
-        && src.pixel_stride() == OIIO::stride_t(spec.pixel_bytes())
-        && src.scanline_stride() == OIIO::stride_t(spec.scanline_bytes())) {
+    if (const float* pixels = float_frame_pixels(src)) {
         // A float frame in memory: one pass over its pixels, sanitized as read_plane does.
         // (Six planes were six strided passes over a many-channel frame and 24 MB of fresh
         // memory at 1024²: 0.15-0.6 s with 78 channels in this VM.)
         ConvergedTiles m;
-        const std::string attached = spec.get_string_attribute(kConvergedAttribute);
-        if (!attached.empty() && decode_converged_tiles(m, attached, spec.width, spec.height))
+        if (attached_map(m, src, spec.width, spec.height))
             return m;
-        const float* pixels = static_cast<const float*>(src.localpixels());
         const size_t nchannels = size_t(spec.nchannels);
         return scan_converged(spec.width, spec.height, skip.max_relative_error, [&](int c, int x, int y) {
             const float* px = pixels + (size_t(y) * spec.width + x) * nchannels;

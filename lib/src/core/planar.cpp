@@ -48,6 +48,16 @@ Plane read_rows(const OIIO::ImageBuf& src, int channel, const OIIO::ROI& rows, b
     return plane;
 }
 
+const float* float_frame_pixels(const OIIO::ImageBuf& frame)
+{
+    const OIIO::ImageSpec& spec = frame.spec();
+    if (!frame.localpixels() || spec.format != OIIO::TypeDesc::FLOAT
+        || frame.pixel_stride() != OIIO::stride_t(spec.pixel_bytes())
+        || frame.scanline_stride() != OIIO::stride_t(spec.scanline_bytes()))
+        return nullptr;
+    return static_cast<const float*>(frame.localpixels());
+}
+
 Plane read_plane(const OIIO::ImageBuf& src, int channel, bool is_variance)
 {
     const OIIO::ImageSpec& spec = src.spec();

@@ -64,6 +64,10 @@ inline float sanitize_variance(float v)
     return std::min(v, kMaxMagnitude);
 }
 
+/// The pixels of a float frame held contiguously in memory (all channels of a pixel, pixel
+/// after pixel, row after row), or null: then read it through OIIO (read_plane, get_pixels).
+const float* float_frame_pixels(const OIIO::ImageBuf& frame);
+
 /// Reads channel `channel` of `src` (data window) into a plane, sanitized.
 Plane read_plane(const OIIO::ImageBuf& src, int channel, bool is_variance = false);
 /// The same for the rows `rows` of the data window only (a band, without copying the band):
