@@ -4,27 +4,14 @@
 // reductions, so the result does not depend on the number of threads.
 #include <algorithm>
 #include <cmath>
-#include <cstdint>
 #include <cstring>
 
-#include <sys/mman.h>
-
+#include "core/huge_pages.h"
 #include "nn/ops.h"
 #include "nn/parallel.h"
 
 namespace mcdn {
 namespace nn {
-void advise_huge_pages(void* data, size_t bytes)
-{
-#ifdef MADV_HUGEPAGE
-    constexpr uintptr_t huge = uintptr_t(2) << 20;
-    const uintptr_t first = (reinterpret_cast<uintptr_t>(data) + huge - 1) / huge * huge;
-    const uintptr_t last = (reinterpret_cast<uintptr_t>(data) + bytes) / huge * huge;
-    if (last > first)
-        madvise(reinterpret_cast<void*>(first), last - first, MADV_HUGEPAGE);  // a hint: errors are harmless
-#endif
-}
-
 void reshape(Tensor& t, int height, int width, int channels)
 {
     t.height = height;

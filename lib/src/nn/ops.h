@@ -18,10 +18,6 @@ namespace nn {
 /// t.size() floats (storage is never shrunk, so it is neither re-zeroed nor re-faulted when
 /// a larger value reuses it): inside the engine use size(), not data.size().
 void reshape(Tensor& t, int height, int width, int channels);
-/// Asks the kernel for 2 MB pages in [data, data + bytes) before it is first written: a
-/// tile's values are hundreds of MB, and 4 kB page faults on them cost more than the ops
-/// (measured: ~20% of a KPCN frame's CPU time). A hint; no effect where unsupported.
-void advise_huge_pages(void* data, size_t bytes);
 
 namespace ops {
 void add(const Tensor& a, const Tensor& b, Activation activation, Tensor& out);
