@@ -15,6 +15,11 @@ Writes  $CACHE/mix/prepared/<set>/<crop>_00NNspp.npz, float32 arrays [3, H, W]:
         the generator adds crops. With --denoiser cnn, y is the KPCN op's output (--cnn,
         models/kpcn.mcdnw) and the files go to $CACHE/mix/prepared/<set>.cnn/ (train.py
         --datasets full,small,full.cnn,small.cnn trains on both denoisers' outputs).
+        With --denoiser blur, y is a deliberately biased "denoiser", the colour blurred by a
+        Gaussian BLUR_WIDTHS[crop number % 2] pixels wide, and its SURE (mcdenoise.sure with
+        a Python callable), into <set>.blur/: a network that only ever saw good denoisers
+        learns to trust any denoiser (PD §4 wants the mix consistent for every one); the
+        bench's --blur 5 stays a width it has not seen.
 
 One mcdntool run per file:  -i X -i:as=variance X_var -i:as=halfA X_A -i:as=halfB X_B
 --aov:preset=cycles --nfor --sure:probes=1 --ch <the 18 channels> -o tmp.exr
@@ -36,6 +41,10 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
 CACHE = os.environ.get("MCDN_CACHE", os.path.expanduser("~/.cache/mcdenoise"))
 MCDNTOOL = os.environ.get("MCDNTOOL", os.path.join(ROOT, "build", "bin", "mcdntool"))
+
+# Widths of the blur "denoiser" (--denoiser blur), alternating by crop number; bench_mix
+# --blur 5 measures between them.
+BLUR_WIDTHS = (3, 9)
 
 RGB = ("R", "G", "B")
 COLOR = ["ViewLayer.Combined." + c for c in RGB]
@@ -80,6 +89,39 @@ def prepare_one(stem, reference, out_path, probes=1, denoiser="nfor"):
             raise RuntimeError("mcdntool failed on %s: %s" % (stem, run.stderr.strip()[-500:]))
         planes = read_channels(exr, all_channels)
     arrays = {key: planes[3 * i:3 * i + 3] for i, key in enumerate(PLANES)}
+    write_npz(arrays, stem, reference, out_path)
+
+
+def blur_width(stem):
+    return BLUR_WIDTHS[int(re.search(r"(\d+)_[a-z]+_\d+spp$", stem).group(1)) % 2]
+
+
+def prepare_one_blur(stem, reference, out_path, probes=1):
+    """As prepare_one, with the blur "denoiser" run through the Python module's sure."""
+    sys.path.insert(0, os.environ.get("MCDN_PYTHON", os.path.join(ROOT, "build", "python")))
+    import mcdenoise
+    image = mcdenoise.read_inputs([(stem + ".exr", "mean"), (stem + "_var.exr", "variance"),
+                                   (stem + "_A.exr", "halfA"), (stem + "_B.exr", "halfB")])
+    kernel = oiio.ImageBufAlgo.make_kernel("gaussian", blur_width(stem), blur_width(stem))
+
+    def blur(src):  # the colour blurred (edges clamp), every other channel as it is
+        dst = src.copy(oiio.FLOAT)
+        for name in COLOR:
+            c = src.spec().channelindex(name)
+            roi = oiio.ROI(src.roi.xbegin, src.roi.xend, src.roi.ybegin, src.roi.yend, 0, 1, c, c + 1)
+            if not oiio.ImageBufAlgo.convolve(dst, src, kernel, True, roi):
+                raise RuntimeError("blur: " + dst.geterror())
+        return dst
+
+    out = mcdenoise.sure(image, blur, probes=probes)
+    pixels = out.get_pixels(oiio.FLOAT)
+    spec = out.spec()
+    arrays = {key: np.stack([pixels[:, :, spec.channelindex(n)] for n in names]).astype(np.float32)
+              for key, names in PLANES.items()}
+    write_npz(arrays, stem, reference, out_path)
+
+
+def write_npz(arrays, stem, reference, out_path):
     arrays["reference"] = read_channels(reference, COLOR)
     arrays["spp"] = np.array(int(re.search(r"_(\d+)spp$", stem).group(1)), dtype=np.int32)
     tmp_path = out_path + ".tmp.npz"
@@ -113,8 +155,9 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--datasets", default="full,small")
     ap.add_argument("--probes", type=int, default=1, help="SURE's K (PD §3.2)")
-    ap.add_argument("--denoiser", choices=("nfor", "cnn"), default="nfor",
-                    help="the mcdntool stage whose output the mix learns to combine")
+    ap.add_argument("--denoiser", choices=("nfor", "cnn", "blur"), default="nfor",
+                    help="the mcdntool stage whose output the mix learns to combine (blur: "
+                         "a biased stand-in, see above)")
     ap.add_argument("--watch", type=float, default=0,
                     help="keep rescanning for new crops for this many minutes")
     args = ap.parse_args()
@@ -126,7 +169,10 @@ def main():
         for stem, reference, out_path in jobs:
             t0 = time.time()
             try:
-                prepare_one(stem, reference, out_path, args.probes, args.denoiser)
+                if args.denoiser == "blur":
+                    prepare_one_blur(stem, reference, out_path, args.probes)
+                else:
+                    prepare_one(stem, reference, out_path, args.probes, args.denoiser)
             except RuntimeError as e:
                 print("prepare: %s" % e, file=sys.stderr, flush=True)
                 continue

@@ -45,7 +45,7 @@ INPUT_PLANES = PLANES[:-1]
 
 def is_validation(path):
     """Held-out crops: datasets/full crops whose number % 6 == 4 (0004, 0010, ...), with
-    either denoiser's outputs (prepared/full, prepared/full.cnn)."""
+    any denoiser's outputs (prepared/full, prepared/full.cnn, prepared/full.blur)."""
     name = os.path.basename(path)
     dataset = os.path.basename(os.path.dirname(path)).split(".")[0]
     return dataset == "full" and int(name[:4]) % 6 == 4
