@@ -43,7 +43,7 @@ struct CnnOptions {
 };
 
 /// $MCDN_MODELS/kpcn.mcdnw when MCDN_MODELS is set, else <models dir>/kpcn.mcdnw (the
-/// compiled-in MCDN_MODELS_DIR, or the source tree's models/).
+/// models/ of the source tree the library was built from: nn::model_file).
 std::string default_cnn_weights();
 
 /// dst = src with the colour role replaced by the KPCN estimate (written inside `roi`; every

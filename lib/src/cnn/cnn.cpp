@@ -23,21 +23,6 @@ namespace mcdn {
 
 namespace {
 
-// "<source root>/models" when the build does not say where the models are.
-std::string models_dir_default()
-{
-#ifdef MCDN_MODELS_DIR
-    return MCDN_MODELS_DIR;
-#else
-    std::string root = __FILE__;  // <root>/lib/src/cnn/cnn.cpp: up four components
-    for (int up = 0; up < 4; ++up) {
-        size_t slash = root.find_last_of("/\\");
-        root = slash == std::string::npos ? std::string() : root.substr(0, slash);
-    }
-    return root.empty() ? std::string("models") : root + "/models";
-#endif
-}
-
 /// Runs `body` on at most `nthreads` threads (0 = all): a TBB arena for our ops, and the
 /// OpenMP thread count of this thread for oneDNN's convolutions (looked up at run time, as
 /// only oneDNN links OpenMP; absent with a TBB-threaded oneDNN, where the arena suffices).
@@ -252,8 +237,7 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
 
 std::string default_cnn_weights()
 {
-    const char* dir = std::getenv("MCDN_MODELS");
-    return (dir && *dir ? std::string(dir) : models_dir_default()) + "/kpcn.mcdnw";
+    return nn::model_file("kpcn.mcdnw");
 }
 
 bool cnn(ImageBuf& dst, const ImageBuf& src, const CnnOptions& options, ROI roi, int nthreads)

@@ -26,27 +26,11 @@ constexpr float kFActEpsilon = 1e-6f;  // eq. 19
 
 float signed_log1p(float v) { return std::copysign(std::log1p(std::fabs(v)), v); }
 
-// "<source root>/models" when the build does not say where the models are.
-std::string models_dir_default()
-{
-#ifdef MCDN_MODELS_DIR
-    return MCDN_MODELS_DIR;
-#else
-    std::string root = __FILE__;  // <root>/lib/src/mix/net_alpha.cpp: up four components
-    for (int up = 0; up < 4; ++up) {
-        size_t slash = root.find_last_of("/\\");
-        root = slash == std::string::npos ? std::string() : root.substr(0, slash);
-    }
-    return root.empty() ? std::string("models") : root + "/models";
-#endif
-}
-
 }  // namespace
 
 std::string default_mix_weights()
 {
-    const char* dir = std::getenv("MCDN_MODELS");
-    return (dir && *dir ? std::string(dir) : models_dir_default()) + "/mix.mcdnw";
+    return nn::model_file("mix.mcdnw");
 }
 
 bool load_mix_net(nn::Net& net, const std::string& path, std::string& error)

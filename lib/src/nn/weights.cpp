@@ -1,6 +1,7 @@
 // The weights file (format in mcdn/nn.h): read, write, describe. Every integer and float is
 // little-endian; this file assumes a little-endian host (x86-64, AArch64) and says so below.
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <iterator>
@@ -222,6 +223,12 @@ std::string describe(const Weights& weights)
     for (const NamedTensor& t : weights.tensors)
         s << "  " << t.name << " " << shape_string(t.shape) << "\n";
     return s.str();
+}
+
+std::string model_file(const std::string& name)
+{
+    const char* dir = std::getenv("MCDN_MODELS");
+    return (dir && *dir ? std::string(dir) : std::string(MCDN_MODELS_DIR)) + "/" + name;
 }
 
 }  // namespace nn
