@@ -20,9 +20,9 @@
 // back on later runs with the same denoiser: for comparing mix settings. Delete DIR when the
 // denoiser changes.
 //
-// --cnn denoises with mcdn::cnn (models/kpcn.mcdnw) instead of NFOR: the mixing network was
-// trained on NFOR's outputs only (training/mix), so this is how it carries to another
-// denoiser (issue 5: "with --cnn once it exists").
+// --cnn denoises with mcdn::cnn (models/kpcn.mcdnw) instead of NFOR, and mixes with the
+// network trained for it (models/mix_cnn.mcdnw unless a weights file is given; issue 5:
+// "with --cnn once it exists").
 //
 // --crop DIR adds every level of one generated crop (DIR/<name>_00NNspp*.exr, DIR/<name>_ref.exr),
 // e.g. a training crop where a mix went wrong (datasets/small/0001_exterior).
@@ -276,8 +276,8 @@ int main(int argc, char** argv)
         else
             weights = a;
     }
-    if (weights.empty())
-        weights = default_mix_weights();
+    if (weights.empty())  // the network of the denoiser (the blur: NFOR's, as for any other)
+        weights = default_mix_weights(use_cnn && blur_width <= 0 ? "cnn" : "nfor");
     const std::string den = blur_width > 0 ? "blur" + std::to_string(int(blur_width)) : use_cnn ? "CNN" : "NFOR";
     std::printf("mcdenoise progressive mix benchmark (PD §4, Table 4); network %s; denoiser %s\n\n",
                 weights.c_str(), den.c_str());

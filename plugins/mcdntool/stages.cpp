@@ -131,10 +131,12 @@ std::vector<CommandInfo> stage_commands()
         { "--mix", "", mcdn::setting_keys("mix"),
           "Progressive mix of the render and the denoised image (PD §4), after --sure: "
           "model=analytic|net, ttest=1 bounds alpha by the t-test (eq. 18), alpha=1 adds "
-          "mix.alpha.* channels; with model=net: afloor=1, alpha is at least the analytic model's; "
+          "mix.alpha.* channels; with model=net: the network trained for the denoiser before "
+          "--sure (models/mix_cnn.mcdnw after --cnn, else models/mix.mcdnw; weights=FILE), "
+          "afloor=1, alpha is at least the analytic model's; "
           "outlier=0.3, alpha is at least eq. 9 where the "
-          "render's variance exceeds 0.3 (y^2 + 0.01), drop=3: alpha = 1 where it exceeds 3 (y^2 + 0.01) "
-          "(0: off).",
+          "render's variance exceeds 0.3 (y^2 + 0.01), drop=1.5: alpha = 1 where it exceeds "
+          "1.5 (y^2 + 0.01) (0: off).",
           run_mix, false, check<mcdn::MixOptions> },
     };
 }

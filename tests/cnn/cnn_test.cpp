@@ -208,6 +208,8 @@ TEST(Cnn, ChainsUnderSure)
     ASSERT_TRUE(sure(dst, src, denoiser)) << dst.geterror();
     EXPECT_GE(dst.spec().channelindex("sure.R"), 0);
     EXPECT_TRUE(all_finite(dst));
+    // Which denoiser made the colour, for mix to pick the network trained for it.
+    EXPECT_EQ(dst.spec().get_string_attribute("mcdn:denoiser"), "cnn");
 }
 
 TEST(Cnn, WithoutSplitUsesTheSpecularNetworkOnColour)

@@ -187,6 +187,38 @@ TEST(MixNet, DeterministicAndFinite)
         ASSERT_TRUE(std::isfinite(v));
 }
 
+TEST(MixNet, PicksTheNetworkOfTheDenoiserThatMadeTheFrame)
+{
+    // One network per denoiser (PD §5.3): the nfor and cnn ops name themselves in
+    // "mcdn:denoiser", sure keeps it, and mix with no weights file given takes that
+    // denoiser's network; NFOR's for a denoiser it does not know.
+    auto file = [](const std::string& path) { return path.substr(path.find_last_of('/') + 1); };
+    EXPECT_EQ(file(default_mix_weights("cnn")), "mix_cnn.mcdnw");
+    for (const char* other : { "nfor", "", "oidn" })
+        EXPECT_EQ(file(default_mix_weights(other)), "mix.mcdnw") << other;
+
+    ImageBuf src, with_sure;
+    ASSERT_TRUE(read_level(src, "0003_bump", 16)) << src.geterror();
+    ASSERT_TRUE(nfor_with_sure(with_sure, src)) << with_sure.geterror();
+    EXPECT_EQ(with_sure.spec().get_string_attribute("mcdn:denoiser"), "nfor");
+    auto mixed = [&](const std::string& weights) {
+        MixOptions o;
+        o.model = MixOptions::Model::Net;
+        o.weights = weights;
+        ImageBuf z;
+        EXPECT_TRUE(mix(z, with_sure, o)) << z.geterror();
+        std::vector<float> px(z.spec().image_pixels() * z.nchannels());
+        z.get_pixels(z.roi(), OIIO::TypeFloat, px.data());
+        return px;
+    };
+    const std::vector<float> nfor_net = mixed(default_mix_weights("nfor"));
+    const std::vector<float> cnn_net = mixed(default_mix_weights("cnn"));
+    EXPECT_NE(nfor_net, cnn_net);  // else this test could not tell which one ran
+    EXPECT_EQ(mixed(""), nfor_net);
+    with_sure.specmod().attribute("mcdn:denoiser", "cnn");
+    EXPECT_EQ(mixed(""), cnn_net);
+}
+
 TEST(MixNet, AlphaIsAtLeastTheAnalyticModels)
 {
     // MixOptions::analytic_floor: before the outlier floor and the t-test (both off here),

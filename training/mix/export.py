@@ -3,12 +3,15 @@
 and remakes the PyTorch-vs-C++ fixture of tests/mix/net_test.cpp from the same weights.
 
     /usr/bin/python3 training/mix/export.py [--run-dir DIR] [--out models/mix.mcdnw]
+    # the KPCN op's network (mcdn::mix picks it for frames the cnn op made):
+    /usr/bin/python3 training/mix/export.py --run-dir DIR --denoiser cnn \
+        --out models/mix_cnn.mcdnw --fixture ''
 
 Writes
   models/mix.mcdnw            the weights (state_dict keys = the C++ parameter names) and
                               metadata: architecture, input layout and transforms, data,
                               steps/epochs, final train/validation SMAPE
-  models/mix_loss.csv, .png   the loss curve of the run (copied from DIR)
+  models/mix_loss.csv, .png   the loss curve of the run (copied from DIR; <out stem>_loss.*)
   tests/data/mix/mix_net_io.mcdnw   a 32x24 crop of a validation sample: the six input planes,
                               PyTorch's features, raw outputs and alpha (NHWC), and the
                               checksum of the weights they were computed with
@@ -84,7 +87,12 @@ def main():
     ap.add_argument("--out", default=os.path.join(ROOT, "models", "mix.mcdnw"))
     ap.add_argument("--note", default="", help="free text stored in the metadata (e.g. the "
                     "cycles of a checkpoint made before train.py recorded them)")
-    ap.add_argument("--fixture", default=os.path.join(ROOT, "tests", "data", "mix", "mix_net_io.mcdnw"))
+    ap.add_argument("--fixture", default=os.path.join(ROOT, "tests", "data", "mix", "mix_net_io.mcdnw"),
+                    help="the C++ equivalence fixture to remake ('' for none: one fixture checks "
+                         "the C++ forward, made from models/mix.mcdnw)")
+    ap.add_argument("--denoiser", choices=("nfor", "cnn"), default="nfor",
+                    help="the denoiser this network mixes (the ops' mcdn:denoiser attribute; "
+                         "cnn: export to models/mix_cnn.mcdnw)")
     args = ap.parse_args()
     ck = torch.load(os.path.join(args.run_dir, "checkpoint.pt"))
     net = M.MixNet()
@@ -106,7 +114,7 @@ def main():
         "input_layout": M.INPUT_LAYOUT,
         "inputs": "HDR, DEN: sign(v) log(1 + |v|); VAR, SURE, sigma^2 f'(x), ||y - x||^2: "
                   "arctan(v / (y^2 + 0.01)), y = denoised; 18 channels, RGB each, in that order",
-        "denoiser": "mcdntool --nfor (defaults) --sure:probes=1",
+        "denoiser": "mcdntool --%s (defaults) --sure:probes=1" % args.denoiser,
         "data": {"datasets": targs["datasets"], "train_files": len(train_files),
                  "train_crops": len(crops(train_files)), "validation_files": len(val_files),
                  "validation_crops": crops(val_files),
@@ -130,14 +138,17 @@ def main():
     for name in ("loss.csv", "loss.png"):
         src = os.path.join(args.run_dir, name)
         if os.path.exists(src):
-            shutil.copyfile(src, os.path.join(os.path.dirname(args.out), "mix_" + name))
-    os.makedirs(os.path.dirname(args.fixture), exist_ok=True)
-    prepared = os.path.join(CACHE, "mix", "prepared")
-    sample = next((os.path.join(prepared, f) for f in val_files + train_files if "_0016spp" in f),
-                  os.path.join(prepared, (val_files + train_files)[0]))
-    write_fixture(net, state, sample, args.fixture)
+            stem = os.path.splitext(os.path.basename(args.out))[0]  # mix_loss.csv, mix_cnn_loss.csv
+            shutil.copyfile(src, os.path.join(os.path.dirname(args.out), stem + "_" + name))
     print(json.dumps(metadata, indent=1))
-    print("wrote", args.out, "and", args.fixture)
+    print("wrote", args.out)
+    if args.fixture:
+        os.makedirs(os.path.dirname(args.fixture), exist_ok=True)
+        prepared = os.path.join(CACHE, "mix", "prepared")
+        sample = next((os.path.join(prepared, f) for f in val_files + train_files if "_0016spp" in f),
+                      os.path.join(prepared, (val_files + train_files)[0]))
+        write_fixture(net, state, sample, args.fixture)
+        print("wrote", args.fixture)
 
 
 if __name__ == "__main__":

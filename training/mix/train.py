@@ -233,7 +233,7 @@ def main():
         cycles.append({"start": state["cycle_start"], "steps": state["cycle_steps"],
                        "max_lr": args.max_lr, "patch": args.patch, "batch": args.batch,
                        "leak": args.leak, "log_l1_weight": args.log_l1_weight,
-                       "exposure": args.exposure})
+                       "exposure": args.exposure, "datasets": args.datasets})
     done_in_cycle = state["step"] - state["cycle_start"]
     if sched_state is not None and args.steps and args.steps != state["cycle_steps"] \
             and not args.extend:

@@ -22,15 +22,17 @@ struct MixOptions {
 
     enum class Model {
         /// §4.3: the mixing network h_NN (5x5 conv to 48, two 3x3/48 residual blocks,
-        /// 3x3 conv to 3 outputs per channel, f_act), trained by training/mix on our NFOR
-        /// and its SURE; weights from `weights` (default: default_mix_weights()).
+        /// 3x3 conv to 3 outputs per channel, f_act), trained by training/mix on our
+        /// denoisers' outputs and their SURE; weights from `weights` (default: the network of
+        /// the denoiser that made src, default_mix_weights()).
         Net,
         /// Eq. 9 with its noisy terms averaged over a (2r+1)^2 box:
         /// alpha = (<sigma^2> - <sigma^2 f'(x)>) / <||y - x||^2>, clipped to [0, 1].
         Analytic,
     };
     Model model = Model::Analytic;
-    /// Weights file of the mixing network (Model::Net); empty: default_mix_weights().
+    /// Weights file of the mixing network (Model::Net); empty: default_mix_weights() of the
+    /// denoiser src's "mcdn:denoiser" attribute names.
     std::string weights;
     /// Neighbourhood radius of the analytic model's averages (21x21): at 11x11 the relative
     /// noise of <||y - x||^2> (~13%) pulls alpha below 1 on smooth regions and costs ~15%
@@ -50,7 +52,7 @@ struct MixOptions {
     /// Model::Net: where it exceeds this many times y^2 + 0.01, alpha = 1 before the t-test
     /// (the render pixel's value says little about its mean; eq. 9 is noise there).
     /// 0 disables it.
-    float drop_relative_variance = 3.0f;
+    float drop_relative_variance = 1.5f;
 
     // The t-test bound, eq. 12-18.
     bool t_test = true;
@@ -76,9 +78,13 @@ struct MixOptions {
     int64_t band_pixels = int64_t(1) << 22;
 };
 
-/// The mixing network's default weights file: $MCDN_MODELS/mix.mcdnw when the environment
-/// variable is set, else models/mix.mcdnw of the source tree this library was built from.
-std::string default_mix_weights();
+/// The mixing network trained for `denoiser`'s outputs (PD §5.3 trains one per denoiser):
+/// mix_cnn.mcdnw for "cnn" (the KPCN op), mix.mcdnw for "nfor" and for any other (it was
+/// also trained on a deliberately biased one: models/README.md), in the models directory
+/// ($MCDN_MODELS when set, else models/ of the source tree this library was built from).
+/// mix() asks for the denoiser its input names in the "mcdn:denoiser" attribute, which the
+/// nfor and cnn ops set and sure keeps; a Python or C++ callable denoiser may set it too.
+std::string default_mix_weights(const std::string& denoiser = "nfor");
 
 /// dst = src with the colour role replaced by z (and mix.alpha.* if asked for). Pixels
 /// outside `roi` keep src's colour. Finite, identical for any thread count.

@@ -16,6 +16,7 @@
 #include "cnn/extras.h"
 #include "cnn/worker_pool.h"
 #include "core/converged_tiles.h"
+#include "core/denoiser_attribute.h"
 #include "core/op_prepare.h"
 #include "mcdn/color.h"
 
@@ -242,9 +243,12 @@ std::string default_cnn_weights()
 
 bool cnn(ImageBuf& dst, const ImageBuf& src, const CnnOptions& options, ROI roi, int nthreads)
 {
-    return run_in_working_space(dst, src, options.aovs, "cnn", [&](ImageBuf& d, const ImageBuf& s) {
-        return cnn_in_working_space(d, s, options, roi, nthreads);
-    });
+    if (!run_in_working_space(dst, src, options.aovs, "cnn", [&](ImageBuf& d, const ImageBuf& s) {
+            return cnn_in_working_space(d, s, options, roi, nthreads);
+        }))
+        return false;
+    dst.specmod().attribute(kDenoiserAttribute, "cnn");
+    return true;
 }
 
 ImageBuf cnn(const ImageBuf& src, const CnnOptions& options, ROI roi, int nthreads)

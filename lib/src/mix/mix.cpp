@@ -9,6 +9,7 @@
 
 #include "core/bands.h"
 #include "core/channels.h"
+#include "core/denoiser_attribute.h"
 #include "core/op_prepare.h"
 #include "mcdn/sure.h"
 #include "mix/mix_steps.h"
@@ -88,7 +89,10 @@ bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options, ROI roi,
     nn::Net net;
     const bool use_net = options.model == MixOptions::Model::Net;
     if (use_net) {
-        const std::string path = options.weights.empty() ? default_mix_weights() : options.weights;
+        const std::string path =
+            options.weights.empty()
+                ? default_mix_weights(src.spec().get_string_attribute(kDenoiserAttribute))
+                : options.weights;
         if (!load_mix_net(net, path, error)) {
             dst.errorfmt("{}", error);
             return false;

@@ -28,9 +28,9 @@ float signed_log1p(float v) { return std::copysign(std::log1p(std::fabs(v)), v);
 
 }  // namespace
 
-std::string default_mix_weights()
+std::string default_mix_weights(const std::string& denoiser)
 {
-    return nn::model_file("mix.mcdnw");
+    return nn::model_file(denoiser == "cnn" ? "mix_cnn.mcdnw" : "mix.mcdnw");
 }
 
 bool load_mix_net(nn::Net& net, const std::string& path, std::string& error)

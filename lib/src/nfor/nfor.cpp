@@ -15,6 +15,7 @@
 #include "core/channels.h"
 #include "core/constant_features.h"
 #include "core/converged_tiles.h"
+#include "core/denoiser_attribute.h"
 #include "core/extra_aovs.h"
 #include "core/feature_channels.h"
 #include "core/nl_means.h"
@@ -351,10 +352,13 @@ int receptive_radius(const NforOptions& o, bool prefiltered)
 bool nfor(ImageBuf& dst, const ImageBuf& src, const NforOptions& options, ROI roi, int nthreads)
 {
     bool prefiltered = src.spec().get_int_attribute("mcdn:prefiltered", 0) == 1;
-    return run_local_op(dst, src, options.aovs, "nfor", receptive_radius(options, prefiltered),
-                        options.band_pixels, [&](ImageBuf& d, const ImageBuf& s) {
-                            return nfor_in_working_space(d, s, options, roi, nthreads);
-                        });
+    if (!run_local_op(dst, src, options.aovs, "nfor", receptive_radius(options, prefiltered),
+                      options.band_pixels, [&](ImageBuf& d, const ImageBuf& s) {
+                          return nfor_in_working_space(d, s, options, roi, nthreads);
+                      }))
+        return false;
+    dst.specmod().attribute(kDenoiserAttribute, "nfor");
+    return true;
 }
 
 ImageBuf nfor(const ImageBuf& src, const NforOptions& options, ROI roi, int nthreads)
