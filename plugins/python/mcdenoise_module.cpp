@@ -280,7 +280,10 @@ PYBIND11_MODULE(mcdenoise, m)
           py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
           py::arg("skip") = true, py::arg("converged") = mcdn::SkipOptions().max_relative_error,
           py::arg("nthreads") = 0,
-          "Progressive mix (PD §4) of the output of sure(): z = x + alpha'(y - x).");
+          "Progressive mix (PD §4) of the output of sure(): z = x + alpha'(y - x). With "
+          "model='net' and no weights: the network trained for the denoiser named in the "
+          "image's 'mcdn:denoiser' attribute (set by nfor and cnn; models/mix_cnn.mcdnw for "
+          "'cnn', else models/mix.mcdnw).");
 
     m.def("metrics",
           [](const ImageBuf& image, const ImageBuf& reference, std::vector<int> channels,

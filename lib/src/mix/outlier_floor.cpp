@@ -31,9 +31,10 @@
 //   about its mean). Eq. 9 fails there: its terms are dominated by a few samples, and the
 //   one-probe sigma^2 f'(x) is noise. 0016_fine at 4 spp with the KPCN op: a blob of render
 //   pixels at 2.6 over a reference of 0.31, sigma^2 = 0.42 (1.6x the scale; four samples
-//   underestimate it), alpha_9 = 0.09 kept them: +2.3 % RMSE over the CNN alone. 0040_metal 256 spp: x = 98 over a reference of 0.22,
-//   y = 9.0, sigma^2 = 9583, ||y - x||^2 = 7942, sigma^2 f'(x) = 31030 (f' = 3.2, which no
-//   smoothing denoiser has): alpha_9 < 0 kept the firefly. Eq. 9 without the divergence
+//   underestimate it), alpha_9 = 0.09 kept them: +2.3 % RMSE over the CNN alone.
+//   0040_metal 256 spp: x = 98 over a reference of 0.22, y = 9.0, sigma^2 = 9583,
+//   ||y - x||^2 = 7942, sigma^2 f'(x) = 31030 (f' = 3.2, which no smoothing denoiser has):
+//   alpha_9 < 0 kept the firefly. Eq. 9 without the divergence
 //   term (sigma^2 / ||y - x||^2) is not enough either: the light of training crop 0005_glass
 //   at 4 spp, x = 82000 over a reference of 13200, y = 8240, has ||y - x||^2 = 2.8 sigma^2
 //   (four samples underestimate a heavy tail's variance): 0.36, and RMSE 2.3x NFOR's.
