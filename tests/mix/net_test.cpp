@@ -259,9 +259,9 @@ TEST(MixNet, CloseToTheBetterInputOnGeneratedCrops)
     // and denoised image. Issue 5's target is RMSE <= 1.02 x the better. With the floors of
     // MixOptions (the analytic model's alpha, the outlier floor) and the network of models/
     // (see its README) all 9 inputs meet it (at most 1.002x since 30 Nov, 1.016x with the
-    // network before; without the analytic floor 0003_bump 4 spp was at 1.06x; with the outlier floor's first threshold
-    // alone 0000_interior 64 spp was at 1.27x; the previous network without any floor kept
-    // render fireflies on 0007_fine 16 spp: 2.29x). The bounds leave room for small
+    // network before; without the analytic floor 0003_bump 4 spp was at 1.06x; with the
+    // outlier floor's first threshold alone 0000_interior 64 spp was at 1.27x; the previous
+    // network without any floor kept render fireflies on 0007_fine 16 spp: 2.29x). The bounds leave room for small
     // numerical changes upstream (NFOR, SURE) but catch a kept firefly or a network that
     // keeps too much render: never worse than the render, at most 1.10x the better input
     // anywhere, 1.03x on average.
