@@ -19,7 +19,8 @@ Writes  $CACHE/mix/prepared/<set>/<crop>_00NNspp.npz, float32 arrays [3, H, W]:
         Gaussian BLUR_WIDTHS[crop number % 2] pixels wide, and its SURE (mcdenoise.sure with
         a Python callable), into <set>.blur/: a network that only ever saw good denoisers
         learns to trust any denoiser (PD §4 wants the mix consistent for every one); the
-        bench's --blur 5 stays a width it has not seen.
+        bench's --blur 5 stays a width it has not seen. Tried on 30 Nov and not used by the
+        kept networks: it made them trust NFOR and the CNN less (models/README.md).
 
 One mcdntool run per file:  -i X -i:as=variance X_var -i:as=halfA X_A -i:as=halfB X_B
 --aov:preset=cycles --nfor --sure:probes=1 --ch <the 18 channels> -o tmp.exr

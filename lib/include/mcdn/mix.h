@@ -79,8 +79,9 @@ struct MixOptions {
 };
 
 /// The mixing network trained for `denoiser`'s outputs (PD §5.3 trains one per denoiser):
-/// mix_cnn.mcdnw for "cnn" (the KPCN op), mix.mcdnw for "nfor" and for any other (it was
-/// also trained on a deliberately biased one: models/README.md), in the models directory
+/// mix_cnn.mcdnw for "cnn" (the KPCN op), mix.mcdnw for "nfor" and for any other (with a
+/// deliberately biased one, bench_mix's blur, it stays within 2 % of the better input:
+/// models/README.md), in the models directory
 /// ($MCDN_MODELS when set, else models/ of the source tree this library was built from).
 /// mix() asks for the denoiser its input names in the "mcdn:denoiser" attribute, which the
 /// nfor and cnn ops set and sure keeps; a Python or C++ callable denoiser may set it too.
