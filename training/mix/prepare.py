@@ -99,7 +99,9 @@ def blur_width(stem):
 
 def prepare_one_blur(stem, reference, out_path, probes=1):
     """As prepare_one, with the blur "denoiser" run through the Python module's sure."""
-    sys.path.insert(0, os.environ.get("MCDN_PYTHON", os.path.join(ROOT, "build", "python")))
+    python_dir = os.environ.get("MCDN_PYTHON", os.path.join(ROOT, "build", "python"))
+    if python_dir not in sys.path:  # once, not once per file
+        sys.path.insert(0, python_dir)
     import mcdenoise
     image = mcdenoise.read_inputs([(stem + ".exr", "mean"), (stem + "_var.exr", "variance"),
                                    (stem + "_A.exr", "halfA"), (stem + "_B.exr", "halfB")])
