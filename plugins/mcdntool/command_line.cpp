@@ -10,6 +10,8 @@
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/strutil.h>
 
+#include "mcdn/version.h"
+
 namespace mcdntool {
 
 using OIIO::Strutil::fmt::format;
@@ -26,7 +28,8 @@ bool check_words(int argc, const char** argv, std::string& error)
 {
     for (int i = 1; i < argc; ++i) {
         std::string word = argv[i];
-        if (word.size() < 2 || word[0] != '-' || word == "--help" || word == "-h")
+        if (word.size() < 2 || word[0] != '-' || word == "--help" || word == "-h"
+            || word == "--version")
             continue;
         Command command = split_command(word);
         if (!check_command(command, error))
@@ -45,15 +48,20 @@ bool check_words(int argc, const char** argv, std::string& error)
 // Declares every command of the table to `ap`, filling `line` as ArgParse meets them.
 void declare(OIIO::ArgParse& ap, CommandLine& line)
 {
-    ap.intro("mcdntool -- denoise Monte Carlo renders (mcdenoise)")
+    const mcdn::InstallPaths paths = mcdn::install_paths();
+    ap.intro(format("mcdntool {} -- denoise Monte Carlo renders (mcdenoise)", mcdn::version()))
         .usage("mcdntool [-i[:as=KIND] FILE ...] [--aov[:preset=NAME] role=chans ...] "
                "[COMMAND ...] -o FILE")
         .description("Commands run left to right, oiiotool style; every command accepts "
                      ":modifier=value. File names with #, @ or %04d run the whole command "
                      "line once per frame.")
-        .epilog("Example:\n  mcdntool -i box.exr -i:as=variance box_var.exr -i:as=halfA "
+        .epilog(format("Example:\n  mcdntool -i box.exr -i:as=variance box_var.exr -i:as=halfA "
                 "box_A.exr -i:as=halfB box_B.exr --aov:preset=cycles --metrics ref.exr "
-                "-o out.exr")
+                "-o out.exr\n\n"
+                "Installed data: models {}, colour config {} ($MCDN_MODELS and $OCIO "
+                "override them).\nPlain oiiotool reads .mcdn recipes with this plugin "
+                "folder:\n  export OIIO_LIBRARY_PATH={}", paths.models_dir,
+                paths.ocio_config, paths.plugin_dir))
         .exit_on_error(false);
     for (const auto& info : command_table()) {
         std::string decl = info.name + (info.metavar.empty() ? "" : " " + info.metavar);
@@ -92,6 +100,14 @@ void declare(OIIO::ArgParse& ap, CommandLine& line)
 }
 
 }  // namespace
+
+bool wants_version(int argc, const char** argv)
+{
+    for (int i = 1; i < argc; ++i)
+        if (std::string(argv[i]) == "--version")
+            return true;
+    return false;
+}
 
 bool wants_help(int argc, const char** argv)
 {

@@ -17,6 +17,8 @@ struct CommandLine {
     int parallel_frames = 1;        // --parallel-frames
 };
 
+/// True when the command line has --version ("mcdntool X.Y.Z" on stdout, exit 0).
+bool wants_version(int argc, const char** argv);
 /// True when the user asked for --help (or gave no arguments).
 bool wants_help(int argc, const char** argv);
 void print_help();

@@ -18,6 +18,8 @@
 #include <OpenImageIO/sysutil.h>
 #include <OpenImageIO/timer.h>
 
+#include "mcdn/version.h"
+
 #include "command_line.h"
 #include "session.h"
 
@@ -140,6 +142,10 @@ bool run_frames(const std::vector<Command>& commands, const std::vector<int>& fr
 int main(int argc, const char** argv)
 {
     Filesystem::convert_native_arguments(argc, argv);
+    if (wants_version(argc, argv)) {
+        std::cout << "mcdntool " << mcdn::version() << "\n";
+        return 0;
+    }
     if (wants_help(argc, argv)) {
         print_help();
         return 0;

@@ -2,7 +2,7 @@
 // recipe file shot.mcdn with the same keys, one `key = value` per line) reads the render and
 // its AOVs, runs the chain, and hands oiiotool the denoised image:
 //
-//   OIIO_LIBRARY_PATH=build/lib oiiotool
+//   OIIO_LIBRARY_PATH=build/lib/mcdenoise oiiotool
 //     "shot.mcdn?in=beauty.exr&variance=beauty_var.exr&halfA=a.exr&halfB=b.exr&preset=cycles&chain=prefilter,nfor"
 //     --colorconvert lin_rec709 sRGB -o out.png
 //
@@ -17,6 +17,8 @@
 #include <OpenImageIO/imagebufalgo.h>
 #include <OpenImageIO/imageio.h>
 #include <OpenImageIO/strutil.h>
+
+#include "mcdn/version.h"
 
 #include "recipe.h"
 
@@ -62,8 +64,14 @@ bool denoise(const Recipe& recipe, ImageBuf& result, std::string& error)
         order.push_back(c);
     }
     result = ImageBufAlgo::channels(chained, int(order.size()), order);
+    ImageSpec& spec = result.specmod();
     for (const char* bookkeeping : { "mcdn:inputs", "mcdn:output_channels" })
-        result.specmod().erase_attribute(bookkeeping);
+        spec.erase_attribute(bookkeeping);
+    // What made the image, as oiiotool's own output records it: the version in the
+    // plugin's attribute, and appended to the render's Software.
+    spec.attribute("mcdn:Version", mcdn::version());
+    std::string software = spec.get_string_attribute("Software");
+    spec.attribute("Software", (software.empty() ? "" : software + "; ") + mcdn::software_name());
     return true;
 }
 
@@ -150,7 +158,11 @@ private:
 
 OIIO_PLUGIN_EXPORTS_BEGIN
 OIIO_EXPORT int mcdn_imageio_version = OIIO_PLUGIN_VERSION;
-OIIO_EXPORT const char* mcdn_imageio_library_version() { return "mcdenoise 0.1"; }
+OIIO_EXPORT const char* mcdn_imageio_library_version()
+{
+    static const std::string name = mcdn::software_name();
+    return name.c_str();
+}
 OIIO_EXPORT ImageInput* mcdn_input_imageio_create() { return new McdnInput; }
 OIIO_EXPORT const char* mcdn_input_extensions[] = { "mcdn", nullptr };
 OIIO_PLUGIN_EXPORTS_END

@@ -97,6 +97,7 @@ PYBIND11_MODULE(mcdenoise, m)
 {
     m.doc() = "mcdenoise: Monte Carlo render denoisers on OpenImageIO.ImageBuf";
     py::module_::import("OpenImageIO");  // registers ImageBuf with pybind11
+    m.attr("__version__") = mcdn::version();
 
     m.def("read_inputs",
           [](const std::vector<std::pair<std::string, std::string>>& files) {

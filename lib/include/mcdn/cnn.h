@@ -42,8 +42,8 @@ struct CnnOptions {
     SkipOptions skip;
 };
 
-/// $MCDN_MODELS/kpcn.mcdnw when MCDN_MODELS is set, else <models dir>/kpcn.mcdnw (the
-/// models/ of the source tree the library was built from: nn::model_file).
+/// kpcn.mcdnw in the models directory: $MCDN_MODELS when set, else the one installed with
+/// the library (share/mcdenoise/models: nn::model_file).
 std::string default_cnn_weights();
 
 /// dst = src with the colour role replaced by the KPCN estimate (written inside `roi`; every

@@ -19,7 +19,8 @@
 
 namespace mcdn {
 
-/// The config: $OCIO when set, else mcdenoise's own ocio/config.ocio.
+/// The config: $OCIO when set, else the one installed with the library
+/// (share/mcdenoise/ocio/config.ocio: install_paths() in mcdn/version.h).
 std::string ocio_config_path();
 
 /// The working space of every op: the config's scene_linear role.

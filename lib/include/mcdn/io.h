@@ -9,6 +9,7 @@
 #include <OpenImageIO/imagebuf.h>
 
 #include "mcdn/aov.h"
+#include "mcdn/version.h"
 
 namespace mcdn {
 
@@ -48,6 +49,9 @@ struct WriteOptions {
     std::string compression = "zip";
     /// Channels to write, by name; empty = "mcdn:output_channels" or else every channel.
     std::vector<std::string> channels;
+    /// Appended to the image's `Software` metadata (after "; ", once), as oiiotool records
+    /// itself: what made the file. Empty: `Software` is written as it is.
+    std::string software = software_name();
 };
 
 /// Writes `src` to `path` through a temporary file in the same directory, renamed into

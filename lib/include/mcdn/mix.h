@@ -82,7 +82,7 @@ struct MixOptions {
 /// mix_cnn.mcdnw for "cnn" (the KPCN op), mix.mcdnw for "nfor" and for any other (with a
 /// deliberately biased one, bench_mix's blur, it stays within 2 % of the better input:
 /// models/README.md), in the models directory
-/// ($MCDN_MODELS when set, else models/ of the source tree this library was built from).
+/// ($MCDN_MODELS when set, else share/mcdenoise/models installed with the library).
 /// mix() asks for the denoiser its input names in the "mcdn:denoiser" attribute, which the
 /// nfor and cnn ops set and sure keeps; a Python or C++ callable denoiser may set it too.
 std::string default_mix_weights(const std::string& denoiser = "nfor");

@@ -88,8 +88,8 @@ struct Weights {
 bool read_weights(const std::string& path, Weights& weights, std::string& error);
 /// Writes `weights` in format version weights_format_version.
 bool write_weights(const std::string& path, const Weights& weights, std::string& error);
-/// `name` in the models directory: $MCDN_MODELS/name when that variable is set, else the
-/// compiled-in models/ of the source tree the library was built from (MCDN_MODELS_DIR).
+/// `name` in the models directory: $MCDN_MODELS/name when that variable is set, else
+/// share/mcdenoise/models installed with the library (install_paths() in mcdn/version.h).
 std::string model_file(const std::string& name);
 /// A listing for humans: version, metadata and one line per tensor with its shape.
 std::string describe(const Weights& weights);

@@ -12,6 +12,7 @@
 #include <OpenImageIO/strutil.h>
 
 #include "core/planar.h"
+#include "mcdn/version.h"
 
 namespace OCIO = OCIO_NAMESPACE;
 
@@ -88,8 +89,7 @@ std::vector<ColourGroup> colour_groups(const ImageBuf& buf, const AovSet& aovs)
 
 std::string ocio_config_path()
 {
-    const char* env = std::getenv("OCIO");
-    return env && *env ? std::string(env) : std::string(MCDN_DEFAULT_OCIO_CONFIG);
+    return install_paths().ocio_config;
 }
 
 std::string working_colorspace()

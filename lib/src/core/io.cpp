@@ -414,6 +414,12 @@ bool write_image(const ImageBuf& src, const std::string& path, const WriteOption
     spec.set_format(options.datatype);
     spec.channelformats.clear();
     spec.attribute("compression", options.compression);
+    if (!options.software.empty()) {
+        std::string software = spec.get_string_attribute("Software");
+        if (!Strutil::ends_with(software, options.software))
+            software += (software.empty() ? "" : "; ") + options.software;
+        spec.attribute("Software", software);
+    }
     spec.alpha_channel = spec.channelindex("A");
     spec.z_channel     = spec.channelindex("Z");
 

@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "mcdn/nn.h"
+#include "mcdn/version.h"
 
 namespace mcdn {
 namespace nn {
@@ -227,8 +228,7 @@ std::string describe(const Weights& weights)
 
 std::string model_file(const std::string& name)
 {
-    const char* dir = std::getenv("MCDN_MODELS");
-    return (dir && *dir ? std::string(dir) : std::string(MCDN_MODELS_DIR)) + "/" + name;
+    return install_paths().models_dir + "/" + name;
 }
 
 }  // namespace nn
