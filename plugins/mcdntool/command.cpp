@@ -6,6 +6,7 @@
 #include <OpenImageIO/strutil.h>
 
 #include "mcdn/settings.h"
+#include "mcdn/threads.h"
 
 #include "command_line.h"
 #include "session.h"
@@ -41,6 +42,16 @@ CommandCheck whole_number_at_least(int minimum)
         error = format("{} {}: needs a whole number >= {}", c.name, c.args[0], minimum);
         return false;
     };
+}
+
+// --threads N: the library's rule (mcdn/threads.h), as the plugin and Python apply it.
+bool check_thread_count(const Command& c, std::string& error)
+{
+    int n = 0;
+    if (mcdn::parse_threads(c.args[0], n, error))
+        return true;
+    error = "--threads " + c.args[0] + ": " + error;
+    return false;
 }
 
 }  // namespace
@@ -81,7 +92,7 @@ const std::vector<CommandInfo>& command_table()
               "Written to a temporary name and renamed: never a partial file.",
               run_output, false, check_output },
             { "--threads", "N", {}, "Worker threads (0 = all cores, the default).", nullptr,
-              true, whole_number_at_least(0) },
+              true, check_thread_count },
             { "-v", "", {}, "Print a line per stage with its run time (the default when "
               "stderr is a terminal).", nullptr, true, {} },
             { "--frames", "SPEC", {},

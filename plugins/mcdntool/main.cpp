@@ -11,6 +11,7 @@
 #include <mutex>
 #include <thread>
 
+#include <signal.h>
 #include <unistd.h>
 
 #include <OpenImageIO/filesystem.h>
@@ -69,20 +70,41 @@ bool find_frames(const std::vector<Command>& commands, const std::string& frames
     return true;
 }
 
+// Every file a frame writes (-o, --heatmap) may be written, and is none of the files it
+// reads (-i, --metrics, --heatmap:ref): checked before the first stage runs.
+bool check_outputs(const std::vector<Command>& commands, std::string& error)
+{
+    std::vector<std::string> reads;
+    for (const auto& c : commands) {
+        if (c.name == "-i" || c.name == "--metrics")
+            reads.push_back(c.args[0]);
+        if (c.name == "--heatmap" && c.has("ref"))
+            reads.push_back(c.modifier("ref"));
+    }
+    for (const auto& c : commands)
+        if ((c.name == "-o" || c.name == "--heatmap")
+            && !mcdn::check_output_path(c.args[0], reads, error))
+            return false;
+    return true;
+}
+
 // Runs the command line on one frame (frame < 0: no sequence).
-bool run_frame(const std::vector<Command>& commands, int frame, int nthreads, bool verbose,
+bool run_frame(std::vector<Command> commands, int frame, int nthreads, bool verbose,
                std::string& error)
 {
-    Session session;
-    session.nthreads = nthreads;
-    session.verbose = verbose;
-    for (Command c : commands) {
-        if (frame >= 0)
+    if (frame >= 0)
+        for (Command& c : commands)
             for (auto& arg : c.args) {
                 std::string normalized, framespec;
                 if (is_sequence(arg, normalized, framespec))
                     arg = frame_name(normalized, frame);
             }
+    if (!check_outputs(commands, error))
+        return false;
+    Session session;
+    session.nthreads = nthreads;
+    session.verbose = verbose;
+    for (const Command& c : commands) {
         const CommandInfo* info = find_command(c.name);
         if (info->run && !info->run(session, c, error))
             return false;
@@ -137,10 +159,30 @@ bool run_frames(const std::vector<Command>& commands, const std::vector<int>& fr
     return !failed;
 }
 
+// SIGINT, SIGTERM, SIGHUP: the output being written is removed, then the signal takes its
+// default course (the shell sees 130, 143, 129). Only async-signal-safe calls.
+extern "C" void remove_outputs_and_die(int sig)
+{
+    mcdn::remove_temporary_outputs();
+    ::signal(sig, SIG_DFL);
+    ::raise(sig);
+}
+
+void install_signal_handlers()
+{
+    for (int sig : { SIGINT, SIGTERM, SIGHUP }) {
+        struct sigaction action {};
+        action.sa_handler = remove_outputs_and_die;
+        sigemptyset(&action.sa_mask);
+        ::sigaction(sig, &action, nullptr);
+    }
+}
+
 }  // namespace
 
 int main(int argc, const char** argv)
 {
+    install_signal_handlers();
     Filesystem::convert_native_arguments(argc, argv);
     if (wants_version(argc, argv)) {
         std::cout << "mcdntool " << mcdn::version() << "\n";

@@ -170,6 +170,10 @@ bool write_options_of(const Command& c, mcdn::WriteOptions& options, std::string
         return false;
     }
     options.compression = c.modifier("compression", "zip");
+    if (!mcdn::check_compression(options.compression, error)) {
+        error = "-o:" + error;
+        return false;
+    }
     return true;
 }
 

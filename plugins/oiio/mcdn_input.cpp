@@ -10,8 +10,12 @@
 // chain (prefilter,nfor,sure,mix), channels (output channels, default the render's own),
 // threads, and per-stage settings like nfor.window=19, sure.probes=4, mix.model=net.
 // Relative paths in a recipe file are relative to the recipe's folder.
+#include <algorithm>
+#include <condition_variable>
+#include <filesystem>
 #include <map>
 #include <mutex>
+#include <vector>
 
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imagebufalgo.h>
@@ -128,26 +132,76 @@ private:
         return Strutil::iends_with(file, ".mcdn");
     }
 
-    static ImageBuf computed(const std::string& name, std::string& error)
+    // A recipe's `in` may itself be a recipe: the inner one is computed (and cached) by the
+    // same thread, inside the outer one's read. The cache's lock is not held while a recipe
+    // is computed, so nesting works; a recipe that reaches itself, or nesting deeper than
+    // kMaxNesting, is an error instead of a hang.
+    static constexpr int kMaxNesting = 8;
+
+    struct Computed {
+        bool done = false;
+        ImageBuf result;
+        std::string error;
+    };
+
+    // One name per recipe however it is spelt (./a.mcdn, a.mcdn, /abs/a.mcdn).
+    static std::string recipe_key(const std::string& name)
     {
+        size_t query = name.find('?');
+        std::error_code ec;
+        std::filesystem::path file = std::filesystem::weakly_canonical(
+            std::filesystem::absolute(name.substr(0, query), ec), ec);
+        return file.string() + (query == std::string::npos ? "" : name.substr(query));
+    }
+
+    static ImageBuf computed(const std::string& typed, std::string& error)
+    {
+        const std::string name = recipe_key(typed);
         static std::mutex mutex;
-        static std::map<std::string, std::pair<ImageBuf, std::string>> results;
-        std::lock_guard<std::mutex> lock(mutex);
-        auto it = results.find(name);
-        if (it == results.end()) {
-            ImageBuf result;
-            std::string why;
-            Recipe recipe;
-            try {
-                if (mcdn_plugin::parse_recipe(name, recipe, why))
-                    denoise(recipe, result, why);
-            } catch (const std::exception& e) {
-                why = e.what();
+        static std::condition_variable finished;
+        static std::map<std::string, Computed> results;
+        thread_local std::vector<std::string> computing;  // this thread's nesting, outermost first
+        {
+            std::unique_lock<std::mutex> lock(mutex);
+            if (std::find(computing.begin(), computing.end(), name) != computing.end()) {
+                error = Strutil::fmt::format("recipe loop: {} -> {}", Strutil::join(computing, " -> "), name);
+                return {};
             }
-            it = results.emplace(name, std::make_pair(std::move(result), why)).first;
+            if (int(computing.size()) >= kMaxNesting) {
+                error = Strutil::fmt::format("recipes nested more than {} deep: {} -> {}", kMaxNesting,
+                               Strutil::join(computing, " -> "), name);
+                return {};
+            }
+            auto it = results.find(name);
+            if (it != results.end()) {
+                // Another thread may be computing it: wait for its result.
+                finished.wait(lock, [&] { return results.at(name).done; });
+                error = results.at(name).error;
+                return results.at(name).result;
+            }
+            results.emplace(name, Computed());
         }
-        error = it->second.second;
-        return it->second.first;
+        computing.push_back(name);
+        ImageBuf result;
+        std::string why;
+        try {
+            Recipe recipe;
+            if (mcdn_plugin::parse_recipe(typed, recipe, why))
+                denoise(recipe, result, why);
+        } catch (const std::exception& e) {
+            why = e.what();
+        }
+        computing.pop_back();
+        {
+            std::lock_guard<std::mutex> lock(mutex);
+            Computed& entry = results.at(name);
+            entry.done = true;
+            entry.result = result;
+            entry.error = why;
+        }
+        finished.notify_all();
+        error = why;
+        return result;
     }
 
     ImageBuf m_result;

@@ -8,6 +8,8 @@
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/strutil.h>
 
+#include "mcdn/threads.h"
+
 namespace mcdn_plugin {
 
 using OIIO::Strutil::fmt::format;
@@ -120,7 +122,8 @@ bool job_from_recipe(const Recipe& recipe, Job& job, std::string& error)
         if (key.find('.') != std::string::npos)
             job.chain.settings[key] = value;
     job.channels = Strutil::splits(get("channels"), ",");
-    job.threads = Strutil::stoi(get("threads", "0"));
+    if (!mcdn::parse_threads(get("threads", "0"), job.threads, error))
+        return false;
     return mcdn::parse_chain(job.chain.stages, get("chain", "prefilter,nfor"), error);
 }
 

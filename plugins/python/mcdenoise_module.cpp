@@ -127,6 +127,8 @@ PYBIND11_MODULE(mcdenoise, m)
     m.def("write",
           [](const ImageBuf& image, const std::string& path, const std::string& datatype,
              const std::vector<std::string>& channels) {
+              if (datatype != "half" && datatype != "float")
+                  throw std::runtime_error("write: datatype='" + datatype + "' is not half or float");
               mcdn::WriteOptions o;
               o.datatype = datatype == "half" ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::FLOAT;
               o.channels = channels;

@@ -103,6 +103,33 @@ class OpsTakeAndReturnImageBufs(unittest.TestCase):
             written = oiio.ImageBuf(path)
             self.assertEqual(written.nchannels, 39)
 
+    def test_write_never_replaces_an_input(self):
+        # tests/robustness: the same for mcdntool. Here on copies, never the fixtures.
+        with tempfile.TemporaryDirectory() as tmp:
+            paths = {}
+            for kind, name in (("mean", "box_0016spp.exr"), ("variance", "box_0016spp_var.exr")):
+                paths[kind] = os.path.join(tmp, name)
+                with open(os.path.join(BOX, name), "rb") as src, open(paths[kind], "wb") as dst:
+                    dst.write(src.read())
+            before = {k: open(p, "rb").read() for k, p in paths.items()}
+            render = mcdenoise.read_inputs(list((p, k) for k, p in paths.items()))
+            for path in paths.values():
+                with self.assertRaises(RuntimeError) as caught:
+                    mcdenoise.write(mcdenoise.cnn(render), path)
+                self.assertIn("also an input", str(caught.exception))
+            self.assertEqual({k: open(p, "rb").read() for k, p in paths.items()}, before)
+            with self.assertRaises(RuntimeError) as caught:
+                mcdenoise.write(render, os.path.join(tmp, "out.exr"), datatype="int8")
+            self.assertIn("datatype", str(caught.exception))
+
+    def test_thread_counts_follow_the_librarys_rule(self):
+        for n in (70000, 65537, -5):
+            with self.assertRaises(RuntimeError) as caught:
+                mcdenoise.cnn(self.render, nthreads=n)
+            self.assertIn("threads=%d" % n, str(caught.exception))
+        with self.assertRaises(RuntimeError):
+            mcdenoise.nfor(self.render, nthreads=70000)
+
 
 if __name__ == "__main__":
     unittest.main(verbosity=2)

@@ -54,10 +54,30 @@ struct WriteOptions {
     std::string software = software_name();
 };
 
-/// Writes `src` to `path` through a temporary file in the same directory, renamed into
-/// place only when complete: a failed write never leaves a partial `path`. Metadata of
-/// `src` is kept (mcdn:* bookkeeping attributes excepted). Errors go to `error`.
+/// The compressions write_image accepts, OpenEXR's names (an optional ":LEVEL" for zip, zips,
+/// dwaa and dwab); other formats ignore what they do not have. False with `error` otherwise.
+bool check_compression(const std::string& compression, std::string& error);
+
+/// Checks that `path` may be written by a run that reads `inputs`, before any work: it is
+/// not one of them (the same name, or the same file through a link or another name), not a
+/// directory, in a folder that exists and can be written, and not an existing file the user
+/// could not write (replacing it through the rename would bypass its permissions; cp and
+/// oiiotool refuse too). The error names the path and the reason.
+bool check_output_path(const std::string& path, const std::vector<std::string>& inputs,
+                       std::string& error);
+
+/// Writes `src` to `path` through a temporary file in the same directory
+/// (`.NAME.mcdn-tmp-PID-N`), renamed into place only when complete: a failed write never
+/// leaves a partial `path`. Refuses what check_output_path refuses, with `src`'s own input
+/// files (its "mcdn:inputs") as the inputs. Temporaries that a killed run left for the same
+/// `path` (their process is gone) are removed first. Metadata of `src` is kept (mcdn:*
+/// bookkeeping attributes excepted). Errors go to `error`.
 bool write_image(const ImageBuf& src, const std::string& path, const WriteOptions& options,
                  std::string& error);
+
+/// Removes every temporary file a write_image in progress has open, for a signal handler
+/// (async-signal-safe: unlink() of paths stored beforehand). The interrupted write then
+/// fails; the program is expected to exit.
+void remove_temporary_outputs();
 
 }  // namespace mcdn

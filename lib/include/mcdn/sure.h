@@ -23,6 +23,10 @@ namespace mcdn {
 /// (every op of this library, and any chain of them, has this shape).
 using Denoiser = std::function<bool(ImageBuf& dst, const ImageBuf& src)>;
 
+/// The largest relative probe step SureOptions::epsilon_relative accepts: beyond it the
+/// difference quotient measures the denoiser's response to a different image.
+constexpr float kMaxEpsilonRelative = 0.1f;
+
 struct SureOptions {
     AovSpec aovs;
     /// K, the number of Monte Carlo probes (PD §3.2 uses 1 or 4).
@@ -31,7 +35,7 @@ struct SureOptions {
     /// |x| of the image. Scale-free (a 100x brighter render gets the same relative step);
     /// 1e-3 sits between float round-off in the denoiser (~1e-6 relative) and the
     /// nonlinearity of NL-means weights (tested in tests/sure).
-    float epsilon_relative = 1e-3f;
+    float epsilon_relative = 1e-3f;  // (0, kMaxEpsilonRelative]
     /// Seed of the probes' counter-based Gaussian generator (same result for any threads).
     uint64_t seed = 0x5EED5EEDull;
     /// The denoiser is handed this op's converged map (mcdn/skip.h; attribute

@@ -243,6 +243,8 @@ std::string default_cnn_weights()
 
 bool cnn(ImageBuf& dst, const ImageBuf& src, const CnnOptions& options, ROI roi, int nthreads)
 {
+    if (!check_op_threads(dst, nthreads, "cnn"))
+        return false;
     if (!run_in_working_space(dst, src, options.aovs, "cnn", [&](ImageBuf& d, const ImageBuf& s) {
             return cnn_in_working_space(d, s, options, roi, nthreads);
         }))

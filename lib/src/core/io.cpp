@@ -2,11 +2,17 @@
 // through a temporary file.
 #include "mcdn/io.h"
 
+#include <algorithm>
 #include <atomic>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
+#include <filesystem>
 #include <map>
 #include <memory>
 
+#include <signal.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <OpenImageIO/filesystem.h>
@@ -384,10 +390,175 @@ bool validate_inputs(const ImageBuf& merged, const AovSet& aovs, std::string& er
     return true;
 }
 
+namespace {
+
+namespace fs = std::filesystem;
+
+// The temporary files of the writes in progress, for remove_temporary_outputs() in a signal
+// handler: fixed slots (no allocation there), each free, being filled, or armed.
+struct TemporarySlot {
+    std::atomic<int> state { 0 };  // 0 free, 1 being filled or emptied, 2 armed
+    char path[4096];
+};
+TemporarySlot g_temporaries[64];
+
+// Holds `path` in a slot while it exists on disk; false (no slot, or too long a path) only
+// means a signal could not remove it: a later write for the same output will.
+class TemporaryRegistration {
+public:
+    explicit TemporaryRegistration(const std::string& path)
+    {
+        if (path.size() >= sizeof(TemporarySlot::path))
+            return;
+        for (auto& slot : g_temporaries) {
+            int expected = 0;
+            if (slot.state.compare_exchange_strong(expected, 1)) {
+                std::memcpy(slot.path, path.c_str(), path.size() + 1);
+                slot.state.store(2);
+                m_slot = &slot;
+                return;
+            }
+        }
+    }
+    ~TemporaryRegistration()
+    {
+        if (m_slot) {
+            m_slot->state.store(1);
+            m_slot->state.store(0);
+        }
+    }
+    TemporaryRegistration(const TemporaryRegistration&) = delete;
+    TemporaryRegistration& operator=(const TemporaryRegistration&) = delete;
+
+private:
+    TemporarySlot* m_slot = nullptr;
+};
+
+// `.NAME.mcdn-tmp-` in the folder of `path`: what every temporary of that output starts with.
+std::string temporary_prefix(const std::string& path)
+{
+    fs::path p(path);
+    return (p.parent_path() / ("." + p.filename().string() + ".mcdn-tmp-")).string();
+}
+
+// Removes the temporaries of `path` whose process (the PID in their name) no longer runs:
+// what SIGKILL, a power cut or a crash left behind.
+void remove_stale_temporaries(const std::string& path)
+{
+    const std::string prefix = temporary_prefix(path);
+    const fs::path dir = fs::path(prefix).parent_path();
+    const std::string start = fs::path(prefix).filename().string();
+    std::error_code ec;
+    for (const auto& entry : fs::directory_iterator(dir.empty() ? fs::path(".") : dir, ec)) {
+        std::string name = entry.path().filename().string();
+        if (name.compare(0, start.size(), start) != 0)
+            continue;
+        long pid = std::strtol(name.c_str() + start.size(), nullptr, 10);
+        if (pid > 0 && pid != long(::getpid()) && ::kill(pid_t(pid), 0) != 0 && errno == ESRCH)
+            fs::remove(entry.path(), ec);
+    }
+}
+
+// The files a merged buffer was read from ("kind=path" lines of "mcdn:inputs").
+std::vector<std::string> input_files(const ImageSpec& spec)
+{
+    std::vector<std::string> files;
+    for (const auto& line : Strutil::splits(spec.get_string_attribute("mcdn:inputs"), "\n")) {
+        size_t eq = line.find('=');
+        if (eq != std::string::npos)
+            files.push_back(line.substr(eq + 1));
+    }
+    return files;
+}
+
+// The same file: the same device and inode when both exist (hard links, symlinks, ./a and
+// a), else the same absolute, normalised name.
+bool same_file(const std::string& a, const std::string& b)
+{
+    struct stat sa, sb;
+    if (::stat(a.c_str(), &sa) == 0 && ::stat(b.c_str(), &sb) == 0)
+        return sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
+    std::error_code ec;
+    return fs::weakly_canonical(fs::absolute(a), ec) == fs::weakly_canonical(fs::absolute(b), ec);
+}
+
+}  // namespace
+
+bool check_output_path(const std::string& path, const std::vector<std::string>& inputs,
+                       std::string& error)
+{
+    if (path.empty()) {
+        error = "an output needs a file name";
+        return false;
+    }
+    for (const auto& input : inputs)
+        if (!input.empty() && same_file(path, input)) {
+            error = format("{}: the output is also an input ({}): refusing to replace it; "
+                           "write to another name", path, input);
+            return false;
+        }
+    std::error_code ec;
+    const fs::file_status status = fs::status(path, ec);
+    if (fs::is_directory(status)) {
+        error = format("{}: is a directory: -o needs a file name", path);
+        return false;
+    }
+    fs::path dir = fs::path(path).parent_path();
+    if (dir.empty())
+        dir = ".";
+    if (!fs::is_directory(dir, ec)) {
+        error = format("{}: folder {} does not exist", path, dir.string());
+        return false;
+    }
+    if (::access(dir.c_str(), W_OK | X_OK) != 0) {
+        error = format("{}: cannot write in folder {} ({})", path, dir.string(),
+                       std::strerror(errno));
+        return false;
+    }
+    if (fs::exists(status) && ::access(path.c_str(), W_OK) != 0) {
+        error = format("{}: exists and cannot be written ({}): not replacing it", path,
+                       std::strerror(errno));
+        return false;
+    }
+    return true;
+}
+
+bool check_compression(const std::string& compression, std::string& error)
+{
+    static const std::vector<std::string> names = { "none", "rle", "zips", "zip", "piz",
+                                                    "pxr24", "b44", "b44a", "dwaa", "dwab" };
+    std::string name = compression, level;
+    if (size_t colon = compression.find(':'); colon != std::string::npos) {
+        name = compression.substr(0, colon);
+        level = compression.substr(colon + 1);
+    }
+    bool leveled = name == "zip" || name == "zips" || name == "dwaa" || name == "dwab";
+    bool ok = std::find(names.begin(), names.end(), name) != names.end()
+              && (level.empty() || (leveled && Strutil::string_is_int(level)
+                                    && Strutil::stoi(level) >= 0));
+    if (!ok && !compression.empty())
+        error = format("compression={} is not one of {} (zip, zips, dwaa and dwab take :LEVEL)",
+                       compression, Strutil::join(names, ", "));
+    return ok || compression.empty();
+}
+
+void remove_temporary_outputs()
+{
+    for (auto& slot : g_temporaries)
+        if (slot.state.load() == 2)
+            ::unlink(slot.path);
+}
+
 bool write_image(const ImageBuf& src, const std::string& path, const WriteOptions& options,
                  std::string& error)
 {
     const ImageSpec& in_spec = src.spec();
+    if (!check_compression(options.compression, error)) {
+        error = format("{}: {}", path, error);
+        return false;
+    }
+    if (!check_output_path(path, input_files(in_spec), error))
+        return false;
     std::vector<std::string> wanted = options.channels;
     if (wanted.empty())
         wanted = Strutil::splits(in_spec.get_string_attribute("mcdn:output_channels"), "\n");
@@ -423,15 +594,17 @@ bool write_image(const ImageBuf& src, const std::string& path, const WriteOption
     spec.alpha_channel = spec.channelindex("A");
     spec.z_channel     = spec.channelindex("Z");
 
-    // Write beside the target, then rename: readers never see a half-written file.
-    std::string ext = Filesystem::extension(path);
+    // Write beside the target, then rename: readers never see a half-written file. The
+    // temporary's name says which output and which process it belongs to.
     static std::atomic<int> counter { 0 };
-    std::string tmp = format("{}.tmp{}-{}{}", path, ::getpid(), counter++, ext);
     auto output = ImageOutput::create(path);
     if (!output) {
         error = format("{}: cannot write this format: {}", path, OIIO::geterror());
         return false;
     }
+    remove_stale_temporaries(path);
+    std::string tmp = format("{}{}-{}", temporary_prefix(path), ::getpid(), counter++);
+    TemporaryRegistration registration(tmp);
     bool ok = output->open(tmp, spec)
               && output->write_image(TypeDesc::FLOAT, out.localpixels());
     ok = output->close() && ok;

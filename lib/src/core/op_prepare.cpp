@@ -7,6 +7,7 @@
 
 #include "core/huge_pages.h"
 #include "core/planar.h"
+#include "mcdn/threads.h"
 
 namespace mcdn {
 
@@ -18,6 +19,15 @@ void allocate_frame(ImageBuf& dst, const ImageSpec& spec, bool zero)
     advise_huge_pages(dst.localpixels(), dst.spec().image_bytes());
     if (zero)
         std::memset(dst.localpixels(), 0, dst.spec().image_bytes());
+}
+
+bool check_op_threads(ImageBuf& dst, int nthreads, const char* op)
+{
+    std::string error;
+    if (check_threads(nthreads, error))
+        return true;
+    dst.errorfmt("{}: {}", op, error);
+    return false;
 }
 
 bool check_op_input(const ImageBuf& src, const AovSpec& spec, AovSet& aovs, const char* op,

@@ -22,6 +22,9 @@ bool check_op_input(const ImageBuf& src, const AovSpec& spec, AovSet& aovs, cons
 bool prepare_op(ImageBuf& dst, const ImageBuf& src, const AovSpec& spec, AovSet& aovs,
                 const char* op, int nthreads = 1);
 
+/// mcdn::check_threads for an op: on failure an error on dst naming `op`.
+bool check_op_threads(ImageBuf& dst, int nthreads, const char* op);
+
 /// The ROI an op writes: `roi` clipped to src's data window (all of it when undefined).
 ROI output_roi(const ImageBuf& src, ROI roi);
 

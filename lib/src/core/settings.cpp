@@ -219,7 +219,14 @@ bool apply_settings(SureOptions& o, const Settings& s, std::string& error)
 {
     return SettingsReader(s, "sure", error)
         .positive_int("probes", o.probes)
-        .number("eps", o.epsilon_relative)
+        .custom("eps", "must be a number above 0 and at most 0.1 (relative to the mean |x|)",
+                [&](const std::string& v) {
+                    double d;
+                    if (!parse_finite(v, d) || !(d > 0) || d > kMaxEpsilonRelative)
+                        return false;
+                    o.epsilon_relative = float(d);
+                    return true;
+                })
         .custom("seed", "is not a whole number below 10^19",
                 [&](const std::string& v) { return parse_seed(v, o.seed); })
         .skip(o.skip)

@@ -13,6 +13,8 @@
 #include <OpenImageIO/parallel.h>
 #include <OpenImageIO/strutil.h>
 
+#include "mcdn/threads.h"
+
 namespace mcdn {
 
 using OIIO::ImageSpec;
@@ -194,7 +196,7 @@ bool compute_metrics(Metrics& m, const ImageBuf& image, const ImageBuf& referenc
                      const MetricsOptions& o, std::string& error, ROI roi, int nthreads)
 {
     Planes planes;
-    if (!gather(planes, image, reference, o, roi, error))
+    if (!check_threads(nthreads, error) || !gather(planes, image, reference, o, roi, error))
         return false;
     m = Metrics();
     m.mse = mean(per_pixel(planes, ErrorKind::SquaredError, o), o.trim, o.trim_fraction, &m.pixels);
@@ -211,7 +213,7 @@ bool error_map(ImageBuf& dst, const ImageBuf& image, const ImageBuf& reference,
 {
     Planes planes;
     std::string error;
-    if (!gather(planes, image, reference, options, roi, error)) {
+    if (!check_threads(nthreads, error) || !gather(planes, image, reference, options, roi, error)) {
         dst.errorfmt("{}", error);
         return false;
     }
@@ -232,6 +234,11 @@ bool heatmap(ImageBuf& dst, const ImageBuf& error, double log10_min, double log1
 {
     if (!(log10_max > log10_min)) {
         dst.errorfmt("heatmap: range [{}, {}] is empty", log10_min, log10_max);
+        return false;
+    }
+    std::string why;
+    if (!check_threads(nthreads, why)) {
+        dst.errorfmt("heatmap: {}", why);
         return false;
     }
     // Map log10(error) to [0, 1]; color_map does the false colour.

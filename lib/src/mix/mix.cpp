@@ -74,6 +74,8 @@ int mix_radius(const MixOptions& o, const nn::Net* net)
 
 bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options, ROI roi, int nthreads)
 {
+    if (!check_op_threads(dst, nthreads, "mix"))
+        return false;
     AovSet aovs;
     if (!prepare_op(dst, src, options.aovs, aovs, "mix"))
         return false;

@@ -351,6 +351,8 @@ int receptive_radius(const NforOptions& o, bool prefiltered)
 
 bool nfor(ImageBuf& dst, const ImageBuf& src, const NforOptions& options, ROI roi, int nthreads)
 {
+    if (!check_op_threads(dst, nthreads, "nfor"))
+        return false;
     bool prefiltered = src.spec().get_int_attribute("mcdn:prefiltered", 0) == 1;
     if (!run_local_op(dst, src, options.aovs, "nfor", receptive_radius(options, prefiltered),
                       options.band_pixels, [&](ImageBuf& d, const ImageBuf& s) {

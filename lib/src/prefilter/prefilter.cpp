@@ -72,6 +72,8 @@ int receptive_radius(const PrefilterOptions& o)
 
 bool prefilter(ImageBuf& dst, const ImageBuf& src, const PrefilterOptions& options, ROI roi, int nthreads)
 {
+    if (!check_op_threads(dst, nthreads, "prefilter"))
+        return false;
     return run_local_op(dst, src, options.aovs, "prefilter", receptive_radius(options),
                         options.band_pixels, [&](ImageBuf& d, const ImageBuf& s) {
                             return prefilter_in_working_space(d, s, options, roi, nthreads);

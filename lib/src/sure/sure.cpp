@@ -71,6 +71,12 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
         dst.errorfmt("sure: needs a denoiser and at least one probe (probes={})", options.probes);
         return false;
     }
+    // eps = 0 would make every divergence 0 (and SURE the residual alone).
+    if (!(options.epsilon_relative > 0 && options.epsilon_relative <= kMaxEpsilonRelative)) {
+        dst.errorfmt("sure: eps={} must be above 0 and at most {} (a step relative to the "
+                     "image's mean |x|)", options.epsilon_relative, kMaxEpsilonRelative);
+        return false;
+    }
     SureFrame frame;
     frame.whole = src.roi();
     frame.where = output_roi(src, roi);
@@ -118,7 +124,9 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
 bool sure(ImageBuf& dst, const ImageBuf& src, const Denoiser& denoiser,
           const SureOptions& options, ROI roi, int nthreads)
 {
-    (void)nthreads;  // the denoiser runs on its own threads; sure's loops are light
+    // The denoiser runs on its own threads; sure's loops are light.
+    if (!check_op_threads(dst, nthreads, "sure"))
+        return false;
     return run_in_working_space(dst, src, options.aovs, "sure", [&](ImageBuf& d, const ImageBuf& s) {
         return sure_in_working_space(d, s, denoiser, options, roi);
     });

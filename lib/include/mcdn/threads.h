@@ -1,0 +1,19 @@
+// Worker threads: the one rule every op and front end applies to a thread count.
+#pragma once
+
+#include <string>
+
+namespace mcdn {
+
+/// Every op runs on `nthreads` workers: 0 means all cores, otherwise 1 to kMaxThreads.
+/// Larger counts are errors, not clamps (TBB's arenas crash far beyond any machine's cores).
+constexpr int kMaxThreads = 1024;
+
+/// False with `error` ("threads=70000: needs a whole number from 0 (all cores) to 1024")
+/// when `nthreads` is out of range.
+bool check_threads(int nthreads, std::string& error);
+
+/// A typed thread count (--threads N, recipe threads=N): digits only, then check_threads.
+bool parse_threads(const std::string& text, int& nthreads, std::string& error);
+
+}  // namespace mcdn
