@@ -91,6 +91,11 @@ const std::vector<CommandInfo>& command_table()
               "Write the current image (datatype=half|float, default float; compression=zip). "
               "Written to a temporary name and renamed: never a partial file.",
               run_output, false, check_output },
+            { "--fixnan", "STRATEGY", {},
+              "Repair NaN and Inf in the current image, as oiiotool does: none, black (0), "
+              "box3 (the 3x3 neighbours' mean) or error (fail if there are any). No stage "
+              "makes them; they come with channels no stage reads, which -o warns about.",
+              run_fixnan, false, check_fixnan },
             { "--threads", "N", {}, "Worker threads (0 = all cores, the default).", nullptr,
               true, check_thread_count },
             { "-v", "", {}, "Print a line per stage with its run time (the default when "

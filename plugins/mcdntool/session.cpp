@@ -104,6 +104,18 @@ bool Session::load_inputs(std::string& error)
         return false;
     if (!mcdn::validate_inputs(merged, m_aovs, error))
         return false;
+    if (verbose) {
+        // What the stages will have to work with: a missing pass changes what runs.
+        std::vector<std::string> found, missing;
+        for (Role r : { Role::Albedo, Role::Normal, Role::Depth, Role::DiffuseColor,
+                        Role::GlossyColor })
+            (m_aovs.has(r) ? found : missing).push_back(mcdn::role_name(r));
+        std::cerr << format("mcdntool: features found: {}; missing: {}{}\n",
+                            found.empty() ? "none" : Strutil::join(found, ", "),
+                            missing.empty() ? "none" : Strutil::join(missing, ", "),
+                            missing.empty() ? "" : " (nfor and prefilter leave them out, the "
+                                                   "cnn reads them as zeros)");
+    }
     m_image = std::move(merged);
     m_loaded = true;
     return true;
@@ -374,7 +386,43 @@ bool run_output(Session& s, const Command& c, std::string& error)
     if (!write_options_of(c, options, error))
         return false;
     options.channels = s.output_channels;
-    return mcdn::write_image(s.image(), c.args[0], options, error);
+    std::vector<std::string> warnings;
+    if (!mcdn::write_image(s.image(), c.args[0], options, error, &warnings))
+        return false;
+    for (const auto& w : warnings)
+        std::cerr << "mcdntool: warning: " << w << "\n";
+    return true;
+}
+
+bool check_fixnan(const Command& c, std::string& error)
+{
+    const std::string& mode = c.args[0];
+    if (mode == "none" || mode == "black" || mode == "box3" || mode == "error")
+        return true;
+    error = format("--fixnan {}: needs none, black, box3 or error", mode);
+    return false;
+}
+
+bool run_fixnan(Session& s, const Command& c, std::string& error)
+{
+    if (!s.load(error))
+        return false;
+    using OIIO::ImageBufAlgo::NonFiniteFixMode;
+    const std::string& mode = c.args[0];
+    NonFiniteFixMode fix = mode == "black" ? NonFiniteFixMode::NONFINITE_BLACK
+                           : mode == "box3" ? NonFiniteFixMode::NONFINITE_BOX3
+                           : mode == "error" ? NonFiniteFixMode::NONFINITE_ERROR
+                                             : NonFiniteFixMode::NONFINITE_NONE;
+    int fixed = 0;
+    ImageBuf& image = s.image();
+    if (!OIIO::ImageBufAlgo::fixNonFinite(image, image, fix, &fixed, {}, s.nthreads)) {
+        error = format("--fixnan {}: {}", mode,
+                       image.has_error() ? image.geterror() : std::string("non-finite values"));
+        return false;
+    }
+    if (s.verbose)
+        std::cerr << format("mcdntool: fixnan {}: {} pixels repaired\n", mode, fixed);
+    return true;
 }
 
 }  // namespace mcdntool

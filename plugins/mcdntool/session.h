@@ -83,6 +83,7 @@ bool run_channels(Session&, const Command&, std::string& error);
 bool run_info(Session&, const Command&, std::string& error);
 bool run_metrics(Session&, const Command&, std::string& error);
 bool run_heatmap(Session&, const Command&, std::string& error);
+bool run_fixnan(Session&, const Command&, std::string& error);
 
 /// Checks of the built-in commands' modifier values (session.cpp), run before any command.
 bool check_input(const Command&, std::string& error);
@@ -90,6 +91,7 @@ bool check_aov(const Command&, std::string& error);
 bool check_metrics(const Command&, std::string& error);
 bool check_heatmap(const Command&, std::string& error);
 bool check_output(const Command&, std::string& error);
+bool check_fixnan(const Command&, std::string& error);
 
 /// Commands of the denoising stages, with their checks (stages.cpp).
 std::vector<CommandInfo> stage_commands();

@@ -102,7 +102,16 @@ public:
             return false;
         }
         m_result = computed(name, m_error);
-        m_spec = m_error.empty() ? m_result.spec() : ImageSpec(1, 1, 1, TypeDesc::FLOAT);
+        if (m_error.empty())
+            m_spec = m_result.spec();
+        else {
+            // The placeholder says what went wrong wherever its spec is shown (--info -v,
+            // iinfo -v): the error is also the first read's.
+            m_spec = ImageSpec(1, 1, 1, TypeDesc::FLOAT);
+            m_spec.channelnames = { "mcdn_error" };
+            m_spec.attribute("mcdn:error", m_error);
+            m_spec.attribute("ImageDescription", "mcdn recipe error: " + m_error);
+        }
         newspec = m_spec;
         return true;
     }

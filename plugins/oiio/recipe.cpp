@@ -23,6 +23,16 @@ const std::vector<std::string> kKeys = { "in", "variance", "halfA", "halfB", "pr
 
 bool is_hex(char c) { return std::isxdigit(static_cast<unsigned char>(c)) != 0; }
 
+// A comment starts with '#' at the start of a line or after white space, so a path with '#'
+// in it (shot#1.exr, oiiotool's frame pattern) stays whole.
+std::string without_comment(const std::string& line)
+{
+    for (size_t i = 0; i < line.size(); ++i)
+        if (line[i] == '#' && (i == 0 || std::isspace(static_cast<unsigned char>(line[i - 1]))))
+            return line.substr(0, i);
+    return line;
+}
+
 }  // namespace
 
 std::string url_decode(const std::string& text)
@@ -46,7 +56,9 @@ bool parse_recipe_lines(std::istream& in, const std::string& file, Recipe& recip
     int number = 0;
     while (std::getline(in, line)) {
         ++number;
-        line = Strutil::strip(line.substr(0, line.find('#')));
+        if (number == 1 && Strutil::starts_with(line, "\xEF\xBB\xBF"))  // a UTF-8 BOM
+            line = line.substr(3);
+        line = Strutil::strip(without_comment(line));
         if (line.empty())
             continue;
         size_t eq = line.find('=');
@@ -72,7 +84,14 @@ bool parse_query(const std::string& query, Recipe& recipe, std::string& error)
             error = format("'{}': expected key=value in the query", pair);
             return false;
         }
-        recipe[url_decode(pair.substr(0, eq))] = url_decode(pair.substr(eq + 1));
+        std::string key = url_decode(pair.substr(0, eq));
+        std::string value = url_decode(pair.substr(eq + 1));
+        // %00 would cut the path where the C libraries read it.
+        if (key.find('\0') != std::string::npos || value.find('\0') != std::string::npos) {
+            error = format("'{}': %00 (a NUL character) in the query", pair);
+            return false;
+        }
+        recipe[key] = value;
     }
     return true;
 }

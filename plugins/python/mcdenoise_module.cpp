@@ -133,13 +133,17 @@ PYBIND11_MODULE(mcdenoise, m)
               o.datatype = datatype == "half" ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::FLOAT;
               o.channels = channels;
               std::string error;
+              std::vector<std::string> warnings;
               bool ok;
               {
                   py::gil_scoped_release release;
-                  ok = mcdn::write_image(image, path, o, error);
+                  ok = mcdn::write_image(image, path, o, error, &warnings);
               }
               if (!ok)
                   throw std::runtime_error(error);
+              // NaN/Inf written as they came in, values clamped for half (io.h).
+              for (const auto& w : warnings)
+                  py::module_::import("warnings").attr("warn")(w, py::module_::import("builtins").attr("RuntimeWarning"));
           },
           py::arg("image"), py::arg("path"), py::arg("datatype") = "float",
           py::arg("channels") = std::vector<std::string>(),

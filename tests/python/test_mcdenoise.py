@@ -81,6 +81,20 @@ class OpsTakeAndReturnImageBufs(unittest.TestCase):
         self.assertEqual(len(calls), 3)  # K + 1 runs
         self.assertIn("sure.divergence.B", out.spec().channelnames)
 
+    def test_a_denoiser_that_returns_nan_is_an_error(self):
+        # Its non-colour channels would become sure's output: NaN must not leave the op.
+        def broken(buf):
+            pixels = buf.get_pixels(oiio.FLOAT)
+            pixels[:, :, :] = float("nan")
+            out = oiio.ImageBuf(buf.spec())
+            out.set_pixels(oiio.ROI(), pixels)
+            return out
+
+        with self.assertRaises(RuntimeError) as caught:
+            mcdenoise.sure(self.render, denoiser=broken)
+        self.assertIn("the denoiser returned", str(caught.exception))
+        self.assertIn("NaN or Inf", str(caught.exception))
+
     def test_errors_raise_with_the_library_message(self):
         with self.assertRaises(RuntimeError) as caught:
             mcdenoise.read_inputs([("/nonexistent/frame.exr", "mean")])

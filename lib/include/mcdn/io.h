@@ -71,9 +71,12 @@ bool check_output_path(const std::string& path, const std::vector<std::string>& 
 /// leaves a partial `path`. Refuses what check_output_path refuses, with `src`'s own input
 /// files (its "mcdn:inputs") as the inputs. Temporaries that a killed run left for the same
 /// `path` (their process is gone) are removed first. Metadata of `src` is kept (mcdn:*
-/// bookkeeping attributes excepted). Errors go to `error`.
+/// bookkeeping attributes excepted). Errors go to `error`; `warnings`, when given, gets a
+/// line per channel that is written with NaN or Inf values (they came with the input: no op
+/// makes them) and per channel whose values beyond half's range were clamped to +-65504
+/// for a half output (half would turn them into Inf).
 bool write_image(const ImageBuf& src, const std::string& path, const WriteOptions& options,
-                 std::string& error);
+                 std::string& error, std::vector<std::string>* warnings = nullptr);
 
 /// Removes every temporary file a write_image in progress has open, for a signal handler
 /// (async-signal-safe: unlink() of paths stored beforehand). The interrupted write then

@@ -79,6 +79,11 @@ bool read_layout(FileLayout& layout, const std::string& path, std::string& error
         error = format("{}: no such file", path);
         return false;
     }
+    // OIIO reports an unreadable file as not being in any format it knows.
+    if (::access(path.c_str(), R_OK) != 0) {
+        error = format("{}: cannot read: {}", path, std::strerror(errno));
+        return false;
+    }
     auto in = ImageInput::open(path);
     if (!in) {
         error = format("{}: cannot read: {}", path, OIIO::geterror());
@@ -337,6 +342,22 @@ bool validate_inputs(const ImageBuf& merged, const AovSet& aovs, std::string& er
         error = "validate_inputs: expects a local float buffer (use read_inputs)";
         return false;
     }
+    // A file given as the variance or a half must supply that face of the colour: one that
+    // does not (a PNG renamed var.exr, a layer without Combined.B) would be ignored and the
+    // stages would run without it.
+    for (auto [kind, role] : { std::pair { InputKind::Variance, Role::ColorVariance },
+                               std::pair { InputKind::HalfA, Role::ColorA },
+                               std::pair { InputKind::HalfB, Role::ColorB } }) {
+        std::string why;
+        for (const auto& line : Strutil::splits(spec.get_string_attribute("mcdn:inputs"), "\n"))
+            if (Strutil::starts_with(line, std::string(input_kind_name(kind)) + "=")
+                && !aovs.require({ role }, spec, why)) {
+                error = format("{}: given with -i:as={} but has no {} of the colour: {}",
+                               line.substr(line.find('=') + 1), input_kind_name(kind),
+                               kind == InputKind::Variance ? "variance" : "half buffer", why);
+                return false;
+            }
+    }
     auto is_variance = [](Role r) {
         return r == Role::ColorVariance || r == Role::AlbedoVariance
                || r == Role::NormalVariance || r == Role::DepthVariance
@@ -549,8 +570,51 @@ void remove_temporary_outputs()
             ::unlink(slot.path);
 }
 
+namespace {
+
+// What write_image tells about the values it writes, channel by channel: NaN and Inf (no op
+// makes them, so they came with the input, in channels no role reads), and, for half
+// output, finite values beyond half's range, which it clamps to +-65504 (half would make
+// them Inf).
+void inspect_values(ImageBuf& out, const std::string& path, bool to_half,
+                    std::vector<std::string>& warnings)
+{
+    const ImageSpec& spec = out.spec();
+    const int nch = spec.nchannels;
+    float* pixels = static_cast<float*>(out.localpixels());
+    if (!pixels)
+        return;
+    constexpr float kHalfMax = 65504.0f;
+    std::vector<size_t> nan(nch, 0), inf(nch, 0), clamped(nch, 0);
+    const size_t n = spec.image_pixels();
+    for (size_t p = 0; p < n; ++p)
+        for (int c = 0; c < nch; ++c) {
+            float& v = pixels[p * nch + c];
+            if (std::isnan(v))
+                ++nan[c];
+            else if (std::isinf(v))
+                ++inf[c];
+            else if (to_half && std::fabs(v) > kHalfMax) {
+                v = std::copysign(kHalfMax, v);
+                ++clamped[c];
+            }
+        }
+    for (int c = 0; c < nch; ++c) {
+        if (nan[c] || inf[c])
+            warnings.push_back(format("{}: channel {} has {} NaN and {} Inf values, written as "
+                                      "they came in (no stage reads it; --fixnan repairs)",
+                                      path, spec.channelnames[c], nan[c], inf[c]));
+        if (clamped[c])
+            warnings.push_back(format("{}: channel {}: {} values beyond half's range clamped "
+                                      "to +-65504 (datatype=float keeps them)",
+                                      path, spec.channelnames[c], clamped[c]));
+    }
+}
+
+}  // namespace
+
 bool write_image(const ImageBuf& src, const std::string& path, const WriteOptions& options,
-                 std::string& error)
+                 std::string& error, std::vector<std::string>* warnings)
 {
     const ImageSpec& in_spec = src.spec();
     if (!check_compression(options.compression, error)) {
@@ -579,6 +643,11 @@ bool write_image(const ImageBuf& src, const std::string& path, const WriteOption
         error = format("{}: {}", path, out.geterror());
         return false;
     }
+    std::vector<std::string> found;
+    if (out.spec().format == TypeDesc::FLOAT)
+        inspect_values(out, path, options.datatype == TypeDesc::HALF, found);
+    if (warnings)
+        warnings->insert(warnings->end(), found.begin(), found.end());
     ImageSpec spec = out.spec();
     for (const auto& name : { "mcdn:inputs", "mcdn:output_channels" })
         spec.erase_attribute(name);

@@ -93,6 +93,41 @@ void add_probe(ImageBuf& buf, const std::vector<int>& channels, const Plane prob
     }
 }
 
+// A denoiser (a Python or C++ callable) must not make NaN or Inf: a value that is not
+// finite where its input's same channel was is an error (a pass-through channel's own NaN
+// is the input's, which -o reports).
+bool check_finite(const ImageBuf& denoised, const ImageBuf& noisy, std::string& error)
+{
+    const ImageSpec& spec = denoised.spec();
+    const int nch = spec.nchannels;
+    std::vector<int> source(nch);
+    for (int c = 0; c < nch; ++c)
+        source[c] = noisy.spec().channelindex(spec.channelnames[c]);
+    std::vector<size_t> bad(nch, 0);
+    std::vector<float> row(size_t(spec.width) * nch), in(size_t(spec.width) * noisy.nchannels());
+    for (int y = spec.y; y < spec.y + spec.height; ++y) {
+        ROI r(spec.x, spec.x + spec.width, y, y + 1, 0, 1, 0, nch);
+        denoised.get_pixels(r, OIIO::TypeDesc::FLOAT, row.data());
+        r.chend = noisy.nchannels();
+        noisy.get_pixels(r, OIIO::TypeDesc::FLOAT, in.data());
+        for (int x = 0; x < spec.width; ++x)
+            for (int c = 0; c < nch; ++c) {
+                float v = row[size_t(x) * nch + c];
+                if (!std::isfinite(v)
+                    && (source[c] < 0 || std::isfinite(in[size_t(x) * noisy.nchannels() + source[c]])))
+                    ++bad[c];
+            }
+    }
+    for (int c = 0; c < spec.nchannels; ++c)
+        if (bad[c]) {
+            error = format("sure: the denoiser returned {} NaN or Inf values in channel {} "
+                           "(a denoiser must return finite values)", bad[c],
+                           spec.channelnames[c]);
+            return false;
+        }
+    return true;
+}
+
 }  // namespace
 
 bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser& denoiser,
@@ -118,6 +153,9 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
             error = format("sure: the denoiser failed: {}", denoised.geterror());
             return false;
         }
+        // Its channels become the output's: a NaN there would leave the op.
+        if (!check_finite(denoised, noisy, error))
+            return false;
         if (!write_denoised_rows(dst, denoised, band, frame, error))
             return false;
         for (int c = 0; c < 3; ++c)
