@@ -22,6 +22,7 @@
 #include "mcdn/version.h"
 
 #include "command_line.h"
+#include "memory.h"
 #include "session.h"
 
 using namespace mcdntool;
@@ -88,9 +89,10 @@ bool check_outputs(const std::vector<Command>& commands, std::string& error)
     return true;
 }
 
-// Runs the command line on one frame (frame < 0: no sequence).
-bool run_frame(std::vector<Command> commands, int frame, int nthreads, bool verbose,
-               std::string& error)
+// Runs the command line on one frame (frame < 0: no sequence), one of `parallel` frames
+// that run at once on `all_threads` threads together (memory is checked for all of them).
+bool run_frame(std::vector<Command> commands, int frame, int nthreads, int all_threads,
+               int parallel, bool verbose, std::string& error)
 {
     if (frame >= 0)
         for (Command& c : commands)
@@ -99,7 +101,7 @@ bool run_frame(std::vector<Command> commands, int frame, int nthreads, bool verb
                 if (is_sequence(arg, normalized, framespec))
                     arg = frame_name(normalized, frame);
             }
-    if (!check_outputs(commands, error))
+    if (!check_outputs(commands, error) || !check_memory(commands, all_threads, parallel, error))
         return false;
     Session session;
     session.nthreads = nthreads;
@@ -132,6 +134,7 @@ bool run_frames(const std::vector<Command>& commands, const std::vector<int>& fr
             bool ok = false;
             try {
                 ok = run_frame(commands, frames[f], parallel > 1 ? per_frame : nthreads,
+                               threads, parallel,
                                verbose && parallel == 1, error);
             } catch (const std::bad_alloc&) {
                 // A frame too large for the memory left: one line and a non-zero exit, not

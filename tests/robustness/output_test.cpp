@@ -124,9 +124,9 @@ TEST(Output, AFileTheUserCannotWriteIsNotReplaced)
     ::chmod(out.c_str(), 0444);
     ::chmod(dir.c_str(), 0777);  // the folder is writable: only the file's mode protects it
     ::chmod(render.c_str(), 0644);
-    // root may write anything (as cp and oiiotool let it): run as an unprivileged user.
-    std::string as_user = ::geteuid() == 0 ? "setpriv --reuid=65534 --regid=65534 --clear-groups "
-                                           : "";
+    // root may write anything (as cp and oiiotool let it): run as root without the
+    // capabilities that override file permissions, as an ordinary user would be.
+    std::string as_user = ::geteuid() == 0 ? kWithoutRootsPowers : "";
     if (::geteuid() == 0 && std::system("command -v setpriv >/dev/null") != 0)
         GTEST_SKIP() << "running as root without setpriv";
     std::string cmd = as_user + "'" + MCDNTOOL + "' -i " + quote(render) + " -o " + quote(out)

@@ -135,8 +135,7 @@ TEST(Silent, AnUnreadableInputSaysSo)
     std::string error;
     ASSERT_TRUE(OIIO::Filesystem::copy(kBox, in, error));
     ::chmod(in.c_str(), 0000);
-    std::string as_user = ::geteuid() == 0 ? "setpriv --reuid=65534 --regid=65534 --clear-groups "
-                                           : "";
+    std::string as_user = ::geteuid() == 0 ? kWithoutRootsPowers : "";
     std::string cmd = as_user + "'" + MCDNTOOL + "' -i " + quote(in) + " -o " +
                       quote(dir + "/out.exr") + " 2>&1";
     FILE* pipe = popen(cmd.c_str(), "r");

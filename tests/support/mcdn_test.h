@@ -74,6 +74,11 @@ inline Run run_mcdntool(const std::string& args)
     return run;
 }
 
+/// A command prefix that runs it as root without the capabilities that override file
+/// permissions (CAP_DAC_OVERRIDE, ...): permissions then apply as to any user, and a build
+/// tree under /root stays reachable (an unprivileged user could not load it there).
+const std::string kWithoutRootsPowers = "setpriv --bounding-set=-all --inh-caps=-all ";
+
 inline std::string quote(const std::string& s) { return "'" + s + "'"; }
 
 }  // namespace mcdn_test

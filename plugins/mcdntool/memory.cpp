@@ -1,0 +1,137 @@
+#include "memory.h"
+
+#include <algorithm>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <thread>
+
+#include <OpenImageIO/imageio.h>
+#include <OpenImageIO/strutil.h>
+
+namespace mcdntool {
+
+using OIIO::Strutil::fmt::format;
+
+namespace {
+
+// Frame-sized buffers each stage adds at its peak, in merged frames.
+double stage_frames(const std::string& stage)
+{
+    if (stage == "--prefilter")
+        return 0.5;  // the prefiltered features beside the frame
+    if (stage == "--nfor")
+        return 2.0;  // the result and the per-buffer regression outputs
+    if (stage == "--cnn")
+        return 1.2;  // the result and the converged map
+    if (stage == "--sure")
+        return 1.5;  // the noisy copy and the denoiser's responses
+    if (stage == "--mix")
+        return 0.8;  // the result
+    return 0.0;
+}
+
+// The CNN's per-thread network buffers (cnn.h: ~350 MB at tile=512, as (tile + halo)^2).
+double cnn_thread_bytes(const std::vector<Command>& commands)
+{
+    for (const auto& c : commands)
+        if (c.name == "--cnn") {
+            double tile = OIIO::Strutil::stod(c.modifier("tile", "512"));
+            double side = (std::max(tile, 1.0) + 64) / (512 + 64);
+            return 350e6 * side * side;
+        }
+    return 0.0;
+}
+
+}  // namespace
+
+double estimated_peak_bytes(const std::vector<Command>& commands, double pixels, int channels,
+                            int threads)
+{
+    double frames = 1.0;  // the merged input
+    for (const auto& c : commands)
+        frames += stage_frames(c.name);
+    return frames * pixels * channels * sizeof(float) + threads * cnn_thread_bytes(commands);
+}
+
+double available_bytes()
+{
+    // A farm slot's own limit, for jobs that may use less than the machine has.
+    if (const char* limit = std::getenv("MCDN_MEMORY_LIMIT"); limit && *limit) {
+        std::string text = limit;
+        double scale = 1;
+        switch (text.back()) {
+        case 'G': case 'g': scale = 1e9; text.pop_back(); break;
+        case 'M': case 'm': scale = 1e6; text.pop_back(); break;
+        default: break;
+        }
+        return OIIO::Strutil::string_is_float(text) ? OIIO::Strutil::stod(text) * scale : 0.0;
+    }
+    std::ifstream meminfo("/proc/meminfo");
+    std::string line;
+    double kb = 0;
+    while (std::getline(meminfo, line)) {
+        std::istringstream in(line);
+        std::string key;
+        double value = 0;
+        in >> key >> value;
+        if (key == "MemAvailable:" || key == "SwapFree:")
+            kb += value;
+    }
+    double bytes = kb * 1024.0;
+    // A container's (cgroup v2) limit, where one is set.
+    std::ifstream max_file("/sys/fs/cgroup/memory.max"), current_file("/sys/fs/cgroup/memory.current");
+    std::string max_text;
+    double current = 0;
+    if (max_file >> max_text && max_text != "max" && current_file >> current
+        && OIIO::Strutil::string_is_float(max_text))
+        bytes = std::min(bytes, std::max(0.0, OIIO::Strutil::stod(max_text) - current));
+    return bytes;
+}
+
+bool check_memory(const std::vector<Command>& commands, int threads, int parallel_frames,
+                  std::string& error)
+{
+    // The frame the inputs describe, from their headers alone.
+    double pixels = 0;
+    int channels = 0;
+    for (const auto& c : commands) {
+        if (c.name != "-i")
+            continue;
+        auto in = OIIO::ImageInput::open(c.args[0]);
+        if (!in)
+            return true;  // a directory, or unreadable: reading will say
+        for (int s = 0; in->seek_subimage(s, 0); ++s) {
+            const OIIO::ImageSpec& spec = in->spec();
+            pixels = std::max(pixels, double(spec.width) * spec.height);
+            channels += spec.nchannels;
+        }
+    }
+    const double available = available_bytes();
+    if (pixels == 0 || available == 0)
+        return true;
+    if (threads <= 0)
+        threads = int(std::max(1u, std::thread::hardware_concurrency()));
+    const int frames_at_once = std::max(1, parallel_frames);
+    const int per_frame_threads = std::max(1, threads / frames_at_once);
+    const double need =
+        frames_at_once * estimated_peak_bytes(commands, pixels, channels, per_frame_threads);
+    if (need <= available)
+        return true;
+    const double gb = 1e9;
+    const double one_thread = frames_at_once * estimated_peak_bytes(commands, pixels, channels, 1);
+    std::string advice = one_thread <= available
+                             ? format("--threads {} needs about {:.1f} GB", frames_at_once,
+                                      one_thread / gb)
+                             : "fewer input channels (only the files and AOVs the chain "
+                               "reads), a shorter chain or a smaller frame would need less";
+    if (frames_at_once > 1)
+        advice += "; --parallel-frames 1 runs one frame at a time";
+    error = format("a {:.0f} Mpixel frame with {} channels needs about {:.1f} GB for this "
+                   "chain and {} thread(s), {:.1f} GB are available: {}",
+                   pixels / 1e6, channels, need / gb, per_frame_threads, available / gb,
+                   advice);
+    return false;
+}
+
+}  // namespace mcdntool

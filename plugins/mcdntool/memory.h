@@ -1,0 +1,29 @@
+// Whether a frame's chain fits in the machine's memory, checked before its first stage.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "command.h"
+
+namespace mcdntool {
+
+/// A lower bound of the peak memory of running `commands` on a frame of `pixels` pixels
+/// and `channels` float channels (all inputs merged), in bytes. Stages keep frame-sized
+/// buffers (the merged input, each result, SURE's noisy copy and probe responses) and the
+/// CNN per-thread network buffers; the factors are those of whole mcdntool runs on Blender
+/// files (bench/), rounded down so that a run which fits is never refused.
+double estimated_peak_bytes(const std::vector<Command>& commands, double pixels, int channels,
+                            int threads);
+
+/// Memory this process may still use: $MCDN_MEMORY_LIMIT when set (bytes, or with a G or M
+/// suffix: a farm slot's limit), else MemAvailable + SwapFree of /proc/meminfo, at most what
+/// the container's cgroup still allows; 0 when unknown.
+double available_bytes();
+
+/// False with `error` when the estimate for the frame the -i inputs describe is above
+/// what is available: the error names both sizes and what would need less.
+bool check_memory(const std::vector<Command>& commands, int threads, int parallel_frames,
+                  std::string& error);
+
+}  // namespace mcdntool

@@ -1,0 +1,67 @@
+// A chain that cannot fit is refused before it starts, naming the sizes (a 4K Blender frame
+// through --cnn --sure --mix was killed for memory at 21.9 GB on a 24 GB machine).
+#include <OpenImageIO/imageio.h>
+
+#include "mcdn_test.h"
+
+using namespace mcdn_test;
+
+namespace {
+
+// A 3840x2160 EXR with Blender's 39 channels of zeros, written a scanline at a time (small
+// on disk, and never a frame in memory): only its header is read by the check.
+std::string uhd_frame(const std::string& dir)
+{
+    OIIO::ImageSpec spec(3840, 2160, 39, OIIO::TypeDesc::HALF);
+    OIIO::ImageBuf box(test_data("box16/box_0016spp.exr"));
+    spec.channelnames = box.spec().channelnames;
+    spec.alpha_channel = spec.z_channel = -1;
+    spec.attribute("compression", "zip");
+    std::string path = dir + "/uhd.exr";
+    auto out = OIIO::ImageOutput::create(path);
+    EXPECT_TRUE(out && out->open(path, spec));
+    std::vector<float> row(size_t(spec.width) * spec.nchannels, 0.0f);
+    for (int y = 0; y < spec.height; ++y)
+        out->write_scanline(y, 0, OIIO::TypeDesc::FLOAT, row.data());
+    out->close();
+    return path;
+}
+
+}  // namespace
+
+TEST(Memory, AChainThatCannotFitIsRefusedBeforeItStarts)
+{
+    std::string dir = temp_dir("memory_uhd");
+    std::string f = quote(uhd_frame(dir));
+    // The case: render, variance and both halves, 156 channels, 2 threads, 22 GB.
+    std::string cmd = "MCDN_MEMORY_LIMIT=22G '" + std::string(MCDNTOOL) + "' --threads 2 -i " + f +
+                      " -i:as=variance " + f + " -i:as=halfA " + f + " -i:as=halfB " + f +
+                      " --cnn --sure --mix:model=net -o " + quote(dir + "/out.exr") + " 2>&1";
+    FILE* pipe = popen(cmd.c_str(), "r");
+    std::string output;
+    char line[4096];
+    while (pipe && fgets(line, sizeof line, pipe))
+        output += line;
+    int status = pclose(pipe);
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1) << output;
+    EXPECT_NE(output.find("a 8 Mpixel frame with 156 channels needs about"), std::string::npos)
+        << output;
+    EXPECT_NE(output.find("22.0 GB are available"), std::string::npos) << output;
+    EXPECT_FALSE(OIIO::Filesystem::exists(dir + "/out.exr"));
+}
+
+TEST(Memory, TheLimitCanBeAFarmSlots)
+{
+    std::string box = quote(test_data("box16/box_0016spp.exr"));
+    std::string tool = "'" + std::string(MCDNTOOL) + "'";
+    FILE* pipe = popen(("MCDN_MEMORY_LIMIT=1M " + tool + " -i " + box + " --cnn -o /dev/null 2>&1").c_str(), "r");
+    std::string output;
+    char line[4096];
+    while (pipe && fgets(line, sizeof line, pipe))
+        output += line;
+    int status = pclose(pipe);
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1) << output;
+    EXPECT_NE(output.find("0.0 GB are available"), std::string::npos) << output;
+    EXPECT_EQ(std::system(("MCDN_MEMORY_LIMIT=100G " + tool + " -i " + box +
+                           " --cnn -o " + quote(temp_dir("memory_ok") + "/out.exr") + " 2>/dev/null").c_str()), 0);
+}
