@@ -10,9 +10,7 @@
 // chain (prefilter,nfor,sure,mix), channels (output channels, default the render's own),
 // threads, and per-stage settings like nfor.window=19, sure.probes=4, mix.model=net.
 // Relative paths in a recipe file are relative to the recipe's folder.
-#include <algorithm>
 #include <condition_variable>
-#include <filesystem>
 #include <map>
 #include <mutex>
 #include <vector>
@@ -143,54 +141,35 @@ private:
 
     // A recipe's `in` may itself be a recipe: the inner one is computed (and cached) by the
     // same thread, inside the outer one's read. The cache's lock is not held while a recipe
-    // is computed, so nesting works; a recipe that reaches itself, or nesting deeper than
-    // kMaxNesting, is an error instead of a hang.
-    static constexpr int kMaxNesting = 8;
-
+    // is computed, so nesting works; a loop or too deep a nesting is an error instead of a
+    // hang (RecipeNesting).
     struct Computed {
         bool done = false;
         ImageBuf result;
         std::string error;
     };
 
-    // One name per recipe however it is spelt (./a.mcdn, a.mcdn, /abs/a.mcdn).
-    static std::string recipe_key(const std::string& name)
-    {
-        size_t query = name.find('?');
-        std::error_code ec;
-        std::filesystem::path file = std::filesystem::weakly_canonical(
-            std::filesystem::absolute(name.substr(0, query), ec), ec);
-        return file.string() + (query == std::string::npos ? "" : name.substr(query));
-    }
-
     static ImageBuf computed(const std::string& typed, std::string& error)
     {
-        const std::string name = recipe_key(typed);
+        const std::string name = mcdn_plugin::recipe_key(typed);
         static std::mutex mutex;
         static std::condition_variable finished;
         static std::map<std::string, Computed> results;
-        thread_local std::vector<std::string> computing;  // this thread's nesting, outermost first
+        thread_local mcdn_plugin::RecipeNesting computing;
+        if (!computing.enter(name, error))
+            return {};
         {
             std::unique_lock<std::mutex> lock(mutex);
-            if (std::find(computing.begin(), computing.end(), name) != computing.end()) {
-                error = Strutil::fmt::format("recipe loop: {} -> {}", Strutil::join(computing, " -> "), name);
-                return {};
-            }
-            if (int(computing.size()) >= kMaxNesting) {
-                error = Strutil::fmt::format("recipes nested more than {} deep: {} -> {}", kMaxNesting,
-                               Strutil::join(computing, " -> "), name);
-                return {};
-            }
             auto it = results.find(name);
             if (it != results.end()) {
                 // Another thread may be computing it: wait for its result.
                 finished.wait(lock, [&] { return results.at(name).done; });
+                computing.leave();
                 error = results.at(name).error;
                 return results.at(name).result;
             }
             results.emplace(name, Computed());
         }
-        computing.push_back(name);
         ImageBuf result;
         std::string why;
         try {
@@ -200,7 +179,7 @@ private:
         } catch (const std::exception& e) {
             why = e.what();
         }
-        computing.pop_back();
+        computing.leave();
         {
             std::lock_guard<std::mutex> lock(mutex);
             Computed& entry = results.at(name);

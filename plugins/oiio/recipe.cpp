@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <filesystem>
 #include <fstream>
 
 #include <OpenImageIO/filesystem.h>
@@ -144,6 +145,30 @@ bool job_from_recipe(const Recipe& recipe, Job& job, std::string& error)
     if (!mcdn::parse_threads(get("threads", "0"), job.threads, error))
         return false;
     return mcdn::parse_chain(job.chain.stages, get("chain", "prefilter,nfor"), error);
+}
+
+std::string recipe_key(const std::string& name)
+{
+    size_t query = name.find('?');
+    std::error_code ec;
+    std::filesystem::path file = std::filesystem::weakly_canonical(
+        std::filesystem::absolute(name.substr(0, query), ec), ec);
+    return file.string() + (query == std::string::npos ? "" : name.substr(query));
+}
+
+bool RecipeNesting::enter(const std::string& key, std::string& error)
+{
+    if (std::find(m_stack.begin(), m_stack.end(), key) != m_stack.end()) {
+        error = format("recipe loop: {} -> {}", Strutil::join(m_stack, " -> "), key);
+        return false;
+    }
+    if (int(m_stack.size()) >= kMaxNesting) {
+        error = format("recipes nested more than {} deep: {} -> {}", kMaxNesting,
+                       Strutil::join(m_stack, " -> "), key);
+        return false;
+    }
+    m_stack.push_back(key);
+    return true;
 }
 
 }  // namespace mcdn_plugin

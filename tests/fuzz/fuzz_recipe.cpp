@@ -3,6 +3,8 @@
 // key checks and the chain's stage names, as the plugin does before it reads any image.
 #include <sstream>
 
+#include <OpenImageIO/strutil.h>
+
 #include "recipe.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size)
@@ -22,5 +24,18 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size)
     mcdn_plugin::Job job;
     if (ok)
         mcdn_plugin::job_from_recipe(recipe, job, error);
+    // Nesting: the in= values (comma-separated) entered one inside the other, as recipes
+    // whose `in` is a recipe are; never deeper than the limit, never a name twice.
+    mcdn_plugin::RecipeNesting nesting;
+    size_t entered = 0;
+    for (const auto& name : OIIO::Strutil::splits(recipe.count("in") ? recipe["in"] : "", ",", 64))
+        if (nesting.enter(name, error))
+            ++entered;
+        else
+            break;
+    if (nesting.depth() != entered || int(entered) > mcdn_plugin::RecipeNesting::kMaxNesting)
+        __builtin_trap();
+    while (nesting.depth() > 0)
+        nesting.leave();
     return 0;
 }
