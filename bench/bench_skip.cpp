@@ -28,7 +28,7 @@
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imagebufalgo.h>
 
-#include "core/converged_tiles.h"
+#include "skip/converged_tiles.h"
 #include "mcdn/cnn.h"
 #include "mcdn/io.h"
 #include "mcdn/metrics.h"

@@ -4,8 +4,8 @@
 
 #include <OpenImageIO/imagebufalgo.h>
 
-#include "core/constant_features.h"
-#include "core/converged_tiles.h"
+#include "skip/constant_features.h"
+#include "skip/converged_tiles.h"
 #include "mcdn/chain.h"
 #include "mcdn/cnn.h"
 #include "mcdn/io.h"

@@ -71,8 +71,6 @@ constexpr const char* kResidual[3] = { "sure.residual.R", "sure.residual.G",
                                        "sure.residual.B" };      // ||y - x||^2
 /// x of an extra AOV's channel (light groups; see NforOptions::denoise_extras), for --mix.
 inline std::string noisy_extra(const std::string& channel) { return "noisy." + channel; }
-/// Set on the probed inputs: denoisers may skip work only y needs (the extra AOVs).
-constexpr const char* kProbeAttribute = "mcdn:sure_probe";
 }  // namespace sure_channels
 
 /// Runs `denoiser` K + 1 times. dst = the denoised image (colour = y, every other channel

@@ -15,9 +15,10 @@
 #include "cnn/cnn_steps.h"
 #include "cnn/extras.h"
 #include "cnn/worker_pool.h"
-#include "core/converged_tiles.h"
-#include "core/denoiser_attribute.h"
+#include "core/attributes.h"
 #include "core/op_prepare.h"
+#include "nn/network_regions.h"
+#include "skip/converged_tiles.h"
 #include "mcdn/color.h"
 
 namespace mcdn {

@@ -2,7 +2,7 @@
 
 #include <OpenImageIO/strutil.h>
 
-#include "mcdn/sure.h"
+#include "core/attributes.h"
 
 namespace mcdn {
 
@@ -24,7 +24,7 @@ Plane borrowed_half(const Plane& extra, const Plane& colour, const Plane& colour
 
 bool denoises_extras(bool asked, const ImageBuf& src)
 {
-    return asked && src.spec().get_int_attribute(sure_channels::kProbeAttribute, 0) == 0;
+    return asked && src.spec().get_int_attribute(kProbeAttribute, 0) == 0;
 }
 
 bool read_extras(std::vector<ExtraPlanes>& extras, const ImageBuf& src, const AovSet& aovs,

@@ -9,7 +9,7 @@
 
 #include "core/bands.h"
 #include "core/channels.h"
-#include "core/denoiser_attribute.h"
+#include "core/attributes.h"
 #include "core/op_prepare.h"
 #include "mcdn/sure.h"
 #include "mix/mix_steps.h"

@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "mix/mix_steps.h"
+#include "nn/network_regions.h"
 
 namespace mcdn {
 

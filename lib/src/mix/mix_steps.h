@@ -4,7 +4,7 @@
 
 #include <string>
 
-#include "core/converged_tiles.h"
+#include "skip/converged_tiles.h"
 #include "core/planar.h"
 #include "mcdn/mix.h"
 #include "mcdn/nn.h"

@@ -5,7 +5,7 @@
 
 #include <vector>
 
-#include "core/converged_tiles.h"
+#include "skip/converged_tiles.h"
 #include "core/extra_aovs.h"
 #include "nfor/regression.h"
 

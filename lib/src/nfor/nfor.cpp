@@ -13,12 +13,12 @@
 #include <OpenImageIO/imagebufalgo.h>
 
 #include "core/channels.h"
-#include "core/constant_features.h"
-#include "core/converged_tiles.h"
-#include "core/denoiser_attribute.h"
+#include "skip/constant_features.h"
+#include "skip/converged_tiles.h"
+#include "core/attributes.h"
 #include "core/extra_aovs.h"
 #include "core/feature_channels.h"
-#include "core/nl_means.h"
+#include "nl_means/nl_means.h"
 #include "core/bands.h"
 #include "core/op_prepare.h"
 #include "mcdn/color.h"

@@ -17,7 +17,7 @@
 
 #include <tbb/enumerable_thread_specific.h>
 
-#include "core/converged_tiles.h"
+#include "skip/converged_tiles.h"
 #include "nfor/regression_tile.h"
 
 namespace mcdn {

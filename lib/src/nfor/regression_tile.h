@@ -9,7 +9,7 @@
 #include <limits>
 #include <type_traits>
 
-#include "core/nl_means.h"
+#include "nl_means/nl_means.h"
 #include "nfor/least_squares.h"
 #include "nfor/regression.h"
 

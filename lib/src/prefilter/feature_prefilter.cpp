@@ -1,6 +1,6 @@
 #include "prefilter/feature_prefilter.h"
 
-#include "core/nl_means.h"
+#include "nl_means/nl_means.h"
 
 namespace mcdn {
 

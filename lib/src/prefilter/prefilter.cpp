@@ -1,8 +1,8 @@
 // mcdn::prefilter: the op face of the feature prefilter (feature_prefilter.cpp).
 #include "mcdn/prefilter.h"
 
-#include "core/constant_features.h"
-#include "core/converged_tiles.h"
+#include "skip/constant_features.h"
+#include "skip/converged_tiles.h"
 #include "core/feature_channels.h"
 #include "core/bands.h"
 #include "core/op_prepare.h"

@@ -4,9 +4,10 @@
 
 #include <OpenImageIO/strutil.h>
 
-#include "core/converged_tiles.h"
+#include "core/attributes.h"
 #include "core/op_prepare.h"
 #include "core/random.h"
+#include "skip/converged_tiles.h"
 #include "sure/sure_steps.h"
 
 namespace mcdn {
@@ -195,14 +196,14 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
         }
         // Probed in place and restored after (a copy of every channel per probe cost as
         // much as the denoiser's own work on half-converged frames).
-        noisy.specmod().attribute(sure_channels::kProbeAttribute, 1);
+        noisy.specmod().attribute(kProbeAttribute, 1);
         for (size_t g = 0; g < frame.moved.size(); g += 3)
             add_probe(noisy, { frame.moved[g], frame.moved[g + 1], frame.moved[g + 2] }, b, eps);
         ImageBuf response;
         const bool probe_ok = denoiser(response, noisy);
         for (size_t m = 0; m < frame.moved.size(); ++m)
             noisy.set_pixels(channel_roi(frame.moved[m]), OIIO::TypeDesc::FLOAT, unprobed[m].data());
-        noisy.specmod().erase_attribute(sure_channels::kProbeAttribute);
+        noisy.specmod().erase_attribute(kProbeAttribute);
         if (!probe_ok) {
             error = format("sure: the denoiser failed on probe {}: {}", k, response.geterror());
             return false;

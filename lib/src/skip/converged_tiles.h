@@ -13,7 +13,6 @@
 #include "core/planar.h"
 #include "core/extra_aovs.h"
 #include "mcdn/aov.h"
-#include "mcdn/nn.h"
 #include "mcdn/skip.h"
 
 namespace mcdn {
@@ -69,13 +68,6 @@ void pass_through_converged(Plane& out, const Plane& render, const ConvergedTile
 /// starting at a multiple of `alignment` (which must divide kConvergedTileSize): runs of
 /// non-converged tiles along a row, merged with the identical runs of the rows below.
 std::vector<Rect> unconverged_rects(const ConvergedTiles& tiles, int max_side, int alignment);
-
-/// nn::TileOptions::regions for `net`: the unconverged rectangles, or empty (the whole
-/// image, as without skipping) when nothing is converged, when their windows (grown by the
-/// receptive field) come to more than 70% of the whole image's, or when the net's alignment
-/// does not divide the tile size.
-std::vector<nn::Region> network_regions(const ConvergedTiles& tiles, const nn::Net& net,
-                                        int tile_size);
 
 /// Writes each extra AOV's render back into its channels of dst on the converged tiles.
 void pass_through_extras(ImageBuf& dst, ROI roi, const std::vector<ExtraPlanes>& extras,

@@ -3,11 +3,11 @@
 // distances of the whole tile (patch_distance), their weights, and the weighted sums of the
 // shifted images, all in 16-lane vectors over full tile rows (lanes outside the image get
 // weight 0).
-#include "core/nl_means.h"
+#include "nl_means/nl_means.h"
 
 #include <tbb/enumerable_thread_specific.h>
 
-#include "core/converged_tiles.h"
+#include "skip/converged_tiles.h"
 
 namespace mcdn {
 namespace {

@@ -1,4 +1,4 @@
-#include "core/constant_features.h"
+#include "skip/constant_features.h"
 
 #include <algorithm>
 

@@ -1,5 +1,5 @@
 // The converged-tile map (core/converged_tiles.h, mcdn/skip.h).
-#include "core/converged_tiles.h"
+#include "skip/converged_tiles.h"
 
 #include <algorithm>
 #include <cmath>
@@ -13,8 +13,6 @@ namespace {
 constexpr int T = kConvergedTileSize;
 /// relMSE's offset on r²: errors are relative to sqrt(colour² + 0.01) (metrics.h).
 constexpr float kRelativeFloor = 0.01f;
-/// Networks run on the non-converged rectangles only below this fraction of the work.
-constexpr double kWorthSkipping = 0.9;
 }  // namespace
 
 bool ConvergedTiles::any() const
@@ -246,36 +244,6 @@ std::vector<Rect> unconverged_rects(const ConvergedTiles& m, int max_side, int a
                 rects.push_back({ x, y, std::min(x + side, x1), std::min(y + side, y1) });
     }
     return rects;
-}
-
-std::vector<nn::Region> network_regions(const ConvergedTiles& m, const nn::Net& net, int tile_size)
-{
-    std::vector<nn::Region> regions;
-    const int alignment = net.alignment();
-    if (!m.any() || alignment <= 0 || T % alignment != 0)
-        return regions;
-    // Each run computes its rectangle grown by the halo: worth it when the windows add up
-    // to less than the whole image's tiles with theirs. Measured (bench_skip, cnn, 256²,
-    // left half converged but one tile: windows 77% of the frame's): 0.10 CPU-s against
-    // 0.15 for the whole frame, now that the KPCN op has no whole-frame steps; at 70% that
-    // frame ran whole.
-    const int halo = (net.receptive_radius() + alignment - 1) / alignment * alignment;
-    auto window_area = [&](int x0, int y0, int x1, int y1) {
-        return double(std::min(x1 + halo, m.width) - std::max(x0 - halo, 0))
-               * (std::min(y1 + halo, m.height) - std::max(y0 - halo, 0));
-    };
-    double whole = 0, skipping = 0;
-    const int side = std::max(tile_size / alignment, 1) * alignment;
-    for (int y = 0; y < m.height; y += side)
-        for (int x = 0; x < m.width; x += side)
-            whole += window_area(x, y, x + side, y + side);
-    for (const Rect& r : unconverged_rects(m, tile_size, alignment)) {
-        regions.push_back({ r.x0, r.y0, r.x1, r.y1 });
-        skipping += window_area(r.x0, r.y0, r.x1, r.y1);
-    }
-    if (skipping > kWorthSkipping * whole)
-        regions.clear();
-    return regions;
 }
 
 void pass_through_extras(ImageBuf& dst, ROI roi, const std::vector<ExtraPlanes>& extras,

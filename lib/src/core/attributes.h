@@ -1,0 +1,16 @@
+// The attributes ops hand each other on the ImageSpecs they pass along.
+#pragma once
+
+namespace mcdn {
+
+/// Which denoiser made a frame's colour. The denoiser ops set it on their output; sure's
+/// output is the denoiser's frame with SURE's channels added, so it carries it on; mix picks
+/// the mixing network trained for that denoiser by it (PD §5.3 trains one h_NN per
+/// denoiser: ours differ most where the KPCN op beats NFOR, models/README.md).
+constexpr const char* kDenoiserAttribute = "mcdn:denoiser";
+
+/// Set by sure on the probed inputs it hands the denoiser (PD §3.2): denoisers may skip
+/// work only y needs (the extra AOVs).
+constexpr const char* kProbeAttribute = "mcdn:sure_probe";
+
+}  // namespace mcdn
