@@ -215,13 +215,13 @@ std::vector<Input> inputs()
 
 double relmse(const ImageBuf& image, const ImageBuf& ref, bool trim = false)
 {
-    auto colour = [](const ImageBuf& b) {
+    auto color = [](const ImageBuf& b) {
         const int r = b.spec().channelindex("ViewLayer.Combined.R");
         return std::vector<int>{ r, r + 1, r + 2 };
     };
     MetricsOptions mo;
-    mo.image_channels = colour(image);
-    mo.reference_channels = colour(ref);
+    mo.image_channels = color(image);
+    mo.reference_channels = color(ref);
     mo.trim = trim;  // KPCN §6: 0.01% best and worst pixels dropped
     Metrics m;
     std::string error;

@@ -125,7 +125,7 @@ std::vector<Input> inputs(bool generated, const std::vector<std::string>& extra_
     return list;
 }
 
-std::vector<int> colour_channels(const ImageBuf& b)
+std::vector<int> color_channels(const ImageBuf& b)
 {
     const ImageSpec& s = b.spec();
     std::vector<int> c;
@@ -140,8 +140,8 @@ std::vector<int> colour_channels(const ImageBuf& b)
 bool metrics_of(Metrics& m, const ImageBuf& image, const ImageBuf& ref)
 {
     MetricsOptions mo;
-    mo.image_channels = colour_channels(image);
-    mo.reference_channels = colour_channels(ref);
+    mo.image_channels = color_channels(image);
+    mo.reference_channels = color_channels(ref);
     std::string error;
     if (!compute_metrics(m, image, ref, mo, error)) {
         std::fprintf(stderr, "metrics: %s\n", error.c_str());
@@ -193,7 +193,7 @@ double alpha_where_biased(const ImageBuf& z, const ImageBuf& with_sure, const Im
     share = 0;
     if (!resolve_aovs(set, aovs, with_sure.spec(), error))
         return 0;
-    const std::vector<int> y = colour_channels(with_sure), r = colour_channels(ref);
+    const std::vector<int> y = color_channels(with_sure), r = color_channels(ref);
     const std::vector<int>& var = set.channels(Role::ColorVariance);
     const char* alpha_names[3] = { "mix.alpha.R", "mix.alpha.G", "mix.alpha.B" };
     double sum = 0;
@@ -214,9 +214,9 @@ double alpha_where_biased(const ImageBuf& z, const ImageBuf& with_sure, const Im
 
 /// The biased stand-in denoiser of --blur: the colour convolved with a WIDTH-wide Gaussian
 /// (edges clamp), every other channel passed through.
-bool blur_colour(ImageBuf& dst, const ImageBuf& src, float width)
+bool blur_color(ImageBuf& dst, const ImageBuf& src, float width)
 {
-    const std::vector<int> rgb = colour_channels(src);
+    const std::vector<int> rgb = color_channels(src);
     const ImageBuf kernel = OIIO::ImageBufAlgo::make_kernel("gaussian", width, width);
     dst = src.copy(OIIO::TypeDesc::FLOAT);
     for (int c : rgb) {  // into the copy, one channel at a time: the others stay as they are
@@ -299,7 +299,7 @@ int main(int argc, char** argv)
         SureOptions so;
         so.aovs = aovs;
         Denoiser denoiser = [&](ImageBuf& dst, const ImageBuf& s) {
-            return blur_width > 0 ? blur_colour(dst, s, blur_width) : use_cnn ? cnn(dst, s, co) : nfor(dst, s, no);
+            return blur_width > 0 ? blur_color(dst, s, blur_width) : use_cnn ? cnn(dst, s, co) : nfor(dst, s, no);
         };
         ImageBuf with_sure;
         std::string cached;

@@ -15,7 +15,7 @@
 
 #include <oneapi/dnnl/dnnl.hpp>
 
-#include "mcdn/nn.h"
+#include "nn/nn.h"
 #include "plain_conv.h"
 
 using namespace mcdn::nn;

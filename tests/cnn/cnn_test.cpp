@@ -36,7 +36,7 @@ ImageBuf read_render(const std::string& prefix = kRender)
 }
 
 /// The colour role of an op's result as a tensor [H, W, 3].
-nn::Tensor colour_tensor(const ImageBuf& buf)
+nn::Tensor color_tensor(const ImageBuf& buf)
 {
     AovSet aovs;
     std::string error;
@@ -92,7 +92,7 @@ TEST(Cnn, WholeOpMatchesPyTorch)
     ImageBuf src = read_render();
     ImageBuf dst;
     ASSERT_TRUE(cnn(dst, src, tiny_options())) << dst.geterror();
-    const double err = relative_error(colour_tensor(dst), fixture_output("output.color"));
+    const double err = relative_error(color_tensor(dst), fixture_output("output.color"));
     std::printf("C++ op vs PyTorch (32x32): max relative error %.3g\n", err);
     EXPECT_LT(err, 1e-4);
 }
@@ -104,7 +104,7 @@ TEST(Cnn, CutImageMatchesPyTorch)
     ImageBuf cut = OIIO::ImageBufAlgo::cut(src, ROI(0, 29, 0, 30));
     ImageBuf dst;
     ASSERT_TRUE(cnn(dst, cut, tiny_options())) << dst.geterror();
-    const double err = relative_error(colour_tensor(dst), fixture_output("output.color_cut"));
+    const double err = relative_error(color_tensor(dst), fixture_output("output.color_cut"));
     std::printf("C++ op vs PyTorch (29x30): max relative error %.3g\n", err);
     EXPECT_LT(err, 1e-4);
 }
@@ -117,9 +117,9 @@ TEST(Cnn, TiledEqualsUntiledAndThreadsAgree)
     ASSERT_TRUE(cnn(tiled, src, tiny_options(8))) << tiled.geterror();
     ASSERT_TRUE(cnn(one, src, tiny_options(8), {}, 1)) << one.geterror();
     ASSERT_TRUE(cnn(two, src, tiny_options(8), {}, 2)) << two.geterror();
-    const nn::Tensor w = colour_tensor(whole), t = colour_tensor(tiled);
+    const nn::Tensor w = color_tensor(whole), t = color_tensor(tiled);
     EXPECT_LT(relative_error(t, w), 1e-5);
-    const nn::Tensor a = colour_tensor(one), b = colour_tensor(two);
+    const nn::Tensor a = color_tensor(one), b = color_tensor(two);
     EXPECT_EQ(a.data, b.data) << "1 and 2 threads differ";
     EXPECT_EQ(a.data, t.data) << "1 thread and all threads differ";
 }
@@ -131,7 +131,7 @@ TEST(Cnn, KeepsOtherChannelsAndRoi)
     const ROI roi(4, 20, 8, 24);
     ASSERT_TRUE(cnn(dst, src, tiny_options(), roi)) << dst.geterror();
     ASSERT_EQ(dst.nchannels(), src.nchannels());
-    const nn::Tensor in = colour_tensor(src), out = colour_tensor(dst);
+    const nn::Tensor in = color_tensor(src), out = color_tensor(dst);
     int changed_inside = 0, changed_outside = 0;
     for (int y = 0; y < in.height; ++y)
         for (int x = 0; x < in.width; ++x) {
@@ -155,7 +155,7 @@ TEST(Cnn, InPlaceEqualsACopy)
     ImageBuf copy, in_place = src.copy(OIIO::TypeDesc::FLOAT);
     ASSERT_TRUE(cnn(copy, src, tiny_options(8), {}, 2)) << copy.geterror();
     ASSERT_TRUE(cnn(in_place, in_place, tiny_options(8), {}, 2)) << in_place.geterror();
-    EXPECT_EQ(colour_tensor(in_place).data, colour_tensor(copy).data);
+    EXPECT_EQ(color_tensor(in_place).data, color_tensor(copy).data);
 }
 
 TEST(Cnn, WorkersKeptBetweenCallsGiveTheSameResult)
@@ -172,7 +172,7 @@ TEST(Cnn, WorkersKeptBetweenCallsGiveTheSameResult)
     const ImageBuf small = OIIO::ImageBufAlgo::cut(src, corner);
     ASSERT_TRUE(cnn(other, small, tiny_options(16), {}, 2)) << other.geterror();
     ASSERT_TRUE(cnn(again, src, tiny_options(8), {}, 1)) << again.geterror();
-    EXPECT_EQ(colour_tensor(again).data, colour_tensor(fresh).data);
+    EXPECT_EQ(color_tensor(again).data, color_tensor(fresh).data);
     release_cnn_workers();
 }
 
@@ -196,7 +196,7 @@ TEST(Cnn, FiniteOnNanAndHugeFeatures)
     }
     ImageBuf dst;
     ASSERT_TRUE(cnn(dst, src, tiny_options())) << dst.geterror();
-    for (float v : colour_tensor(dst).data)  // the poisoned feature channels stay as they were
+    for (float v : color_tensor(dst).data)  // the poisoned feature channels stay as they were
         ASSERT_TRUE(std::isfinite(v));
 }
 
@@ -212,7 +212,7 @@ TEST(Cnn, ChainsUnderSure)
     EXPECT_EQ(dst.spec().get_string_attribute("mcdn:denoiser"), "cnn");
 }
 
-TEST(Cnn, WithoutSplitUsesTheSpecularNetworkOnColour)
+TEST(Cnn, WithoutSplitUsesTheSpecularNetworkOnColor)
 {
     // Only the colour and its variance: the generic preset has no split here.
     ImageBuf src = read_render();
@@ -220,11 +220,11 @@ TEST(Cnn, WithoutSplitUsesTheSpecularNetworkOnColour)
     const int var = src.spec().channelindex("variance.ViewLayer.Combined.R");
     const std::vector<int> order = { first, first + 1, first + 2, var, var + 1, var + 2 };
     const std::vector<std::string> names = { "R", "G", "B", "variance.R", "variance.G", "variance.B" };
-    ImageBuf colour = OIIO::ImageBufAlgo::channels(src, 6, order, {}, names);
+    ImageBuf color = OIIO::ImageBufAlgo::channels(src, 6, order, {}, names);
     CnnOptions options = tiny_options();
     options.aovs.preset = "generic";
     ImageBuf dst;
-    ASSERT_TRUE(cnn(dst, colour, options)) << dst.geterror();
+    ASSERT_TRUE(cnn(dst, color, options)) << dst.geterror();
     EXPECT_TRUE(all_finite(dst));
 }
 
@@ -279,8 +279,8 @@ TEST(Cnn, CommittedModelDenoises)
     ImageBuf ref;
     ASSERT_TRUE(read_image(ref, mcdn_test::test_data("generated/0000_interior/0000_interior_ref.exr")))
         << ref.geterror();
-    const nn::Tensor noisy = colour_tensor(src), denoised = colour_tensor(dst),
-                     reference = colour_tensor(ref);
+    const nn::Tensor noisy = color_tensor(src), denoised = color_tensor(dst),
+                     reference = color_tensor(ref);
     double noisy_error = 0, denoised_error = 0;  // relMSE
     for (size_t i = 0; i < reference.data.size(); ++i) {
         const double r = reference.data[i], scale = r * r + 0.01;

@@ -69,13 +69,13 @@ TEST(Color, MatricesAndNonLinearSpaces)
     EXPECT_NE(error.find("unknown colour space 'no_such_space'"), std::string::npos) << error;
 }
 
-TEST(Color, ConvertsColourAndVarianceButNeverData)
+TEST(Color, ConvertsColorAndVarianceButNeverData)
 {
     ImageBuf box = box16();
     AovSet set = resolve(box);
     ImageBuf converted = box.copy(OIIO::TypeDesc::FLOAT);
     std::string error;
-    ASSERT_TRUE(convert_colour_channels(converted, set, "lin_rec709", "acescg", error)) << error;
+    ASSERT_TRUE(convert_color_channels(converted, set, "lin_rec709", "acescg", error)) << error;
     std::array<double, 9> m;
     ASSERT_TRUE(linear_transform(m, "lin_rec709", "acescg", error));
     auto before = pixel(box, 20, 30), after = pixel(converted, 20, 30);
@@ -92,7 +92,7 @@ TEST(Color, ConvertsColourAndVarianceButNeverData)
         for (int ch : set.channels(data))
             EXPECT_EQ(after[ch], before[ch]) << role_name(data);
 
-    ASSERT_TRUE(convert_colour_channels(converted, set, "acescg", "lin_rec709", error)) << error;
+    ASSERT_TRUE(convert_color_channels(converted, set, "acescg", "lin_rec709", error)) << error;
     auto back = pixel(converted, 20, 30);
     for (int ch : c)
         EXPECT_NEAR(back[ch], before[ch], 1e-5 * (1 + std::fabs(before[ch])));
@@ -105,7 +105,7 @@ TEST(Color, OpsSeeTheWorkingSpaceAndResultsGoBack)
     acescg.colorspace = "acescg";
     ImageBuf in_aces = box.copy(OIIO::TypeDesc::FLOAT);
     std::string error;
-    ASSERT_TRUE(convert_colour_channels(in_aces, resolve(box), "lin_rec709", "acescg", error));
+    ASSERT_TRUE(convert_color_channels(in_aces, resolve(box), "lin_rec709", "acescg", error));
     // An op that records what it saw and doubles the colour.
     std::vector<float> seen;
     auto op = [&](ImageBuf& dst, const ImageBuf& src) {

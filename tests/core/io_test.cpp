@@ -150,7 +150,7 @@ TEST(Io, TruncatedAndMissingFilesAreClearErrors)
     EXPECT_NE(notdir.geterror().find("no color.pfm"), std::string::npos) << notdir.geterror();
 }
 
-TEST(Io, ValidateRejectsNonFiniteColourAndNegativeVariance)
+TEST(Io, ValidateRejectsNonFiniteColorAndNegativeVariance)
 {
     ImageBuf merged = merged_box();
     AovSet set = resolve(merged);

@@ -13,7 +13,7 @@ using namespace mcdn_test;
 
 namespace {
 
-const std::vector<std::string> kBoxColour = { "ViewLayer.Combined.R", "ViewLayer.Combined.G",
+const std::vector<std::string> kBoxColor = { "ViewLayer.Combined.R", "ViewLayer.Combined.G",
                                               "ViewLayer.Combined.B" };
 
 ImageBuf chain(const ImageBuf& src, const std::vector<std::string>& stages, const std::string& preset)
@@ -42,7 +42,7 @@ TEST(Golden, PrefilterBoxFeatures)
 
 TEST(Golden, NforBox)
 {
-    EXPECT_TRUE(matches_golden(chain(box16(), { "prefilter", "nfor" }, "cycles"), kBoxColour,
+    EXPECT_TRUE(matches_golden(chain(box16(), { "prefilter", "nfor" }, "cycles"), kBoxColor,
                                "nfor_box16"));
 }
 
@@ -55,7 +55,7 @@ TEST(Golden, NforTungstenCornell)
 TEST(Golden, NforSureMixBox)
 {
     ImageBuf out = chain(box16(), { "prefilter", "nfor", "sure", "mix" }, "cycles");
-    std::vector<std::string> names = kBoxColour;
+    std::vector<std::string> names = kBoxColor;
     for (const char* n : { "sure.R", "sure.G", "sure.B", "mix.alpha.R", "mix.alpha.G", "mix.alpha.B" })
         names.push_back(n);
     // SURE is a finite difference (divided by a step ~1e-3 of the image level), so float

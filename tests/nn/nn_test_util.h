@@ -5,7 +5,7 @@
 #include <cmath>
 #include <random>
 
-#include "mcdn/nn.h"
+#include "nn/nn.h"
 #include "mcdn_test.h"
 
 namespace nn_test {

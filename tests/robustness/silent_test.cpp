@@ -41,7 +41,7 @@ void set_value(OIIO::ImageBuf& buf, const std::string& channel, int x, int y, fl
 
 }  // namespace
 
-TEST(Silent, AVarianceFileWithoutAColourVarianceIsAnError)
+TEST(Silent, AVarianceFileWithoutAColorVarianceIsAnError)
 {
     std::string dir = temp_dir("silent_var");
     // A PNG renamed .exr: OIIO reads it by its content, channels R,G,B,A.

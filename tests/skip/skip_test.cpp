@@ -64,7 +64,7 @@ AovSpec cycles()
     return spec;
 }
 
-std::vector<int> colour_channels(const ImageBuf& buf)
+std::vector<int> color_channels(const ImageBuf& buf)
 {
     std::vector<int> ch;
     for (const char* n : { "ViewLayer.Combined.R", "ViewLayer.Combined.G", "ViewLayer.Combined.B" })
@@ -73,10 +73,10 @@ std::vector<int> colour_channels(const ImageBuf& buf)
 }
 
 /// Largest |a − b| of the colour over columns [x0, x1).
-float max_colour_difference(const ImageBuf& a, const ImageBuf& b, int x0, int x1)
+float max_color_difference(const ImageBuf& a, const ImageBuf& b, int x0, int x1)
 {
     float worst = 0;
-    const std::vector<int> ca = colour_channels(a), cb = colour_channels(b);
+    const std::vector<int> ca = color_channels(a), cb = color_channels(b);
     for (int y = 0; y < a.spec().height; ++y)
         for (int x = x0; x < x1; ++x)
             for (int c = 0; c < 3; ++c) {
@@ -90,7 +90,7 @@ float max_colour_difference(const ImageBuf& a, const ImageBuf& b, int x0, int x1
 /// relMSE of the colour over columns [x0, x1) against the reference.
 double relmse_columns(const ImageBuf& out, const ImageBuf& ref, int x0, int x1)
 {
-    const std::vector<int> co = colour_channels(out), cr = colour_channels(ref);
+    const std::vector<int> co = color_channels(out), cr = color_channels(ref);
     double sum = 0;
     size_t n = 0;
     for (int y = 0; y < out.spec().height; ++y)
@@ -257,18 +257,18 @@ TEST(SkipNfor, ConvergedTilesPassThroughAndTheRestIsUnchangedAwayFromThem)
     ASSERT_FALSE(skipped.has_error()) << skipped.geterror();
     ASSERT_FALSE(full.has_error()) << full.geterror();
     // The converged column of tiles is the render, bit for bit.
-    EXPECT_EQ(max_colour_difference(skipped, src, 0, T), 0.0f);
-    EXPECT_GT(max_colour_difference(full, src, 0, T), 0.0f);  // the switch does something
+    EXPECT_EQ(max_color_difference(skipped, src, 0, T), 0.0f);
+    EXPECT_GT(max_color_difference(full, src, 0, T), 0.0f);  // the switch does something
     // Beyond the reach of NFOR's passes (~72 px: prefilter 13, first pass 18, maps 20,
     // second pass 21) the result is bit-identical; nearer, within the denoiser's own error.
-    EXPECT_EQ(max_colour_difference(skipped, full, T + 72, 128), 0.0f);
+    EXPECT_EQ(max_color_difference(skipped, full, T + 72, 128), 0.0f);
     const ImageBuf ref = box_reference();
     const double near_skipped = relmse_columns(skipped, ref, T, T + 72);
     const double near_full = relmse_columns(full, ref, T, T + 72);
     EXPECT_LT(near_skipped, 1.1 * near_full) << near_skipped << " vs " << near_full;
     // Identical for 1 and 2 threads, finite.
     ImageBuf one = nfor(src, on, {}, 1);
-    EXPECT_EQ(max_colour_difference(one, skipped, 0, 128), 0.0f);
+    EXPECT_EQ(max_color_difference(one, skipped, 0, 128), 0.0f);
 }
 
 TEST(SkipNfor, NothingConvergedIsTheUnskippedFilter)
@@ -278,7 +278,7 @@ TEST(SkipNfor, NothingConvergedIsTheUnskippedFilter)
     on.aovs = off.aovs = on.prefilter.aovs = off.prefilter.aovs = cycles();
     off.skip.enabled = false;
     ImageBuf a = nfor(src, on, {}, 2), b = nfor(src, off, {}, 2);
-    EXPECT_EQ(max_colour_difference(a, b, 0, 128), 0.0f);
+    EXPECT_EQ(max_color_difference(a, b, 0, 128), 0.0f);
 }
 
 TEST(SkipNfor, ConstantFeatureIsDroppedNotFitted)
@@ -308,7 +308,7 @@ TEST(SkipNfor, ConstantFeatureIsDroppedNotFitted)
     const double e_dropped = relmse_columns(dropped, ref, 0, 128);
     const double e_fitted = relmse_columns(fitted, ref, 0, 128);
     EXPECT_NEAR(e_dropped, e_fitted, 0.02 * e_fitted);
-    EXPECT_LT(max_colour_difference(dropped, fitted, 0, 128), 1e-2f);
+    EXPECT_LT(max_color_difference(dropped, fitted, 0, 128), 1e-2f);
 
     // The prefilter leaves the constant channels untouched, variance included.
     PrefilterOptions p;
@@ -348,13 +348,13 @@ TEST(SkipCnn, ConvergedTilesPassThroughAndFarPixelsAreUnchanged)
     ImageBuf skipped = cnn(src, on, {}, 2), full = cnn(src, off, {}, 2);
     ASSERT_FALSE(skipped.has_error()) << skipped.geterror();
     ASSERT_FALSE(full.has_error()) << full.geterror();
-    EXPECT_EQ(max_colour_difference(skipped, src, 0, 3 * T), 0.0f);
-    EXPECT_GT(max_colour_difference(full, src, 0, 3 * T), 0.0f);
+    EXPECT_EQ(max_color_difference(skipped, src, 0, 3 * T), 0.0f);
+    EXPECT_GT(max_color_difference(full, src, 0, 3 * T), 0.0f);
     // Every output pixel of a tiled run sees what a whole-image run sees (nn::run_tiled),
     // so the noisy half is the unskipped result up to the float rounding of other blockings.
-    EXPECT_LT(max_colour_difference(skipped, full, 3 * T, 128), 1e-4f);
+    EXPECT_LT(max_color_difference(skipped, full, 3 * T, 128), 1e-4f);
     ImageBuf one = cnn(src, on, {}, 1);
-    EXPECT_EQ(max_colour_difference(one, skipped, 0, 128), 0.0f);
+    EXPECT_EQ(max_color_difference(one, skipped, 0, 128), 0.0f);
 }
 
 TEST(SkipCnn, ConvergedTilesPassThroughWhenTheWholeFrameRuns)
@@ -366,8 +366,8 @@ TEST(SkipCnn, ConvergedTilesPassThroughWhenTheWholeFrameRuns)
     on.aovs = cycles();
     ImageBuf out = cnn(src, on, {}, 2);
     ASSERT_FALSE(out.has_error()) << out.geterror();
-    EXPECT_EQ(max_colour_difference(out, src, 0, T), 0.0f);
-    EXPECT_GT(max_colour_difference(out, src, T, 128), 0.0f);
+    EXPECT_EQ(max_color_difference(out, src, 0, T), 0.0f);
+    EXPECT_GT(max_color_difference(out, src, T, 128), 0.0f);
 }
 
 TEST(SkipSureMix, ConvergedTilesAreTheRenderWithTheirExactError)
@@ -396,7 +396,7 @@ TEST(SkipSureMix, ConvergedTilesAreTheRenderWithTheirExactError)
         m.output_alpha = true;
         ImageBuf mixed = mix(with_error, m, {}, 2);
         ASSERT_FALSE(mixed.has_error()) << mixed.geterror();
-        EXPECT_EQ(max_colour_difference(mixed, src, 0, T), 0.0f);
+        EXPECT_EQ(max_color_difference(mixed, src, 0, T), 0.0f);
         const int alpha = mixed.spec().channelindex("mix.alpha.R");
         float alpha_max = 0;
         for (int y = 0; y < 128; ++y)
@@ -406,8 +406,8 @@ TEST(SkipSureMix, ConvergedTilesAreTheRenderWithTheirExactError)
         // Away from the converged tiles the mix is the unskipped one.
         m.skip.enabled = false;
         ImageBuf full = mix(with_error, m, {}, 2);
-        EXPECT_EQ(max_colour_difference(mixed, full, T + 16, 128), 0.0f);
-        EXPECT_LT(max_colour_difference(mixed, full, 0, 128), INFINITY);  // finite
+        EXPECT_EQ(max_color_difference(mixed, full, T + 16, 128), 0.0f);
+        EXPECT_LT(max_color_difference(mixed, full, 0, 128), INFINITY);  // finite
     }
 }
 
@@ -420,11 +420,11 @@ TEST(SkipFrontEnds, RecipeKeyAndCommandLineModifier)
     chain.settings["nfor.skip"] = "0";
     ImageBuf from_recipe;
     ASSERT_TRUE(run_chain(from_recipe, src, chain, {}, 2)) << from_recipe.geterror();
-    EXPECT_GT(max_colour_difference(from_recipe, src, 0, T), 0.0f);  // filtered: skip off
+    EXPECT_GT(max_color_difference(from_recipe, src, 0, T), 0.0f);  // filtered: skip off
     chain.settings.clear();  // default: skipping on
     ImageBuf skipped;
     ASSERT_TRUE(run_chain(skipped, src, chain, {}, 2)) << skipped.geterror();
-    EXPECT_EQ(max_colour_difference(skipped, src, 0, T), 0.0f);
+    EXPECT_EQ(max_color_difference(skipped, src, 0, T), 0.0f);
 
     const std::string b = mcdn_test::test_data("box16/box_0016spp");
     const std::string inputs = mcdn_test::quote(b + ".exr") + " -i:as=variance "

@@ -54,19 +54,19 @@ std::vector<Case> cases()
     auto at = [](int px, int py, std::function<bool(int)> channel, float value) {
         return [=](int x, int y, int c, float v) { return x == px && y == py && channel(c) ? value : v; };
     };
-    auto colour = [](int c) { return c % 10 < 3 && c / 10 != 1; };
+    auto color = [](int c) { return c % 10 < 3 && c / 10 != 1; };
     auto feature = [](int c) { return c % 10 >= 3 && c / 10 != 1; };
     auto feature_variance = [](int c) { return c / 10 == 1 && c % 10 >= 3; };
     auto keep = [](int, int, int, float v) { return v; };
     return {
         { "plausible", 24, 20, keep },
-        { "nan colour", 24, 20, at(5, 5, colour, NAN) },
-        { "inf colour", 24, 20, at(5, 5, colour, INFINITY) },
+        { "nan colour", 24, 20, at(5, 5, color, NAN) },
+        { "inf colour", 24, 20, at(5, 5, color, INFINITY) },
         { "-inf feature", 24, 20, at(7, 3, feature, -INFINITY) },
         { "nan feature variance", 24, 20, [=](int x, int y, int c, float v) { return feature_variance(c) && x < 3 ? NAN : v; } },
-        { "negative colour", 24, 20, [=](int x, int, int c, float v) { return colour(c) && x % 3 == 0 ? -v : v; } },
-        { "1e30", 24, 20, at(10, 10, colour, 1e30f) },
-        { "firefly 1e6", 24, 20, at(12, 9, colour, 1e6f) },
+        { "negative colour", 24, 20, [=](int x, int, int c, float v) { return color(c) && x % 3 == 0 ? -v : v; } },
+        { "1e30", 24, 20, at(10, 10, color, 1e30f) },
+        { "firefly 1e6", 24, 20, at(12, 9, color, 1e6f) },
         { "denormals", 24, 20, [](int, int, int c, float v) { return c / 10 == 1 ? 1e-40f : v * 1e-39f; } },
         { "zero variance", 24, 20, [](int, int, int c, float v) { return c / 10 == 1 ? 0.0f : v; } },
         { "constant features", 24, 20, [=](int, int, int c, float v) { return feature(c) ? 0.5f : v; } },

@@ -62,7 +62,7 @@ TEST(Sure, MeanSureMatchesTheTrueMse)
     }
 }
 
-TEST(Sure, OutputsTheDenoisedColourTheRenderAndTheTerms)
+TEST(Sure, OutputsTheDenoisedColorTheRenderAndTheTerms)
 {
     ImageBuf src = noisy_render(32, 32, gradient, 0.01f, 3);
     SureOptions options;

@@ -1,7 +1,7 @@
 """The mcdenoise weights file (".mcdnw"): one format for every network of the project.
 
 Written here from a PyTorch state_dict, read in C++ by mcdn::nn::read_weights
-(lib/include/mcdn/nn.h, which has the same layout description). Little-endian:
+(lib/src/nn/nn.h, which has the same layout description). Little-endian:
 
     magic      8 bytes  b"MCDNNWTS"
     version    uint32   1

@@ -29,7 +29,7 @@ struct CnnOptions {
     std::string weights;
     /// Denoise the AOV set's extra AOVs (AovSpec::extras, Blender light groups) with the
     /// beauty's kernels: each takes its share of the denoised diffuse and specular, so that
-    /// extras which add up to the beauty still do (lib/src/cnn/extras.h).
+    /// extras which add up to the beauty still do (lib/src/cnn/extras_kernels.h).
     bool denoise_extras = true;
     /// Output tile side of the tiled inference (nn::run_tiled): memory is bounded by
     /// (tile_size + 2 · halo)² × the widest layer, not by the image (512: ~350 MB; each

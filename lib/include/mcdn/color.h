@@ -36,7 +36,7 @@ bool linear_transform(std::array<double, 9>& matrix, const std::string& from,
                       const std::string& to, std::string& error);
 
 /// Converts the colour channels of `aovs` in `buf` (a float buffer) from `from` to `to`.
-bool convert_colour_channels(ImageBuf& buf, const AovSet& aovs, const std::string& from,
+bool convert_color_channels(ImageBuf& buf, const AovSet& aovs, const std::string& from,
                              const std::string& to, std::string& error);
 
 /// Runs `op` in the working space: converts a copy of src in (if it is not already there),

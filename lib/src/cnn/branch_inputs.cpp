@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "cnn/cnn_steps.h"
-#include "cnn/extras.h"
+#include "cnn/extras_kernels.h"
 #include "nn/ops.h"
 #include "nn/parallel.h"
 
@@ -40,26 +40,26 @@ float relu(float v) { return v > 0 ? v : 0.0f; }
 /// variance there (3): variances move by the Taylor rule of §5.1, Var h(X) ~ h'(mu)² Var X.
 void pixel_inputs(const RawPlanes& raw, Branch branch, size_t i, float* f, float* image)
 {
-    float colour_var_sum = 0;
+    float color_var_sum = 0;
     for (int c = 0; c < 3; ++c) {
-        float colour, variance;
+        float color, variance;
         if (branch == Branch::diffuse) {
             const float demod = relu(raw.demod[c].px[i]) + kAlbedoEpsilon;
             const float irradiance = relu(raw.diffuse[c].px[i]) / demod;
             const float irradiance_var = raw.diffuse_var[c].px[i] / (demod * demod);
-            colour = std::log1p(irradiance);
+            color = std::log1p(irradiance);
             variance = irradiance_var / ((1 + irradiance) * (1 + irradiance));
             image[c] = irradiance;
         } else {
             const float specular = relu(raw.specular[c].px[i]);
-            colour = std::log1p(specular);
+            color = std::log1p(specular);
             variance = raw.specular_var[c].px[i] / ((1 + specular) * (1 + specular));
-            image[c] = colour;
+            image[c] = color;
         }
-        f[c] = colour;
-        colour_var_sum += variance;
+        f[c] = color;
+        color_var_sum += variance;
     }
-    f[3] = std::log1p(relu(colour_var_sum / 3));
+    f[3] = std::log1p(relu(color_var_sum / 3));
     float albedo_var = 0, normal_var = 0;
     for (int c = 0; c < 3; ++c) {
         f[4 + c] = std::log1p(relu(raw.albedo[c].px[i]));

@@ -13,7 +13,7 @@
 #include <tbb/task_arena.h>
 
 #include "cnn/cnn_steps.h"
-#include "cnn/extras.h"
+#include "cnn/extras_kernels.h"
 #include "cnn/worker_pool.h"
 #include "core/attributes.h"
 #include "core/op_prepare.h"
@@ -69,7 +69,7 @@ void recombine(kpcn::OutputFrame& frame, Rect rect, const nn::Region& window, co
     }
     const nn::Tensor& log_spec = worker.log_specular[0];
     const nn::Tensor* irradiance = split ? &worker.irradiance[0] : nullptr;
-    const auto& colour = aovs.channels(Role::Color);
+    const auto& color = aovs.channels(Role::Color);
     for (int y = rect.y0; y < rect.y1; ++y)
         for (int x = rect.x0; x < rect.x1; ++x) {
             const float* ls = log_spec.pixel(y - window.y0, x - window.x0);
@@ -82,7 +82,7 @@ void recombine(kpcn::OutputFrame& frame, Rect rect, const nn::Region& window, co
                 const float d = split ? (std::max(demod[c].px[i], 0.0f) + kpcn::kAlbedoEpsilon) * irr[c]
                                       : 0.0f;
                 if (!render_stays)
-                    out[colour[c]] = sanitize(s + d);
+                    out[color[c]] = sanitize(s + d);
                 if (keep_components) {
                     specular.component[c].px[i] = s;
                     if (split)
@@ -110,17 +110,17 @@ Rect output_rect(const nn::Region& core, const ImageBuf& dst, ROI where)
 
 /// The colour of the converged tiles inside `where` is the render's, sanitized (the frame
 /// holds the render there: it is sanitized in place).
-void pass_through_colour(kpcn::OutputFrame& frame, const ImageBuf& dst, const AovSet& aovs, ROI where,
+void pass_through_color(kpcn::OutputFrame& frame, const ImageBuf& dst, const AovSet& aovs, ROI where,
                          const ConvergedTiles& converged)
 {
     if (!converged.any())
         return;
     const ImageSpec& spec = dst.spec();
-    const auto& colour = aovs.channels(Role::Color);
+    const auto& color = aovs.channels(Role::Color);
     for (int y = where.ybegin - spec.y; y < where.yend - spec.y; ++y)
         for (int x = where.xbegin - spec.x; x < where.xend - spec.x; ++x)
             if (converged.pixel(x, y))
-                for (int c : colour)
+                for (int c : color)
                     frame.pixel(x, y)[c] = sanitize(frame.pixel(x, y)[c]);
 }
 
@@ -230,7 +230,7 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
         return false;
     }
     // Converged tiles keep the render (sanitized), the extras' too.
-    pass_through_colour(frame, dst, aovs, where, converged);
+    pass_through_color(frame, dst, aovs, where, converged);
     pass_through_extras(dst, where, extras, converged);
     return true;
 }

@@ -126,11 +126,11 @@ bool add_product(const WindowReader& src, const std::vector<std::string> names[3
     variance_complete = variance_complete && have_variance;
     for (int c = 0; c < 3; ++c)
         for (size_t i = 0; i < value[c].size(); ++i) {
-            const float colour = mean[0][c].px[i];
+            const float color = mean[0][c].px[i];
             const float light = mean[1][c].px[i] + mean[2][c].px[i];
-            value[c].px[i] += colour * light;
+            value[c].px[i] += color * light;
             if (have_variance)
-                variance[c].px[i] += colour * colour * (var[1][c].px[i] + var[2][c].px[i])
+                variance[c].px[i] += color * color * (var[1][c].px[i] + var[2][c].px[i])
                                      + light * light * var[0][c].px[i];
         }
     return true;
@@ -199,9 +199,9 @@ bool read_raw_planes(RawPlanes& raw, const ImageBuf& src, const AovSet& aovs, st
     raw.rect = reader.rect;
     raw.frame_width = src.spec().width;
     raw.frame_height = src.spec().height;
-    const auto& colour = aovs.channels(Role::Color);
+    const auto& color = aovs.channels(Role::Color);
     for (int c = 0; c < 3; ++c) {
-        raw.color[c] = reader.plane(colour[c]);
+        raw.color[c] = reader.plane(color[c]);
         raw.color_var[c] = aovs.has(Role::ColorVariance)
                                ? reader.plane(aovs.channels(Role::ColorVariance)[c], true)
                                : reader.blank();

@@ -8,7 +8,7 @@
 
 #include "core/planar.h"
 #include "mcdn/aov.h"
-#include "mcdn/nn.h"
+#include "nn/nn.h"
 
 namespace mcdn {
 struct ExtraPlanes;  // core/extra_aovs.h
@@ -102,7 +102,7 @@ void branch_inputs(const RawPlanes& raw, Branch branch, const nn::Region& window
 void branch_inputs(const RawPlanes& raw, Branch branch, nn::Tensor& features, nn::Tensor& image);
 
 /// A branch network's two inputs for one tile: the 34 feature channels and the image its
-/// kernels filter (with extras, their parts after the colour's: extras.h).
+/// kernels filter (with extras, their parts after the colour's: extras_kernels.h).
 struct BranchInputs {
     std::vector<nn::Tensor> tensors = std::vector<nn::Tensor>(2);  // as Net::run takes them
     nn::Tensor& features() { return tensors[0]; }
@@ -112,7 +112,7 @@ struct BranchInputs {
 /// The inputs of both branches on a tile's window (diffuse null: the specular branch alone,
 /// as without a split): read_raw_planes, scale_depth and branch_inputs in strips of rows,
 /// each strip read once for both and computed in cache, threaded; the extras' parts
-/// appended to the images (extras.h). The tensors' storage is reused.
+/// appended to the images (extras_kernels.h). The tensors' storage is reused.
 bool tile_inputs(const ImageBuf& src, const AovSet& aovs, const DepthRange& depth,
                  const std::vector<ExtraPlanes>& extras, const nn::Region& window,
                  BranchInputs* diffuse, BranchInputs& specular, std::string& error);

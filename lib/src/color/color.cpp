@@ -43,14 +43,14 @@ OCIO::ConstConfigRcPtr load_config(std::string& error)
 }
 
 // The colour-carrying channel groups of an AOV set, and whether each is a variance.
-struct ColourGroup {
+struct ColorGroup {
     std::vector<int> channels;
     bool variance;
 };
 
-std::vector<ColourGroup> colour_groups(const ImageBuf& buf, const AovSet& aovs)
+std::vector<ColorGroup> color_groups(const ImageBuf& buf, const AovSet& aovs)
 {
-    std::vector<ColourGroup> groups;
+    std::vector<ColorGroup> groups;
     for (Role r : { Role::Color, Role::ColorA, Role::ColorB, Role::Albedo, Role::AlbedoA,
                     Role::AlbedoB, Role::Diffuse, Role::Specular, Role::DiffuseColor,
                     Role::DiffuseDirect, Role::DiffuseIndirect, Role::GlossyColor,
@@ -161,7 +161,7 @@ bool linear_transform(std::array<double, 9>& m, const std::string& from, const s
     return true;
 }
 
-bool convert_colour_channels(ImageBuf& buf, const AovSet& aovs, const std::string& from,
+bool convert_color_channels(ImageBuf& buf, const AovSet& aovs, const std::string& from,
                              const std::string& to, std::string& error)
 {
     if (from == to)
@@ -176,7 +176,7 @@ bool convert_colour_channels(ImageBuf& buf, const AovSet& aovs, const std::strin
         return false;
     }
     const size_t npixels = buf.spec().image_pixels();
-    for (const auto& group : colour_groups(buf, aovs)) {
+    for (const auto& group : color_groups(buf, aovs)) {
         std::array<double, 9> w = m;
         if (group.variance)
             for (double& v : w)
@@ -203,7 +203,7 @@ bool run_in_working_space(ImageBuf& dst, const ImageBuf& src, const AovSpec& spe
     AovSet aovs;
     ImageBuf converted = src.copy(OIIO::TypeDesc::FLOAT);
     if (!resolve_aovs(aovs, spec, converted.spec(), error)
-        || !convert_colour_channels(converted, aovs, from, working, error)) {
+        || !convert_color_channels(converted, aovs, from, working, error)) {
         dst.errorfmt("{}: colorspace {}: {}", op_name, from, error);
         return false;
     }
@@ -212,7 +212,7 @@ bool run_in_working_space(ImageBuf& dst, const ImageBuf& src, const AovSpec& spe
         return false;
     dst.specmod().erase_attribute("mcdn:in_working_space");
     if (!resolve_aovs(aovs, spec, dst.spec(), error)
-        || !convert_colour_channels(dst, aovs, working, from, error)) {
+        || !convert_color_channels(dst, aovs, working, from, error)) {
         dst.errorfmt("{}: colorspace {}: {}", op_name, from, error);
         return false;
     }

@@ -9,13 +9,13 @@ namespace mcdn {
 namespace {
 
 /// The half E_X of an extra without its own halves: E + (C_X − C)·E/C.
-Plane borrowed_half(const Plane& extra, const Plane& colour, const Plane& colour_half)
+Plane borrowed_half(const Plane& extra, const Plane& color, const Plane& color_half)
 {
     Plane half = extra;
     for (size_t i = 0; i < half.size(); ++i) {
-        const float c = colour.px[i];
+        const float c = color.px[i];
         if (std::abs(c) > 1e-12f)
-            half.px[i] = sanitize(extra.px[i] + (colour_half.px[i] - c) * (extra.px[i] / c));
+            half.px[i] = sanitize(extra.px[i] + (color_half.px[i] - c) * (extra.px[i] / c));
     }
     return half;
 }
@@ -51,11 +51,11 @@ bool read_extras(std::vector<ExtraPlanes>& extras, const ImageBuf& src, const Ao
                     planes.half_b[c] = read_plane(src, extra.half_b[c]);
                     continue;
                 }
-                const Plane colour = read_plane(src, aovs.channels(Role::Color)[c]);
+                const Plane color = read_plane(src, aovs.channels(Role::Color)[c]);
                 planes.half_a[c] = borrowed_half(
-                    planes.mean[c], colour, read_plane(src, aovs.channels(Role::ColorA)[c]));
+                    planes.mean[c], color, read_plane(src, aovs.channels(Role::ColorA)[c]));
                 planes.half_b[c] = borrowed_half(
-                    planes.mean[c], colour, read_plane(src, aovs.channels(Role::ColorB)[c]));
+                    planes.mean[c], color, read_plane(src, aovs.channels(Role::ColorB)[c]));
             }
         }
         extras.push_back(std::move(planes));

@@ -7,7 +7,7 @@
 #include "skip/converged_tiles.h"
 #include "core/planar.h"
 #include "mcdn/mix.h"
-#include "mcdn/nn.h"
+#include "nn/nn.h"
 
 namespace mcdn {
 

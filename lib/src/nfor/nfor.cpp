@@ -22,7 +22,7 @@
 #include "core/bands.h"
 #include "core/op_prepare.h"
 #include "mcdn/color.h"
-#include "nfor/extras.h"
+#include "nfor/extras_regression.h"
 #include "nfor/mse_estimate.h"
 #include "nfor/regression.h"
 #include "prefilter/feature_prefilter.h"
@@ -132,7 +132,7 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
         dst.errorfmt("{}: {}", op, error);
         return false;
     }
-    // Extra AOVs go through the beauty's filters stage by stage (nfor/extras.h).
+    // Extra AOVs go through the beauty's filters stage by stage (nfor/extras_regression.h).
     ExtraAovs extras(std::move(extra_planes));
     // mcdn/skip.h: converged tiles pass through every stage below; constant features go.
     const ConvergedTiles converged = converged_tiles_of(src, color.mean, color.variance, options.skip);

@@ -4,7 +4,7 @@
 
 #include <vector>
 
-#include "mcdn/nn.h"
+#include "nn/nn.h"
 #include "skip/converged_tiles.h"
 
 namespace mcdn {

@@ -11,7 +11,7 @@
 
 #include <oneapi/dnnl/dnnl.hpp>
 
-#include "mcdn/nn.h"
+#include "nn/nn.h"
 
 namespace mcdn {
 namespace nn {

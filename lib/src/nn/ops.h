@@ -3,12 +3,12 @@
 // count), `reference::` is plain loops written to be obviously right, used by the tests and
 // by Backend::reference. Each op sizes `out` with reshape() (so run() can hand in storage
 // left by an earlier value: no allocation, no page faults per tile); inputs are NHWC
-// tensors (mcdn/nn.h).
+// tensors (nn/nn.h).
 #pragma once
 
 #include <vector>
 
-#include "mcdn/nn.h"
+#include "nn/nn.h"
 
 namespace mcdn {
 namespace nn {

@@ -11,7 +11,7 @@
 #    include <omp.h>
 #endif
 
-#include "mcdn/nn.h"
+#include "nn/nn.h"
 #include "nn/ops.h"
 #include "nn/parallel.h"
 

@@ -1,4 +1,4 @@
-// The weights file (format in mcdn/nn.h): read, write, describe. Every integer and float is
+// The weights file (format in nn/nn.h): read, write, describe. Every integer and float is
 // little-endian; this file assumes a little-endian host (x86-64, AArch64) and says so below.
 #include <cerrno>
 #include <cstdlib>
@@ -8,7 +8,7 @@
 #include <set>
 #include <sstream>
 
-#include "mcdn/nn.h"
+#include "nn/nn.h"
 #include "mcdn/version.h"
 
 namespace mcdn {

@@ -105,8 +105,8 @@ ConvergedTiles converged_tiles_of(const ImageBuf& src, const AovSet& aovs, const
     if (!skip.enabled || !aovs.has(Role::Color) || !aovs.has(Role::ColorVariance)
         || aovs.channels(Role::Color).size() != 3 || aovs.channels(Role::ColorVariance).size() != 3)
         return {};
-    const std::vector<int>& colour = aovs.channels(Role::Color);
-    const std::vector<int>& colour_variance = aovs.channels(Role::ColorVariance);
+    const std::vector<int>& color = aovs.channels(Role::Color);
+    const std::vector<int>& color_variance = aovs.channels(Role::ColorVariance);
     const ImageSpec& spec = src.spec();
     if (const float* pixels = float_frame_pixels(src)) {
         // A float frame in memory: one pass over its pixels, sanitized as read_plane does.
@@ -118,13 +118,13 @@ ConvergedTiles converged_tiles_of(const ImageBuf& src, const AovSet& aovs, const
         const size_t nchannels = size_t(spec.nchannels);
         return scan_converged(spec.width, spec.height, skip.max_relative_error, [&](int c, int x, int y) {
             const float* px = pixels + (size_t(y) * spec.width + x) * nchannels;
-            return std::pair<float, float>(sanitize(px[colour[c]]), sanitize_variance(px[colour_variance[c]]));
+            return std::pair<float, float>(sanitize(px[color[c]]), sanitize_variance(px[color_variance[c]]));
         });
     }
     Plane mean[3], variance[3];
     for (int c = 0; c < 3; ++c) {
-        mean[c] = read_plane(src, colour[c]);
-        variance[c] = read_plane(src, colour_variance[c], true);
+        mean[c] = read_plane(src, color[c]);
+        variance[c] = read_plane(src, color_variance[c], true);
     }
     return converged_tiles_of(src, mean, variance, skip);
 }

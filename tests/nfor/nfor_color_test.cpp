@@ -41,13 +41,13 @@ TEST(NforColor, AcescgInputMatchesRec709PathConverted)
 
     OIIO::ImageBuf in_aces = box.copy(OIIO::TypeDesc::FLOAT);
     std::string error;
-    ASSERT_TRUE(convert_colour_channels(in_aces, set, "lin_rec709", "acescg", error)) << error;
+    ASSERT_TRUE(convert_color_channels(in_aces, set, "lin_rec709", "acescg", error)) << error;
     OIIO::ImageBuf out_aces = nfor(in_aces, aces);
     ASSERT_FALSE(out_aces.has_error()) << out_aces.geterror();
 
     OIIO::ImageBuf expected = nfor(box, rec709);
     ASSERT_FALSE(expected.has_error()) << expected.geterror();
-    ASSERT_TRUE(convert_colour_channels(expected, set, "lin_rec709", "acescg", error)) << error;
+    ASSERT_TRUE(convert_color_channels(expected, set, "lin_rec709", "acescg", error)) << error;
 
     double largest = 0, sum = 0;
     int n = 0;
@@ -64,7 +64,7 @@ TEST(NforColor, AcescgInputMatchesRec709PathConverted)
                 sum / n);
     EXPECT_LT(sum / n, 0.03);
     OIIO::ImageBuf back = out_aces.copy(OIIO::TypeDesc::FLOAT);
-    ASSERT_TRUE(convert_colour_channels(back, set, "acescg", "lin_rec709", error)) << error;
+    ASSERT_TRUE(convert_color_channels(back, set, "acescg", "lin_rec709", error)) << error;
     const std::string ref = mcdn_test::test_data("box16/box_ref.exr");
     double via_aces = nfor_test::relmse(back, set.channels(Role::Color), ref);
     double direct = nfor_test::relmse(nfor(box, rec709), set.channels(Role::Color), ref);

@@ -1,4 +1,4 @@
-#include "cnn/extras.h"
+#include "cnn/extras_kernels.h"
 
 #include <algorithm>
 
@@ -10,10 +10,10 @@ namespace {
 /// r = diffuse / colour in [0, 1] (0 without a split or where the colour is ~0).
 float diffuse_fraction(const RawPlanes& raw, int c, size_t i)
 {
-    const float colour = raw.color[c].px[i];
-    if (!raw.split || !(std::abs(colour) > 1e-12f))
+    const float color = raw.color[c].px[i];
+    if (!raw.split || !(std::abs(color) > 1e-12f))
         return 0.0f;
-    return std::clamp(raw.diffuse[c].px[i] / colour, 0.0f, 1.0f);
+    return std::clamp(raw.diffuse[c].px[i] / color, 0.0f, 1.0f);
 }
 
 }  // namespace

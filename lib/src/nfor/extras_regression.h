@@ -37,7 +37,7 @@ public:
     /// box fixture). Where the extras' input adds up to the beauty's (to 1e-5), the residual
     /// beauty − Σ extras of the result is shared out in proportion to |extra|, so that they
     /// add up there as well.
-    void share_rounding(const Plane colour[3], const std::vector<Plane>& denoised_colour);
+    void share_rounding(const Plane color[3], const std::vector<Plane>& denoised_color);
     /// Each extra's result is its render on the converged tiles (mcdn/skip.h).
     void pass_through(const ConvergedTiles& converged);
     /// Writes each extra's result into its channels of dst inside roi.

@@ -1,4 +1,4 @@
-#include "nfor/extras.h"
+#include "nfor/extras_regression.h"
 
 namespace mcdn {
 
@@ -60,12 +60,12 @@ void ExtraAovs::second_pass(const RegressionInputs& second, int nthreads)
     }
 }
 
-void ExtraAovs::share_rounding(const Plane colour[3], const std::vector<Plane>& denoised_colour)
+void ExtraAovs::share_rounding(const Plane color[3], const std::vector<Plane>& denoised_color)
 {
     constexpr double kAddsUp = 1e-5;  // relative to the pixel's magnitude
     for (int c = 0; c < 3; ++c)
-        for (size_t i = 0; i < colour[c].size(); ++i) {
-            double input_sum = 0, input_scale = std::abs(colour[c].px[i]);
+        for (size_t i = 0; i < color[c].size(); ++i) {
+            double input_sum = 0, input_scale = std::abs(color[c].px[i]);
             double output_sum = 0, output_scale = 0;
             for (const Extra& e : m_extras) {
                 input_sum += e.planes.mean[c].px[i];
@@ -73,10 +73,10 @@ void ExtraAovs::share_rounding(const Plane colour[3], const std::vector<Plane>& 
                 output_sum += e.denoised[c].px[i];
                 output_scale += std::abs(e.denoised[c].px[i]);
             }
-            if (!(std::abs(input_sum - colour[c].px[i]) <= kAddsUp * input_scale)
+            if (!(std::abs(input_sum - color[c].px[i]) <= kAddsUp * input_scale)
                 || !(output_scale > 0))
                 continue;
-            const double residual = denoised_colour[c].px[i] - output_sum;
+            const double residual = denoised_color[c].px[i] - output_sum;
             for (Extra& e : m_extras) {
                 float& v = e.denoised[c].px[i];
                 v = sanitize(float(v + residual * (std::abs(v) / output_scale)));

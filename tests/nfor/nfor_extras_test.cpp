@@ -46,7 +46,7 @@ TEST(NforExtras, LightGroupsAddUpToTheDenoisedBeauty)
     }
 }
 
-// The rounding share (nfor/extras.h) does not hide a wrong filter: with the fill shifted by a
+// The rounding share (nfor/extras_regression.h) does not hide a wrong filter: with the fill shifted by a
 // constant the input no longer adds up, nothing is shared, and the result is off by that
 // constant (regressions reproduce constants) plus only the regressions' rounding.
 TEST(NforExtras, WithoutTheRoundingShareTheyAddUpToRounding)
