@@ -151,8 +151,8 @@ bool is_sequence(const std::string& name, std::string& normalized, std::string& 
     // read a second '%' (shot%s.#.exr, 100%.#.exr) as a conversion with no argument.
     if (std::count(normalized.begin(), normalized.end(), '%') != 1)
         return false;
-    // A frame number has at most 10 digits; a wider field (%088888888884d, found by the
-    // fuzzer) would abort OIIO's formatting: such a name is taken literally.
+    // A frame number has at most 10 digits; a wider field (%088888888884d) would abort
+    // OIIO's formatting: such a name is taken literally.
     static const std::regex printf_frame("%0?([0-9]*)d");
     std::smatch match;
     if (!std::regex_search(normalized, match, printf_frame))

@@ -31,7 +31,7 @@ double stage_frames(const std::string& stage)
     return 0.0;
 }
 
-// The CNN's per-thread network buffers (cnn.h: ~350 MB at tile=512, as (tile + halo)^2).
+// The CNN's per-thread network buffers (cnn.h): 350 MB at tile=512, scaled as (tile + halo)^2.
 double cnn_thread_bytes(const std::vector<Command>& commands)
 {
     for (const auto& c : commands)

@@ -32,8 +32,8 @@ struct CnnOptions {
     /// extras which add up to the beauty still do (lib/src/cnn/extras_kernels.h).
     bool denoise_extras = true;
     /// Output tile side of the tiled inference (nn::run_tiled): memory is bounded by
-    /// (tile_size + 2 · halo)² × the widest layer, not by the image (512: ~350 MB; each
-    /// tile recomputes its halo, so smaller tiles cost time: 256 took 1.7× the CPU time).
+    /// (tile_size + 2 · halo)² × the widest layer, not by the image; each tile recomputes
+    /// its halo, so smaller tiles cost more time.
     int tile_size = 512;
     /// Converged tiles are the render, untouched; the network runs only on rectangles
     /// holding non-converged tiles (each with its receptive-field halo), so pixels within
@@ -55,9 +55,9 @@ bool cnn(ImageBuf& dst, const ImageBuf& src, const CnnOptions& options = {}, ROI
 ImageBuf cnn(const ImageBuf& src, const CnnOptions& options = {}, ROI roi = {},
              int nthreads = 0);
 
-/// cnn() keeps its workers (a copy of the networks and their buffers per thread, ~350 MB
-/// each at the default tile size) for the next call: fresh ones are page faults the kernel
-/// must clear. This frees them (a pipeline done denoising, or short of memory).
+/// cnn() keeps its workers (a copy of the networks and their buffers per thread, sized by
+/// CnnOptions::tile_size) for the next call: fresh ones are page faults the kernel must
+/// clear. This frees them (a pipeline done denoising, or short of memory).
 void release_cnn_workers();
 
 }  // namespace mcdn

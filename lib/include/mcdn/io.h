@@ -1,6 +1,6 @@
 // Reading renders into one merged buffer, checking them, and writing results safely.
 //
-// Ops never open files (STYLE.md): front ends call these, then hand ImageBufs to the ops.
+// Ops never open files: front ends call these, then hand ImageBufs to the ops.
 #pragma once
 
 #include <string>

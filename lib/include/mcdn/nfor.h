@@ -62,7 +62,8 @@ struct NforOptions {
     /// Frames with more pixels run in horizontal bands of at most this many pixels (about
     /// twice 1920×1080), each with NFOR's receptive radius of extra rows above and below
     /// (75 rows at the default settings): the same output, memory that follows the band
-    /// (7680×4320: ~14 GB instead of ~20), ~25% more time at 8K. 0: always the whole frame.
+    /// rather than the frame, more time (the halos are computed twice). 0: always the
+    /// whole frame.
     int64_t band_pixels = int64_t(1) << 22;
     /// Converged tiles are the render, untouched, and cost nothing in any pass (their
     /// first-pass values for the neighbours' windows are the half buffers); features

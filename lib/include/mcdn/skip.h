@@ -23,7 +23,8 @@
 //
 // Pixels near converged tiles lose the converged neighbours' contribution to their
 // filters (nfor's windows reach ~50 px through its passes, the CNN's its receptive field);
-// tests/skip bounds the change. With `enabled` = false the ops are exactly as before.
+// tests/skip bounds the change. With `enabled` = false the ops are exactly the unskipped
+// filters.
 #pragma once
 
 namespace mcdn {
@@ -36,9 +37,8 @@ struct SkipOptions {
     /// All skipping of the stage (converged tiles, constant AOVs, zero-α' tiles).
     bool enabled = true;
     /// Largest relative standard error of a converged tile's worst pixel and channel. 0.08:
-    /// on the box scene (../shared/data) every 32² tile of a 256-spp render is above 0.2,
-    /// of the 4096-spp reference 31 of the 32 left-half tiles are below (its worst 0.107),
-    /// and a 16K-spp render (half the reference's noise) is below 0.055 everywhere.
+    /// well below the worst pixel of a render still worth denoising, above that of nearly
+    /// every tile of a converged reference, so only tiles of reference quality pass through.
     float max_relative_error = 0.08f;
 };
 

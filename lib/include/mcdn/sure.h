@@ -56,8 +56,8 @@ struct SureOptions {
     int denoiser_radius = -1;
     /// Pixels of one band, halos not counted: half of prefilter's and nfor's band_pixels, so
     /// that a band with its halos (up to 136 rows each side at 7680 wide) stays within theirs
-    /// and they run it whole instead of cutting it again. At 7680x4320 (40 channels) with
-    /// --prefilter: the render, sure's output and one band peak at 13.5 GB (README).
+    /// and they run it whole instead of cutting it again: at any frame size the peak is the
+    /// render, sure's output and one band.
     int64_t band_pixels = int64_t(1) << 21;
 };
 

@@ -17,7 +17,8 @@ namespace {
 /// Channels of src inside a rectangle of the frame, as read_plane reads them (sanitized).
 /// A float frame in memory (the op's own copy) is read in place; any other image (in a file
 /// cache, or half floats) is converted once, every channel of the window in one get_pixels:
-/// get_pixels of a single channel copies a float at a time (~4x the whole KPCN input step).
+/// get_pixels of a single channel copies a float at a time (slower than the whole KPCN
+/// input step).
 class WindowReader {
 public:
     const Rect rect;

@@ -1,9 +1,9 @@
 // KPCN workers kept between calls of the op. A worker is one copy of the two branch
-// networks with the storage of their inputs, layers and outputs: ~350 MB for a 576² window.
-// Fresh, that memory is page faults the kernel must clear (~2 s/GB in our VMs), which was
-// most of the difference between the measured and the ideal cost of a partly converged
-// frame (bench_skip) and a fixed cost of every call on small ones. A pipeline that denoises
-// frame after frame in one process (the Python module, the format plugin) reuses them.
+// networks with the storage of their inputs, layers and outputs, sized by the tile's window.
+// Fresh, that memory is page faults the kernel must clear: a cost that does not shrink with
+// the work a partly converged frame leaves, and a fixed cost of every call on small frames.
+// A pipeline that denoises frame after frame in one process (the Python module, the format
+// plugin) reuses them.
 #pragma once
 #include <memory>
 #include <string>

@@ -27,7 +27,7 @@ std::vector<int> add_channels(OIIO::ImageBuf& buf, const std::vector<std::string
         }
     if (all.size() != spec.channelnames.size() && float_frame_pixels(buf)) {
         // Fast path for a float buffer in memory: one memcpy per pixel (IBA::channels goes
-        // value by value, ~0.15 s for 156 channels at 256×256).
+        // value by value, slow on many-channel frames).
         OIIO::ImageSpec grown_spec = spec;
         grown_spec.nchannels = int(all.size());
         grown_spec.channelnames = all;

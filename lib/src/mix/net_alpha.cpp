@@ -70,7 +70,7 @@ nn::Tensor net_features(const MixInputs& in)
 {
     const int w = in.x[0].width, h = in.x[0].height;
     nn::Tensor f(h, w, kInputs);
-    // Threaded over rows (18 log/atan per pixel: a second at 1920x1080 on one core).
+    // Threaded over rows (18 log/atan per pixel).
     tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& rows) {
         for (int c = 0; c < 3; ++c)
             for (size_t i = size_t(rows.begin()) * w; i < size_t(rows.end()) * w; ++i) {

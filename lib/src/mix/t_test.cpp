@@ -92,7 +92,8 @@ float t_test_sigma(const OIIO::ImageBuf& src, const int x_channels[3], float sca
 {
     // "Var[x-bar], x-bar the image mean": the spatial variance of the render's values over
     // all pixels and channels (capped at 1 before the square root, as in the paper). Summed
-    // channel by channel in row order, as the whole planes were: the same for any band size.
+    // channel by channel in row order, as over the whole frame's planes: the same for any
+    // band size.
     const ROI whole = src.roi();
     const int rows_per_read = std::max(1, int((int64_t(1) << 20) / std::max(1, whole.width())));
     double sum = 0, sum2 = 0;

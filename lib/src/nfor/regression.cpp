@@ -93,7 +93,7 @@ std::vector<std::vector<Plane>> collaborative_regression(const RegressionInputs&
             for (int j = 0; j < NK; ++j)
                 for (int y = r.area.y0; y < r.area.y1; ++y) {
                     // Index from the tile row's start: a pointer moved back by origin_x
-                    // first would wrap around (UB, found by UBSan).
+                    // first would wrap around (UB).
                     const size_t row = size_t(y - r.origin_y) * r.stride;
                     for (int c = 0; c < 4; ++c) {
                         const float* src = r.sum.data() + plane * (4 * j + c) + row;

@@ -120,7 +120,7 @@ MCDN_INLINE void accumulate_normal_equations(const GroupInputs& g, vfloat16* G)
 }
 
 /// The same sums for a design size known only at run time: the accumulators stay in memory
-/// (L1), about 3× slower than the register-blocked passes; for the uncommon sizes.
+/// (L1), slower than the register-blocked passes; for the uncommon sizes.
 MCDN_INLINE void accumulate_normal_equations_any(const GroupInputs& g, int D, int NA, vfloat16* G)
 {
     const int E = D + 3;

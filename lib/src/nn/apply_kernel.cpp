@@ -58,7 +58,7 @@ struct RowScratch {
 
 /// Where the logits come from: channels [first, first + k²) of a tensor, or (the fused
 /// head) a 1×1 convolution of `features` computed here, row by row, so the k²-channel
-/// logits of the whole tile never exist in memory (they were KPCN's widest value: 125
+/// logits of the whole tile never exist in memory (they would be KPCN's widest value: 125
 /// channels of every window pixel, written once and read once).
 struct Job {
     const Tensor* logits;  // or nullptr: the head below

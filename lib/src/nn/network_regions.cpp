@@ -16,10 +16,8 @@ std::vector<nn::Region> network_regions(const ConvergedTiles& m, const nn::Net& 
     if (!m.any() || alignment <= 0 || kConvergedTileSize % alignment != 0)
         return regions;
     // Each run computes its rectangle grown by the halo: worth it when the windows add up
-    // to less than the whole image's tiles with theirs. Measured (bench_skip, cnn, 256²,
-    // left half converged but one tile: windows 77% of the frame's): 0.10 CPU-s against
-    // 0.15 for the whole frame, now that the KPCN op has no whole-frame steps; at 70% that
-    // frame ran whole.
+    // to less than the whole image's tiles with theirs. The KPCN op has no whole-frame
+    // steps, so its cost follows the windows' area and kWorthSkipping sits near 1.
     const int halo = (net.receptive_radius() + alignment - 1) / alignment * alignment;
     auto window_area = [&](int x0, int y0, int x1, int y1) {
         return double(std::min(x1 + halo, m.width) - std::max(x0 - halo, 0))

@@ -1,8 +1,8 @@
 // The threads of the engine's own ops. Debian's oneDNN runs its convolutions on OpenMP, and
 // its workers spin for a while after each convolution: ops on a second pool (TBB) between
-// two convolutions then share the cores with those spinning threads (measured: ~15% of a
-// KPCN frame's CPU time in libgomp's spin loop). So the ops run on OpenMP too when the
-// library is built with it (the same workers, already awake), and on TBB otherwise.
+// two convolutions then share the cores with those spinning threads (their CPU time goes to
+// libgomp's spin loop). So the ops run on OpenMP too when the library is built with it (the
+// same workers, already awake), and on TBB otherwise.
 // Each row is computed by one thread: results never depend on the thread count.
 #pragma once
 

@@ -194,8 +194,8 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
                              * standard_normal(options.seed, uint64_t(k), (first_index + i) * 3 + c);
             pass_through_converged(b[c], no_probe, passed);
         }
-        // Probed in place and restored after (a copy of every channel per probe cost as
-        // much as the denoiser's own work on half-converged frames).
+        // Probed in place and restored after (a copy of every channel per probe would cost
+        // as much as the denoiser's own work on half-converged frames).
         noisy.specmod().attribute(kProbeAttribute, 1);
         for (size_t g = 0; g < frame.moved.size(); g += 3)
             add_probe(noisy, { frame.moved[g], frame.moved[g + 1], frame.moved[g + 2] }, b, eps);
