@@ -9,23 +9,7 @@ using mcdn_test::quote;
 
 namespace {
 
-struct Run {
-    int exit_code;
-    std::string output;
-};
-
-Run oiiotool(const std::string& args)
-{
-    std::string cmd = "OIIO_LIBRARY_PATH=" + quote(MCDN_PLUGIN_DIR) + " oiiotool " + args + " 2>&1";
-    Run run { -1, "" };
-    FILE* pipe = popen(cmd.c_str(), "r");
-    char line[4096];
-    while (pipe && fgets(line, sizeof line, pipe))
-        run.output += line;
-    int status = pipe ? pclose(pipe) : -1;
-    run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    return run;
-}
+mcdn_test::Run oiiotool(const std::string& args) { return mcdn_test::run_oiiotool(args); }
 
 std::string box_query(const std::string& chain)
 {

@@ -34,16 +34,12 @@ TEST(Memory, AChainThatCannotFitIsRefusedBeforeItStarts)
     std::string dir = temp_dir("memory_uhd");
     std::string f = quote(uhd_frame(dir));
     // The case: render, variance and both halves, 156 channels, 2 threads, 22 GB.
-    std::string cmd = "MCDN_MEMORY_LIMIT=22G '" + std::string(MCDNTOOL) + "' --threads 2 -i " + f +
-                      " -i:as=variance " + f + " -i:as=halfA " + f + " -i:as=halfB " + f +
-                      " --cnn --sure --mix:model=net -o " + quote(dir + "/out.exr") + " 2>&1";
-    FILE* pipe = popen(cmd.c_str(), "r");
-    std::string output;
-    char line[4096];
-    while (pipe && fgets(line, sizeof line, pipe))
-        output += line;
-    int status = pclose(pipe);
-    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1) << output;
+    mcdn_test::Run run = run_mcdntool("--threads 2 -i " + f + " -i:as=variance " + f +
+                                      " -i:as=halfA " + f + " -i:as=halfB " + f +
+                                      " --cnn --sure --mix:model=net -o " +
+                                      quote(dir + "/out.exr"), "MCDN_MEMORY_LIMIT=22G");
+    const std::string& output = run.output;
+    EXPECT_EQ(run.exit_code, 1) << output;
     EXPECT_NE(output.find("a 8 Mpixel frame with 156 channels needs about"), std::string::npos)
         << output;
     EXPECT_NE(output.find("22.0 GB are available"), std::string::npos) << output;
@@ -53,15 +49,12 @@ TEST(Memory, AChainThatCannotFitIsRefusedBeforeItStarts)
 TEST(Memory, TheLimitCanBeAFarmSlots)
 {
     std::string box = quote(test_data("box16/box_0016spp.exr"));
-    std::string tool = "'" + std::string(MCDNTOOL) + "'";
-    FILE* pipe = popen(("MCDN_MEMORY_LIMIT=1M " + tool + " -i " + box + " --cnn -o /dev/null 2>&1").c_str(), "r");
-    std::string output;
-    char line[4096];
-    while (pipe && fgets(line, sizeof line, pipe))
-        output += line;
-    int status = pclose(pipe);
-    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1) << output;
-    EXPECT_NE(output.find("0.0 GB are available"), std::string::npos) << output;
-    EXPECT_EQ(std::system(("MCDN_MEMORY_LIMIT=100G " + tool + " -i " + box +
-                           " --cnn -o " + quote(temp_dir("memory_ok") + "/out.exr") + " 2>/dev/null").c_str()), 0);
+    mcdn_test::Run run = run_mcdntool("-i " + box + " --cnn -o " +
+                                      quote(temp_dir("memory_low") + "/out.exr"),
+                                      "MCDN_MEMORY_LIMIT=1M");
+    EXPECT_EQ(run.exit_code, 1) << run.output;
+    EXPECT_NE(run.output.find("0.0 GB are available"), std::string::npos) << run.output;
+    run = run_mcdntool("-i " + box + " --cnn -o " + quote(temp_dir("memory_ok") + "/out.exr"),
+                       "MCDN_MEMORY_LIMIT=100G");
+    EXPECT_EQ(run.exit_code, 0) << run.output;
 }

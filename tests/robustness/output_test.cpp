@@ -129,16 +129,9 @@ TEST(Output, AFileTheUserCannotWriteIsNotReplaced)
     std::string as_user = ::geteuid() == 0 ? kWithoutRootsPowers : "";
     if (::geteuid() == 0 && std::system("command -v setpriv >/dev/null") != 0)
         GTEST_SKIP() << "running as root without setpriv";
-    std::string cmd = as_user + "'" + MCDNTOOL + "' -i " + quote(render) + " -o " + quote(out)
-                      + " 2>&1";
-    FILE* pipe = popen(cmd.c_str(), "r");
-    ASSERT_TRUE(pipe);
-    std::string output;
-    char line[4096];
-    while (fgets(line, sizeof line, pipe))
-        output += line;
-    int status = pclose(pipe);
-    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1) << output;
+    mcdn_test::Run run = run_mcdntool("-i " + quote(render) + " -o " + quote(out), "", as_user);
+    const std::string& output = run.output;
+    EXPECT_EQ(run.exit_code, 1) << output;
     EXPECT_NE(output.find("cannot be written"), std::string::npos) << output;
     EXPECT_EQ(contents(out), "keep me");
 }

@@ -136,14 +136,8 @@ TEST(Silent, AnUnreadableInputSaysSo)
     ASSERT_TRUE(OIIO::Filesystem::copy(kBox, in, error));
     ::chmod(in.c_str(), 0000);
     std::string as_user = ::geteuid() == 0 ? kWithoutRootsPowers : "";
-    std::string cmd = as_user + "'" + MCDNTOOL + "' -i " + quote(in) + " -o " +
-                      quote(dir + "/out.exr") + " 2>&1";
-    FILE* pipe = popen(cmd.c_str(), "r");
-    std::string output;
-    char line[4096];
-    while (pipe && fgets(line, sizeof line, pipe))
-        output += line;
-    pclose(pipe);
+    const std::string output =
+        run_mcdntool("-i " + quote(in) + " -o " + quote(dir + "/out.exr"), "", as_user).output;
     EXPECT_NE(output.find(in + ": cannot read: Permission denied"), std::string::npos) << output;
     EXPECT_EQ(output.find("not an OpenEXR"), std::string::npos) << output;
 }
@@ -168,24 +162,13 @@ TEST(Silent, TheMissingFeaturesAreNamedWithV)
 
 namespace {
 
-mcdn_test::Run oiiotool(const std::string& args)
-{
-    std::string cmd = "OIIO_LIBRARY_PATH=" + quote(MCDN_PLUGIN_DIR) + " oiiotool " + args + " 2>&1";
-    mcdn_test::Run run { -1, "" };
-    FILE* pipe = popen(cmd.c_str(), "r");
-    char line[4096];
-    while (pipe && fgets(line, sizeof line, pipe))
-        run.output += line;
-    int status = pipe ? pclose(pipe) : -1;
-    run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    return run;
-}
+mcdn_test::Run oiiotool(const std::string& args) { return run_oiiotool(args); }
 
 }  // namespace
 
 TEST(Silent, RecipesSayWhatIsWrong)
 {
-    if (std::system("command -v oiiotool >/dev/null") != 0)
+    if (!has_oiiotool())
         GTEST_SKIP() << "oiiotool not installed";
     std::string dir = temp_dir("silent_recipe");
     // A failing recipe: --info shows the error, not a valid 1x1 image.

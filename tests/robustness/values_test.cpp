@@ -11,22 +11,7 @@ using namespace mcdn_test;
 
 namespace {
 
-// oiiotool with the plugin, under a time limit (exit 124 if it hangs).
-mcdn_test::Run oiiotool(const std::string& args)
-{
-    std::string cmd = "OIIO_LIBRARY_PATH=" + quote(MCDN_PLUGIN_DIR) + " timeout 120 oiiotool "
-                      + args + " 2>&1";
-    mcdn_test::Run run { -1, "" };
-    FILE* pipe = popen(cmd.c_str(), "r");
-    char line[4096];
-    while (pipe && fgets(line, sizeof line, pipe))
-        run.output += line;
-    int status = pipe ? pclose(pipe) : -1;
-    run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    return run;
-}
-
-bool has_oiiotool() { return std::system("command -v oiiotool >/dev/null") == 0; }
+mcdn_test::Run oiiotool(const std::string& args) { return run_oiiotool(args); }
 
 void write_file(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
 

@@ -58,12 +58,12 @@ struct Run {
     std::string output;  // stdout and stderr together
 };
 
-/// Runs the built mcdntool with `args` (a shell-quoted string).
-inline Run run_mcdntool(const std::string& args)
+/// Runs a shell command line, stderr with stdout; exit_code -1 when it did not exit (a
+/// signal).
+inline Run run_command(const std::string& command_line)
 {
-    std::string cmd = std::string("'") + MCDNTOOL + "' " + args + " 2>&1";
     Run run { -1, "" };
-    FILE* pipe = popen(cmd.c_str(), "r");
+    FILE* pipe = popen((command_line + " 2>&1").c_str(), "r");
     if (!pipe)
         return run;
     char line[4096];
@@ -73,6 +73,24 @@ inline Run run_mcdntool(const std::string& args)
     run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
     return run;
 }
+
+/// Runs the built mcdntool with `args` (a shell-quoted string); `env` (VAR=value ...) and
+/// `prefix` (a command such as kWithoutRootsPowers) go before it.
+inline Run run_mcdntool(const std::string& args, const std::string& env = "",
+                        const std::string& prefix = "")
+{
+    return run_command(env + (env.empty() ? "" : " ") + prefix + "'" + MCDNTOOL + "' " + args);
+}
+
+/// Runs Debian's oiiotool with the built plugin, under a time limit (exit 124 if it hangs).
+inline Run run_oiiotool(const std::string& args)
+{
+    return run_command("OIIO_LIBRARY_PATH='" + std::string(MCDN_PLUGIN_DIR) +
+                       "' timeout 300 oiiotool " + args);
+}
+
+/// True when oiiotool is on PATH (tests that need it skip otherwise).
+inline bool has_oiiotool() { return std::system("command -v oiiotool >/dev/null") == 0; }
 
 /// A command prefix that runs it as root without the capabilities that override file
 /// permissions (CAP_DAC_OVERRIDE, ...): permissions then apply as to any user, and a build
