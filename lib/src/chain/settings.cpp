@@ -57,6 +57,8 @@ public:
         if (const std::string* v = find(key)) {
             if (!parse_finite(*v, d))
                 fail(format("{}={} is not a number", key, *v));
+            else if (d != 0 && float(d) == 0)  // 1e-63 would reach the op as 0
+                fail(format("{}={} is too small for a float", key, *v));
             else
                 value = float(d);
         }
@@ -221,10 +223,14 @@ bool apply_settings(SureOptions& o, const Settings& s, std::string& error)
         .positive_int("probes", o.probes)
         .custom("eps", "must be a number above 0 and at most 0.1 (relative to the mean |x|)",
                 [&](const std::string& v) {
+                    // Checked as the float the op gets: 1e-63 is 0 there.
                     double d;
-                    if (!parse_finite(v, d) || !(d > 0) || d > kMaxEpsilonRelative)
+                    if (!parse_finite(v, d))
                         return false;
-                    o.epsilon_relative = float(d);
+                    const float eps = float(d);
+                    if (!(eps > 0) || eps > kMaxEpsilonRelative)
+                        return false;
+                    o.epsilon_relative = eps;
                     return true;
                 })
         .custom("seed", "is not a whole number below 10^19",
