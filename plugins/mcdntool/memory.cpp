@@ -54,7 +54,7 @@ double estimated_peak_bytes(const std::vector<Command>& commands, double pixels,
     return frames * pixels * channels * sizeof(float) + threads * cnn_thread_bytes(commands);
 }
 
-double available_bytes()
+bool available_bytes(double& bytes, std::string& error)
 {
     // A farm slot's own limit, for jobs that may use less than the machine has.
     if (const char* limit = std::getenv("MCDN_MEMORY_LIMIT"); limit && *limit) {
@@ -65,7 +65,13 @@ double available_bytes()
         case 'M': case 'm': scale = 1e6; text.pop_back(); break;
         default: break;
         }
-        return OIIO::Strutil::string_is_float(text) ? OIIO::Strutil::stod(text) * scale : 0.0;
+        if (!OIIO::Strutil::string_is_float(text) || OIIO::Strutil::stod(text) < 0) {
+            error = format("MCDN_MEMORY_LIMIT={}: needs a number of bytes, or one with a G or "
+                           "M suffix (16G)", limit);
+            return false;
+        }
+        bytes = OIIO::Strutil::stod(text) * scale;
+        return true;
     }
     std::ifstream meminfo("/proc/meminfo");
     std::string line;
@@ -78,7 +84,7 @@ double available_bytes()
         if (key == "MemAvailable:" || key == "SwapFree:")
             kb += value;
     }
-    double bytes = kb * 1024.0;
+    bytes = kb * 1024.0;
     // A container's (cgroup v2) limit, where one is set.
     std::ifstream max_file("/sys/fs/cgroup/memory.max"), current_file("/sys/fs/cgroup/memory.current");
     std::string max_text;
@@ -86,7 +92,7 @@ double available_bytes()
     if (max_file >> max_text && max_text != "max" && current_file >> current
         && OIIO::Strutil::string_is_float(max_text))
         bytes = std::min(bytes, std::max(0.0, OIIO::Strutil::stod(max_text) - current));
-    return bytes;
+    return true;
 }
 
 bool check_memory(const std::vector<Command>& commands, int threads, int parallel_frames,
@@ -107,8 +113,10 @@ bool check_memory(const std::vector<Command>& commands, int threads, int paralle
             channels += spec.nchannels;
         }
     }
-    const double available = available_bytes();
-    if (pixels == 0 || available == 0)
+    double available = 0;
+    if (!available_bytes(available, error))
+        return false;
+    if (pixels == 0 || available == 0)  // no /proc/meminfo: nothing to compare with
         return true;
     if (threads <= 0)
         threads = int(std::max(1u, std::thread::hardware_concurrency()));

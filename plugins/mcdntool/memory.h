@@ -18,8 +18,9 @@ double estimated_peak_bytes(const std::vector<Command>& commands, double pixels,
 
 /// Memory this process may still use: $MCDN_MEMORY_LIMIT when set (bytes, or with a G or M
 /// suffix: a farm slot's limit), else MemAvailable + SwapFree of /proc/meminfo, at most what
-/// the container's cgroup still allows; 0 when unknown.
-double available_bytes();
+/// the container's cgroup still allows; 0 when unknown. False with `error` for a
+/// $MCDN_MEMORY_LIMIT that is not such a number.
+bool available_bytes(double& bytes, std::string& error);
 
 /// False with `error` when the estimate for the frame the -i inputs describe is above
 /// what is available: the error names both sizes and what would need less.

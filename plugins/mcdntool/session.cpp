@@ -394,25 +394,42 @@ bool run_output(Session& s, const Command& c, std::string& error)
     return true;
 }
 
+namespace {
+
+// --fixnan's strategies, oiiotool's names for OIIO's modes.
+bool fixnan_mode(const Command& c, OIIO::ImageBufAlgo::NonFiniteFixMode& mode,
+                 std::string& error)
+{
+    using OIIO::ImageBufAlgo::NonFiniteFixMode;
+    static const std::pair<const char*, NonFiniteFixMode> modes[] = {
+        { "none", NonFiniteFixMode::NONFINITE_NONE },
+        { "black", NonFiniteFixMode::NONFINITE_BLACK },
+        { "box3", NonFiniteFixMode::NONFINITE_BOX3 },
+        { "error", NonFiniteFixMode::NONFINITE_ERROR },
+    };
+    for (const auto& [name, value] : modes)
+        if (c.args[0] == name) {
+            mode = value;
+            return true;
+        }
+    error = format("--fixnan {}: needs none, black, box3 or error", c.args[0]);
+    return false;
+}
+
+}  // namespace
+
 bool check_fixnan(const Command& c, std::string& error)
 {
-    const std::string& mode = c.args[0];
-    if (mode == "none" || mode == "black" || mode == "box3" || mode == "error")
-        return true;
-    error = format("--fixnan {}: needs none, black, box3 or error", mode);
-    return false;
+    OIIO::ImageBufAlgo::NonFiniteFixMode mode;
+    return fixnan_mode(c, mode, error);
 }
 
 bool run_fixnan(Session& s, const Command& c, std::string& error)
 {
-    if (!s.load(error))
+    OIIO::ImageBufAlgo::NonFiniteFixMode fix;
+    if (!fixnan_mode(c, fix, error) || !s.load(error))
         return false;
-    using OIIO::ImageBufAlgo::NonFiniteFixMode;
     const std::string& mode = c.args[0];
-    NonFiniteFixMode fix = mode == "black" ? NonFiniteFixMode::NONFINITE_BLACK
-                           : mode == "box3" ? NonFiniteFixMode::NONFINITE_BOX3
-                           : mode == "error" ? NonFiniteFixMode::NONFINITE_ERROR
-                                             : NonFiniteFixMode::NONFINITE_NONE;
     int fixed = 0;
     ImageBuf& image = s.image();
     if (!OIIO::ImageBufAlgo::fixNonFinite(image, image, fix, &fixed, {}, s.nthreads)) {

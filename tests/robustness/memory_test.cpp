@@ -57,4 +57,10 @@ TEST(Memory, TheLimitCanBeAFarmSlots)
     run = run_mcdntool("-i " + box + " --cnn -o " + quote(temp_dir("memory_ok") + "/out.exr"),
                        "MCDN_MEMORY_LIMIT=100G");
     EXPECT_EQ(run.exit_code, 0) << run.output;
+    // A limit that is not a size is an error, not "no limit".
+    run = run_mcdntool("-i " + box + " --cnn -o " + quote(temp_dir("memory_bad") + "/out.exr"),
+                       "MCDN_MEMORY_LIMIT=lots");
+    EXPECT_EQ(run.exit_code, 1) << run.output;
+    EXPECT_NE(run.output.find("MCDN_MEMORY_LIMIT=lots: needs a number"), std::string::npos)
+        << run.output;
 }

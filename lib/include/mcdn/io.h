@@ -36,6 +36,10 @@ bool read_tungsten_directory(ImageBuf& dst, const std::string& dir);
 /// "mcdn:output_channels" (the channels -o writes by default: those of the mean inputs).
 bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs);
 
+/// The files a merged buffer was read from, in order: its "mcdn:inputs" attribute, one
+/// "kind=path" line per file (read_inputs sets it; ops keep it on their results).
+std::vector<InputFile> merged_input_files(const ImageSpec& merged);
+
 /// Checks the values an op will read: NaN, Inf, |v| > kHugeValue in colour, halves and
 /// features, negative variance. Feature variances may hold NaN (renderers leave pixels
 /// without a feature sample; Tungsten does): those are allowed and treated as unknown.

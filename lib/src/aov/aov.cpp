@@ -1,6 +1,7 @@
 // AOV channel sets: role names, the presets' channel names, resolution against a merged
 // buffer and the error messages that tell a user what is missing.
 #include "mcdn/aov.h"
+#include "mcdn/io.h"
 
 #include <algorithm>
 
@@ -373,18 +374,14 @@ bool AovSet::require(const std::vector<Role>& required, const ImageSpec& merged,
 
 std::string channel_source(const ImageSpec& merged, string_view channel)
 {
-    // "mcdn:inputs" holds one "kind=path" line per input file.
-    std::string inputs = merged.get_string_attribute("mcdn:inputs");
     InputKind kind = InputKind::Mean;
     for (InputKind k : { InputKind::Variance, InputKind::HalfA, InputKind::HalfB })
         if (OIIO::Strutil::starts_with(channel, input_kind_prefix(k)))
             kind = k;
     std::vector<std::string> files;
-    for (const auto& line : splits(inputs, "\n")) {
-        size_t eq = line.find('=');
-        if (eq != std::string::npos && line.substr(0, eq) == input_kind_name(kind))
-            files.push_back(line.substr(eq + 1));
-    }
+    for (const InputFile& file : merged_input_files(merged))
+        if (file.kind == kind)
+            files.push_back(file.path);
     if (files.empty())
         return OIIO::Strutil::fmt::format("the inputs (none given with -i:as={})",
                                           input_kind_name(kind));

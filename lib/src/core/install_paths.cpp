@@ -43,7 +43,7 @@ std::string env_or(const char* name, const fs::path& fallback)
 
 InstallPaths install_paths()
 {
-    const fs::path lib = library_file();
+    static const fs::path lib = library_file();  // the library does not move while loaded
     const fs::path lib_dir = lib.parent_path();
     std::error_code ec;
     fs::path data = fs::weakly_canonical(lib_dir / MCDN_LIB_TO_DATA, ec);

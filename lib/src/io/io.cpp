@@ -333,6 +333,19 @@ bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs)
     return true;
 }
 
+std::vector<InputFile> merged_input_files(const ImageSpec& merged)
+{
+    std::vector<InputFile> files;
+    for (const auto& line : Strutil::splits(merged.get_string_attribute("mcdn:inputs"), "\n")) {
+        size_t eq = line.find('=');
+        auto kind = eq == std::string::npos ? std::nullopt
+                                            : input_kind_from_name(line.substr(0, eq));
+        if (kind)
+            files.push_back({ line.substr(eq + 1), *kind });
+    }
+    return files;
+}
+
 bool validate_inputs(const ImageBuf& merged, const AovSet& aovs, std::string& error)
 {
     const ImageSpec& spec = merged.spec();
@@ -345,18 +358,19 @@ bool validate_inputs(const ImageBuf& merged, const AovSet& aovs, std::string& er
     // A file given as the variance or a half must supply that face of the colour: one that
     // does not (a PNG renamed var.exr, a layer without Combined.B) would be ignored and the
     // stages would run without it.
-    for (auto [kind, role] : { std::pair { InputKind::Variance, Role::ColorVariance },
-                               std::pair { InputKind::HalfA, Role::ColorA },
-                               std::pair { InputKind::HalfB, Role::ColorB } }) {
+    for (const InputFile& file : merged_input_files(spec)) {
+        if (file.kind == InputKind::Mean)
+            continue;
+        const Role role = file.kind == InputKind::Variance ? Role::ColorVariance
+                          : file.kind == InputKind::HalfA  ? Role::ColorA
+                                                           : Role::ColorB;
         std::string why;
-        for (const auto& line : Strutil::splits(spec.get_string_attribute("mcdn:inputs"), "\n"))
-            if (Strutil::starts_with(line, std::string(input_kind_name(kind)) + "=")
-                && !aovs.require({ role }, spec, why)) {
-                error = format("{}: given with -i:as={} but has no {} of the colour: {}",
-                               line.substr(line.find('=') + 1), input_kind_name(kind),
-                               kind == InputKind::Variance ? "variance" : "half buffer", why);
-                return false;
-            }
+        if (!aovs.require({ role }, spec, why)) {
+            error = format("{}: given with -i:as={} but has no {} of the colour: {}", file.path,
+                           input_kind_name(file.kind),
+                           file.kind == InputKind::Variance ? "variance" : "half buffer", why);
+            return false;
+        }
     }
     auto is_variance = [](Role r) {
         return r == Role::ColorVariance || r == Role::AlbedoVariance
@@ -418,7 +432,7 @@ namespace fs = std::filesystem;
 // The temporary files of the writes in progress, for remove_temporary_outputs() in a signal
 // handler: fixed slots (no allocation there), each free, being filled, or armed.
 struct TemporarySlot {
-    std::atomic<int> state { 0 };  // 0 free, 1 being filled or emptied, 2 armed
+    std::atomic<int> state { 0 };  // 0 free, 1 being filled, 2 armed
     char path[4096];
 };
 TemporarySlot g_temporaries[64];
@@ -443,10 +457,8 @@ public:
     }
     ~TemporaryRegistration()
     {
-        if (m_slot) {
-            m_slot->state.store(1);
+        if (m_slot)
             m_slot->state.store(0);
-        }
     }
     TemporaryRegistration(const TemporaryRegistration&) = delete;
     TemporaryRegistration& operator=(const TemporaryRegistration&) = delete;
@@ -478,18 +490,6 @@ void remove_stale_temporaries(const std::string& path)
         if (pid > 0 && pid != long(::getpid()) && ::kill(pid_t(pid), 0) != 0 && errno == ESRCH)
             fs::remove(entry.path(), ec);
     }
-}
-
-// The files a merged buffer was read from ("kind=path" lines of "mcdn:inputs").
-std::vector<std::string> input_files(const ImageSpec& spec)
-{
-    std::vector<std::string> files;
-    for (const auto& line : Strutil::splits(spec.get_string_attribute("mcdn:inputs"), "\n")) {
-        size_t eq = line.find('=');
-        if (eq != std::string::npos)
-            files.push_back(line.substr(eq + 1));
-    }
-    return files;
 }
 
 // The same file: the same device and inode when both exist (hard links, symlinks, ./a and
@@ -546,6 +546,8 @@ bool check_output_path(const std::string& path, const std::vector<std::string>& 
 
 bool check_compression(const std::string& compression, std::string& error)
 {
+    if (compression.empty())  // formats without compression (the heatmap's PNG)
+        return true;
     static const std::vector<std::string> names = { "none", "rle", "zips", "zip", "piz",
                                                     "pxr24", "b44", "b44a", "dwaa", "dwab" };
     std::string name = compression, level;
@@ -557,10 +559,10 @@ bool check_compression(const std::string& compression, std::string& error)
     bool ok = std::find(names.begin(), names.end(), name) != names.end()
               && (level.empty() || (leveled && Strutil::string_is_int(level)
                                     && Strutil::stoi(level) >= 0));
-    if (!ok && !compression.empty())
+    if (!ok)
         error = format("compression={} is not one of {} (zip, zips, dwaa and dwab take :LEVEL)",
                        compression, Strutil::join(names, ", "));
-    return ok || compression.empty();
+    return ok;
 }
 
 void remove_temporary_outputs()
@@ -621,7 +623,10 @@ bool write_image(const ImageBuf& src, const std::string& path, const WriteOption
         error = format("{}: {}", path, error);
         return false;
     }
-    if (!check_output_path(path, input_files(in_spec), error))
+    std::vector<std::string> inputs;
+    for (const InputFile& file : merged_input_files(in_spec))
+        inputs.push_back(file.path);
+    if (!check_output_path(path, inputs, error))
         return false;
     std::vector<std::string> wanted = options.channels;
     if (wanted.empty())
