@@ -98,7 +98,7 @@ void speed(kpcn::Model& model, int w, int h, int tile)
         for (auto [net, branch] : { std::pair{ &model.diffuse, kpcn::Branch::diffuse },
                                     std::pair{ &model.specular, kpcn::Branch::specular } }) {
             // Inputs per tile, as the op makes them (without reading the AOVs).
-            auto make_inputs = [&, branch = branch](const nn::Region& window,
+            auto make_inputs = [&, branch = branch](const Rect& window,
                                                     std::vector<nn::Tensor>& in, std::string&) {
                 in.resize(2);
                 kpcn::branch_inputs(raw, branch, window, in[0], in[1]);

@@ -44,9 +44,9 @@ TEST(CnnTileInputs, WindowsEqualTheWholeFrame)
         nn::Tensor features, image;
         kpcn::branch_inputs(whole_raw, branch, features, image);
         // Inside, at the left/top edge, across the right/bottom edge and past it, one pixel.
-        for (nn::Region window : { nn::Region{ 4, 8, 20, 16 }, nn::Region{ 0, 0, 12, 32 },
-                                   nn::Region{ 16, 12, w + 3, h + 5 },
-                                   nn::Region{ w - 1, h - 1, w, h } }) {
+        for (Rect window : { Rect{ 4, 8, 20, 16 }, Rect{ 0, 0, 12, 32 },
+                                   Rect{ 16, 12, w + 3, h + 5 },
+                                   Rect{ w - 1, h - 1, w, h } }) {
             kpcn::RawPlanes raw;
             ASSERT_TRUE(kpcn::read_raw_planes(raw, src, aovs, error,
                                               kpcn::inputs_rect(window, w, h))) << error;

@@ -8,7 +8,7 @@
 //         x/y gradients of colour and features; 34 input channels per branch
 //   §4.2  each branch is a small UNet that predicts per-pixel softmax kernels; instead of one
 //         21×21 kernel it predicts five 5×5 kernels applied one after the other (the same
-//         21×21 footprint for ~1/18 of the cost of the paper's head)
+//         21×21 footprint: 5·25 weights per pixel and channel instead of 441)
 //   eq. 4 the inverse transforms and the sum of the two branches
 // Without a diffuse/specular split the specular network denoises log(1 + colour).
 // Training: training/cnn (PyTorch); the model: models/kpcn.mcdnw (models/README-kpcn.md).

@@ -34,9 +34,9 @@ struct MixOptions {
     /// Weights file of the mixing network (Model::Net); empty: default_mix_weights() of the
     /// denoiser src's "mcdn:denoiser" attribute names.
     std::string weights;
-    /// Neighbourhood radius of the analytic model's averages (21x21): at 11x11 the relative
-    /// noise of <||y - x||^2> (~13%) pulls alpha below 1 on smooth regions and costs ~15%
-    /// MSE against the denoiser alone; 21x21 halves that (tests/mix).
+    /// Neighbourhood radius of the analytic model's averages (21x21): the relative noise of
+    /// <||y - x||^2> falls as 1/(2r+1) and pulls alpha below 1 on smooth regions, costing
+    /// MSE against the denoiser alone; 11x11 costs about twice what 21x21 does (tests/mix).
     int analytic_radius = 10;
     /// Model::Net: alpha is at least the analytic model's (eq. 9 on neighbourhood averages).
     /// Each errs toward the render in its own places — the analytic alpha on smooth regions
@@ -80,8 +80,7 @@ struct MixOptions {
 
 /// The mixing network trained for `denoiser`'s outputs (PD §5.3 trains one per denoiser):
 /// mix_cnn.mcdnw for "cnn" (the KPCN op), mix.mcdnw for "nfor" and for any other (with a
-/// deliberately biased one, bench_mix's blur, it stays within 2 % of the better input:
-/// models/README.md), in the models directory
+/// deliberately biased one, bench_mix's blur: models/README.md), in the models directory
 /// ($MCDN_MODELS when set, else share/mcdenoise/models installed with the library).
 /// mix() asks for the denoiser its input names in the "mcdn:denoiser" attribute, which the
 /// nfor and cnn ops set and sure keeps; a Python or C++ callable denoiser may set it too.

@@ -18,8 +18,7 @@
 //   zero α'          mix gives α' = 0 and runs no network where y = x on a whole tile.
 //
 // The pass-through keeps the render's own error (per pixel at most max_relative_error² of
-// relMSE; the 4096-spp box reference averages 4.5e-4), where a denoiser might still reduce
-// it: lower the threshold for more accuracy, raise it for more speed.
+// relMSE), where a denoiser might still reduce it: lower the threshold for more accuracy, raise it for more speed.
 //
 // Pixels near converged tiles lose the converged neighbours' contribution to their
 // filters (nfor's windows reach ~50 px through its passes, the CNN's its receptive field);

@@ -75,7 +75,7 @@ void pixel_inputs(const RawPlanes& raw, Branch branch, size_t i, float* f, float
 
 /// Rows [first, last) of a tile's inputs (tensors shaped to the window; the image's
 /// channels 0-2), from raw planes covering inputs_rect of those rows.
-void strip_inputs(const RawPlanes& raw, Branch branch, const nn::Region& window, int first,
+void strip_inputs(const RawPlanes& raw, Branch branch, const Rect& window, int first,
                   int last, nn::Tensor& features, nn::Tensor& image)
 {
     const int frame_width = raw.frame_width, frame_height = raw.frame_height;
@@ -131,7 +131,7 @@ template <class Strip> void for_strips(int rows, Strip strip)
 
 }  // namespace
 
-Rect inputs_rect(const nn::Region& window, int frame_width, int frame_height)
+Rect inputs_rect(const Rect& window, int frame_width, int frame_height)
 {
     // Past the frame (run_tiled's extension), the last row or column stands for the rest.
     return { std::min(window.x0, frame_width - 1), std::min(window.y0, frame_height - 1),
@@ -139,7 +139,7 @@ Rect inputs_rect(const nn::Region& window, int frame_width, int frame_height)
 }
 
 bool tile_inputs(const ImageBuf& src, const AovSet& aovs, const DepthRange& depth,
-                 const std::vector<ExtraPlanes>& extras, const nn::Region& window,
+                 const std::vector<ExtraPlanes>& extras, const Rect& window,
                  BranchInputs* diffuse, BranchInputs& specular, std::string& error)
 {
     const int image_channels = extras.empty() ? 3 : 3 * (2 + int(extras.size()));
@@ -152,7 +152,7 @@ bool tile_inputs(const ImageBuf& src, const AovSet& aovs, const DepthRange& dept
     // Each strip reads the AOVs once for both branches and computes in cache, on every thread.
     std::atomic<bool> read { true };
     for_strips(specular.features().height, [&](int first, int last) {
-        const nn::Region rows { window.x0, window.y0 + first, window.x1, window.y0 + last };
+        const Rect rows { window.x0, window.y0 + first, window.x1, window.y0 + last };
         RawPlanes raw;
         std::string strip_error;
         if (!read_raw_planes(raw, src, aovs, strip_error,
@@ -175,7 +175,7 @@ bool tile_inputs(const ImageBuf& src, const AovSet& aovs, const DepthRange& dept
     return read;
 }
 
-void branch_inputs(const RawPlanes& raw, Branch branch, const nn::Region& window,
+void branch_inputs(const RawPlanes& raw, Branch branch, const Rect& window,
                    nn::Tensor& features, nn::Tensor& image)
 {
     nn::reshape(features, window.y1 - window.y0, window.x1 - window.x0, kInputChannels);

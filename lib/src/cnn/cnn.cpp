@@ -17,6 +17,7 @@
 #include "cnn/worker_pool.h"
 #include "core/attributes.h"
 #include "core/op_prepare.h"
+#include "core/trace.h"
 #include "nn/network_regions.h"
 #include "skip/converged_tiles.h"
 #include "mcdn/color.h"
@@ -53,7 +54,7 @@ bool with_threads(int nthreads, Body&& body)
 /// irradiance + exp(log specular) − 1, written into the frame except on converged tiles
 /// (a tile the network ran on for its neighbours keeps the render); with extras, their
 /// shares of the two components too (pass_through_extras restores converged tiles).
-void recombine(kpcn::OutputFrame& frame, Rect rect, const nn::Region& window, const kpcn::Worker& worker,
+void recombine(kpcn::OutputFrame& frame, Rect rect, const Rect& window, const kpcn::Worker& worker,
                bool split, const ImageBuf& src, const AovSet& aovs,
                const std::vector<ExtraPlanes>& extras, const ConvergedTiles& converged)
 {
@@ -101,7 +102,7 @@ void recombine(kpcn::OutputFrame& frame, Rect rect, const nn::Region& window, co
 }
 
 /// The frame pixels of a tile's core that the op writes: inside the image and the ROI.
-Rect output_rect(const nn::Region& core, const ImageBuf& dst, ROI where)
+Rect output_rect(const Rect& core, const ImageBuf& dst, ROI where)
 {
     const ImageSpec& spec = dst.spec();
     return { std::max(core.x0, where.xbegin - spec.x), std::max(core.y0, where.ybegin - spec.y),
@@ -131,9 +132,11 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
         const ImageBuf render = src.copy(OIIO::TypeDesc::FLOAT);
         return cnn_in_working_space(dst, render, options, roi, nthreads);
     }
+    StageTrace trace("cnn");
     AovSet aovs;
     if (!prepare_op(dst, src, options.aovs, aovs, "cnn", nthreads))
         return false;
+    trace.mark("copy src to dst");
     std::string error;
     if (!aovs.require({ Role::Color }, src.spec(), error)) {
         dst.errorfmt("cnn: {}", error);
@@ -189,6 +192,7 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
     for (const nn::Tile& tile : planned)
         if (!output_rect(tile.core, dst, where).empty())
             tiles.push_back(tile);
+    trace.mark("networks and depth range");
 
     // §4.2 then eq. 4, a tile at a time: one tile per worker, each with its own networks.
     const bool ran = with_threads(nthreads, [&] {
@@ -229,6 +233,7 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
         dst.errorfmt("{}", error);
         return false;
     }
+    trace.mark("network tiles (4.2, eq. 4)");
     // Converged tiles keep the render (sanitized), the extras' too.
     pass_through_color(frame, dst, aovs, where, converged);
     pass_through_extras(dst, where, extras, converged);

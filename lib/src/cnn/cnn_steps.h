@@ -89,14 +89,14 @@ private:
 /// The frame pixels a network tile's inputs are computed from: the window clipped to the
 /// frame (past it, the last row and column stand for the rest), and one more column and row
 /// (the forward differences of its last ones).
-Rect inputs_rect(const nn::Region& window, int frame_width, int frame_height);
+Rect inputs_rect(const Rect& window, int frame_width, int frame_height);
 
 /// The 34 network input channels of a branch (layout in training/cnn/model.py) and the image
 /// its kernels filter: irradiance = diffuse / (demod + eps), or log(1 + specular); on the
 /// `window` of the frame extended as nn::run_tiled extends it (rows and columns past the
 /// frame repeat its last), from raw planes covering inputs_rect(window). The tensors' storage
 /// is reused.
-void branch_inputs(const RawPlanes& raw, Branch branch, const nn::Region& window,
+void branch_inputs(const RawPlanes& raw, Branch branch, const Rect& window,
                    nn::Tensor& features, nn::Tensor& image);
 /// The same on the whole frame of `raw` (the bench's and the tests' whole-frame inputs).
 void branch_inputs(const RawPlanes& raw, Branch branch, nn::Tensor& features, nn::Tensor& image);
@@ -114,7 +114,7 @@ struct BranchInputs {
 /// each strip read once for both and computed in cache, threaded; the extras' parts
 /// appended to the images (extras_kernels.h). The tensors' storage is reused.
 bool tile_inputs(const ImageBuf& src, const AovSet& aovs, const DepthRange& depth,
-                 const std::vector<ExtraPlanes>& extras, const nn::Region& window,
+                 const std::vector<ExtraPlanes>& extras, const Rect& window,
                  BranchInputs* diffuse, BranchInputs& specular, std::string& error);
 
 /// The two branch networks of a weights file ("diffuse.*", "specular.*" tensors).

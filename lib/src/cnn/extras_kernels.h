@@ -20,7 +20,7 @@ namespace kpcn {
 /// the colour's part, then each extra's (3 channels each; the diffuse parts demodulated).
 /// `raw` covers inputs_rect of those rows; the extras' planes are the whole frame's.
 void add_extra_parts(nn::Tensor& image, const RawPlanes& raw, const std::vector<ExtraPlanes>& extras,
-                     Branch branch, const nn::Region& window, int first, int last);
+                     Branch branch, const Rect& window, int first, int last);
 
 /// One branch's result on a tile: its denoised component on the tile's output rectangle
 /// (3 planes, in the beauty's units) and the filtered image of the tile's window, whose

@@ -11,6 +11,7 @@
 #include "core/channels.h"
 #include "core/attributes.h"
 #include "core/op_prepare.h"
+#include "core/trace.h"
 #include "mcdn/sure.h"
 #include "mix/mix_steps.h"
 
@@ -76,9 +77,11 @@ bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options, ROI roi,
 {
     if (!check_op_threads(dst, nthreads, "mix"))
         return false;
+    StageTrace trace("mix");
     AovSet aovs;
     if (!prepare_op(dst, src, options.aovs, aovs, "mix"))
         return false;
+    trace.mark("copy src to dst");
     std::string error;
     MixChannels channels;
     if (!aovs.require({ Role::Color, Role::ColorVariance }, src.spec(), error)
@@ -114,6 +117,7 @@ bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options, ROI roi,
             dst.errorfmt("{}", error);
             return false;
         }
+        trace.mark("band: alpha (4.1-4.3)");
         // z = x + alpha' (y - x) on the band's own rows.
         ROI own = where;
         own.ybegin = std::max(where.ybegin, band.own_begin);
@@ -142,6 +146,7 @@ bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options, ROI roi,
                 write_rows(dst, extra.channels[c], x, band_y, own);
             }
         }
+        trace.mark("band: z = x + alpha (y - x)");
     }
     return true;
 }

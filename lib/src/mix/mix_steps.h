@@ -30,7 +30,7 @@ nn::Tensor net_features(const MixInputs& in);
 /// receives the network's outputs (x1 RGB, x2 RGB, x3 RGB per pixel).
 /// `regions`: only these are computed (nn::TileOptions::regions), alpha = 0 elsewhere.
 bool net_alpha(Plane alpha[3], const MixInputs& in, nn::Net& net, std::string& error,
-               nn::Tensor* raw = nullptr, const std::vector<nn::Region>& regions = {});
+               nn::Tensor* raw = nullptr, const std::vector<Rect>& regions = {});
 
 /// The tiles where z = x whatever α is (MixOptions::skip): y = x throughout (the denoiser
 /// passed them through, as the ops do with converged tiles).

@@ -89,7 +89,7 @@ nn::Tensor net_features(const MixInputs& in)
 }
 
 bool net_alpha(Plane alpha[3], const MixInputs& in, nn::Net& net, std::string& error,
-               nn::Tensor* raw_out, const std::vector<nn::Region>& regions)
+               nn::Tensor* raw_out, const std::vector<Rect>& regions)
 {
     std::vector<nn::Tensor> inputs(1), outputs;
     inputs[0] = net_features(in);  // moved in, not copied from an initializer list

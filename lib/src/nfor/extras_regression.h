@@ -33,8 +33,8 @@ public:
     void second_pass(const RegressionInputs& second, int nthreads);
 
     /// Linear in exact arithmetic, the regressions round their float sums differently for
-    /// each AOV, and ill-conditioned windows amplify that (up to ~4e-3 of the beauty on the
-    /// box fixture). Where the extras' input adds up to the beauty's (to 1e-5), the residual
+    /// each AOV, and ill-conditioned windows amplify that (well above float epsilon of the
+    /// beauty). Where the extras' input adds up to the beauty's (to 1e-5), the residual
     /// beauty − Σ extras of the result is shared out in proportion to |extra|, so that they
     /// add up there as well.
     void share_rounding(const Plane color[3], const std::vector<Plane>& denoised_color);

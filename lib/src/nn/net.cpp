@@ -289,8 +289,12 @@ struct Schedule {
     std::vector<std::vector<int>> free_after;
     /// Residual fusion: a conv whose only reader is add(s, conv), with s computed earlier,
     /// accumulates into a copy of s (or into s itself, when nothing else reads it) through
-    /// oneDNN's sum post-op; the add then hands the result on. fused_add[conv] = the add.
-    std::vector<int> fused_add;
+    /// oneDNN's sum post-op; the add then hands the result on. fused_add[conv] = the add,
+    /// summed_conv[add] = the conv, residual_of[conv] = s.
+    std::vector<int> fused_add, summed_conv, residual_of;
+    /// The fused conv may take s's storage: s is computed (not an input or a view) and the
+    /// add is its last reader, with no node in between reading it.
+    std::vector<char> accumulate_in_place;
     /// A slice read only as the logits of apply_kernel is never copied out: apply_kernel
     /// reads its channels in place. view_of[slice] = the sliced value, else -1.
     std::vector<int> view_of;
@@ -304,9 +308,15 @@ Schedule make_schedule(const std::vector<Net::Node>& nodes, const std::vector<in
                        bool fuse)
 {
     const int count = int(nodes.size());
-    Schedule schedule { std::vector<int>(count, -1), std::vector<std::vector<int>>(count),
-                        std::vector<int>(count, -1), std::vector<int>(count, -1),
-                        std::vector<char>(count, 0) };
+    Schedule schedule;
+    schedule.last_reader.assign(count, -1);
+    schedule.free_after.resize(count);
+    schedule.fused_add.assign(count, -1);
+    schedule.summed_conv.assign(count, -1);
+    schedule.residual_of.assign(count, -1);
+    schedule.accumulate_in_place.assign(count, 0);
+    schedule.view_of.assign(count, -1);
+    schedule.fused_head.assign(count, 0);
     std::vector<int> readers(count, 0), kernel_readers(count, 0);
     for (int id = 0; id < count; ++id)
         for (size_t k = 0; k < nodes[id].inputs.size(); ++k) {
@@ -332,8 +342,11 @@ Schedule make_schedule(const std::vector<Net::Node>& nodes, const std::vector<in
         const int a = nodes[id].inputs[0], b = nodes[id].inputs[1];
         const int conv = nodes[b].op == Net::Op::conv && a < b ? b : a;
         const int residual = conv == b ? a : b;
-        if (nodes[conv].op == Net::Op::conv && readers[conv] == 1 && residual < conv)
+        if (nodes[conv].op == Net::Op::conv && readers[conv] == 1 && residual < conv) {
             schedule.fused_add[conv] = id;
+            schedule.summed_conv[id] = conv;
+            schedule.residual_of[conv] = residual;
+        }
     }
     std::vector<int> view_readers(count, 0);
     for (int id = 0; id < count; ++id)
@@ -348,6 +361,13 @@ Schedule make_schedule(const std::vector<Net::Node>& nodes, const std::vector<in
             schedule.last_reader[features] = std::max(schedule.last_reader[features],
                                                       schedule.last_reader[id]);
         }
+    }
+    for (int conv = 0; conv < count; ++conv) {
+        const int add = schedule.fused_add[conv], residual = schedule.residual_of[conv];
+        if (add >= 0)
+            schedule.accumulate_in_place[conv] =
+                nodes[residual].op != Net::Op::input && schedule.view_of[residual] < 0
+                && schedule.last_reader[residual] == add && !reads(nodes, residual, conv, add);
     }
     for (int id = 0; id < count; ++id)
         if (schedule.last_reader[id] >= 0 && schedule.last_reader[id] < count
@@ -447,7 +467,6 @@ bool Net::run(const std::vector<Tensor>& inputs, std::vector<Tensor>& outputs, s
     const int count = int(nodes_.size());
     const bool fast = backend == Backend::onednn;
     const Schedule schedule = make_schedule(nodes_, output_ids_, fast);
-    const std::vector<int>&last_reader = schedule.last_reader, &fused_add = schedule.fused_add;
     std::vector<Tensor> owned(count);
     std::vector<const Tensor*> value(count, nullptr);
     for (size_t i = 0; i < inputs.size(); ++i)
@@ -473,11 +492,10 @@ bool Net::run(const std::vector<Tensor>& inputs, std::vector<Tensor>& outputs, s
         case Op::conv:
             if (schedule.fused_head[id])
                 continue;  // computed inside the apply_kernels that read it
-            if (fast && fused_add[id] >= 0) {
-                const Node& add = nodes_[fused_add[id]];
-                const int residual = add.inputs[0] == id ? add.inputs[1] : add.inputs[0];
-                if (value[residual] == &owned[residual] && last_reader[residual] == fused_add[id]
-                    && !reads(nodes_, residual, id, fused_add[id]))
+            if (schedule.fused_add[id] >= 0) {
+                const Node& add = nodes_[schedule.fused_add[id]];
+                const int residual = schedule.residual_of[id];
+                if (schedule.accumulate_in_place[id])
                     out = std::move(owned[residual]);  // nobody else reads it any more
                 else {
                     fresh();
@@ -496,9 +514,8 @@ bool Net::run(const std::vector<Tensor>& inputs, std::vector<Tensor>& outputs, s
                 reference::conv(in(0), weights_[id], biases_[id], node.kernel, node.activation, out);
             break;
         case Op::add:
-            if (fast && std::find(fused_add.begin(), fused_add.end(), id) != fused_add.end()) {
-                const int conv = fused_add[node.inputs[0]] == id ? node.inputs[0] : node.inputs[1];
-                out = std::move(owned[conv]);  // computed, summed and activated by the conv
+            if (schedule.summed_conv[id] >= 0) {
+                out = std::move(owned[schedule.summed_conv[id]]);  // summed, activated by the conv
                 break;
             }
             fresh();

@@ -9,9 +9,9 @@ namespace {
 constexpr double kWorthSkipping = 0.9;
 }  // namespace
 
-std::vector<nn::Region> network_regions(const ConvergedTiles& m, const nn::Net& net, int tile_size)
+std::vector<Rect> network_regions(const ConvergedTiles& m, const nn::Net& net, int tile_size)
 {
-    std::vector<nn::Region> regions;
+    std::vector<Rect> regions;
     const int alignment = net.alignment();
     if (!m.any() || alignment <= 0 || kConvergedTileSize % alignment != 0)
         return regions;

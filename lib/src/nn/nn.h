@@ -40,6 +40,8 @@
 #include <string>
 #include <vector>
 
+#include "core/planar.h"
+
 namespace mcdn {
 namespace nn {
 
@@ -203,11 +205,6 @@ private:
     friend struct NetRunner;
 };
 
-/// An output rectangle [x0, x1) × [y0, y1) in pixels.
-struct Region {
-    int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
-};
-
 struct TileOptions {
     /// Output tile side in pixels (rounded up to alignment()); memory grows with
     /// (tile_size + 2 × halo)² × widest layer; every tile recomputes its halo, and a
@@ -217,14 +214,14 @@ struct TileOptions {
     /// When not empty, only these output rectangles are computed, each as one tile with its
     /// halo (x0 and y0 multiples of alignment(); sides at most tile_size for bounded memory);
     /// the outputs are 0 elsewhere. Used to skip converged tiles (mcdn/skip.h).
-    std::vector<Region> regions;
+    std::vector<Rect> regions;
 };
 
 /// One tile of a tiled run: the output rectangle it owns (`core`, aligned; it may reach past
 /// the image into the extension below) and the input `window` computed for it (the core
 /// grown by the halo, clipped to the extended image).
 struct Tile {
-    Region core, window;
+    Rect core, window;
 };
 
 /// The tiles run_tiled computes for a height × width image, largest window first (so the
@@ -253,7 +250,7 @@ bool run_tiled(Net& net, const std::vector<Tensor>& inputs, std::vector<Tensor>&
 /// Makes one tile's inputs, one tensor per input() into `inputs` (reshaped; their storage
 /// is kept from the last tile): the window [x0, x1) × [y0, y1) of the image extended as
 /// above (rows and columns past the image repeat its last ones). False stops the run.
-using TileInputs = std::function<bool(const Region& window, std::vector<Tensor>& inputs,
+using TileInputs = std::function<bool(const Rect& window, std::vector<Tensor>& inputs,
                                       std::string& error)>;
 
 /// run_tiled on a height × width image whose inputs are made tile by tile: no whole-image

@@ -52,7 +52,7 @@ bool run_tiled(Net& net, const std::vector<Tensor>& inputs, std::vector<Tensor>&
             error = "network '" + net.name() + "': run_tiled inputs differ in size";
             return false;
         }
-    auto cut = [&](const Region& window, std::vector<Tensor>& tile_inputs, std::string&) {
+    auto cut = [&](const Rect& window, std::vector<Tensor>& tile_inputs, std::string&) {
         tile_inputs.resize(inputs.size());
         for (size_t i = 0; i < inputs.size(); ++i)
             extract_window(inputs[i], window.y0, window.y1, window.x0, window.x1, tile_inputs[i]);
@@ -72,13 +72,13 @@ bool plan_tiles(const Net& net, int height, int width, const TileOptions& option
 
     // The output cores: the caller's regions (mcdn/skip.h: only where something is not
     // converged), else a grid of tiles.
-    std::vector<Region> cores = options.regions;
+    std::vector<Rect> cores = options.regions;
     if (cores.empty())
         for (int ty = 0; ty < padded_height; ty += tile)
             for (int tx = 0; tx < padded_width; tx += tile)
                 cores.push_back({ tx, ty, tx + tile, ty + tile });
     tiles.clear();
-    for (const Region& core : cores) {
+    for (const Rect& core : cores) {
         const int tx = core.x0, ty = core.y0;
         if (tx % alignment || ty % alignment) {
             error = "network '" + net.name() + "': run_tiled regions must start at multiples of "
@@ -96,7 +96,7 @@ bool plan_tiles(const Net& net, int height, int width, const TileOptions& option
     }
     // Largest first: the buffers of the first run then hold every later tile's values
     // (Net::run reuses them), and nothing is allocated after it.
-    auto area = [](const Region& r) { return (r.y1 - r.y0) * (r.x1 - r.x0); };
+    auto area = [](const Rect& r) { return (r.y1 - r.y0) * (r.x1 - r.x0); };
     std::stable_sort(tiles.begin(), tiles.end(), [&](const Tile& a, const Tile& b) {
         return area(a.window) > area(b.window);
     });
@@ -150,7 +150,7 @@ bool run_tiled(Net& net, int height, int width, const TileInputs& make_inputs,
     // Kept across tiles: the windows' storage, and the outputs', which run() reuses.
     std::vector<Tensor> tile_inputs, tile_outputs;
     for (const Tile& t : tiles) {
-        const Region& w = t.window;
+        const Rect& w = t.window;
         if (!make_inputs(w, tile_inputs, error))
             return false;
         if (!net.run(tile_inputs, tile_outputs, error, options.backend))

@@ -6,6 +6,7 @@
 #include "core/feature_channels.h"
 #include "core/bands.h"
 #include "core/op_prepare.h"
+#include "core/trace.h"
 #include "mcdn/color.h"
 #include "prefilter/feature_prefilter.h"
 
@@ -23,6 +24,7 @@ bool prefilter_in_working_space(ImageBuf& dst, const ImageBuf& src,
                      "patch {}, k {})", options.window_radius, options.patch_radius, options.k);
         return false;
     }
+    StageTrace trace(op);
     AovSet aovs;
     std::vector<FeatureChannel> channels;
     std::string error;
@@ -44,9 +46,12 @@ bool prefilter_in_working_space(ImageBuf& dst, const ImageBuf& src,
     const ConvergedTiles converged = converged_tiles_of(src, aovs, options.skip);
     if (options.skip.enabled)
         drop_constant_features(planes, &channels);  // their channels are copied unchanged
+    trace.mark("read planes");
     if (!prepare_op(dst, src, options.aovs, aovs, op))
         return false;
+    trace.mark("copy src to dst");
     prefilter_planes(planes, options, nthreads, &converged);
+    trace.mark("NL-means (5.1)");
 
     roi = output_roi(dst, roi);
     for (size_t i = 0; i < channels.size(); ++i) {
@@ -59,6 +64,7 @@ bool prefilter_in_working_space(ImageBuf& dst, const ImageBuf& src,
             write_plane(dst, channels[i].variance, planes[i].variance, roi);
     }
     dst.specmod().attribute("mcdn:prefiltered", 1);
+    trace.mark("write");
     return true;
 }
 

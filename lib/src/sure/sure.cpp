@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "core/op_prepare.h"
+#include "core/trace.h"
 #include "mcdn/color.h"
 #include "sure/sure_steps.h"
 
@@ -94,6 +95,7 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
                                      extra.names.end());
         }
     frame.eps = probe_step(src, frame, options.epsilon_relative);
+    StageTrace trace("sure");
 
     // Bands only when the denoiser says how far it reaches (SureOptions::denoiser_radius).
     const std::vector<Band> bands =
@@ -114,6 +116,7 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
             dst.errorfmt("{}", error);
             return false;
         }
+        trace.mark("band: denoiser, probe, eq. 7");
     }
     dst = std::move(out);
     return true;
