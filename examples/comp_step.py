@@ -1,6 +1,7 @@
 #!/usr/bin/python3
-"""A compositing pipeline step: denoise a Cycles render with NFOR, estimate its error with
-SURE, mix it progressively with the render, and hand the ImageBuf on (here: write it).
+"""A compositing pipeline step: denoise a render with the best chain its AOVs allow (with a
+colour variance: the CNN, its SURE error estimate and the progressive mix), and hand the
+ImageBuf on (here: write it).
 
     PYTHONPATH=build/python /usr/bin/python3 examples/comp_step.py examples/box out.exr
 """
@@ -14,13 +15,11 @@ import mcdenoise
 
 def denoise_step(render_dir, stem="box_0016spp"):
     files = [(os.path.join(render_dir, f"{stem}{suffix}.exr"), kind)
-             for suffix, kind in (("", "mean"), ("_var", "variance"),
-                                  ("_A", "halfA"), ("_B", "halfB"))]
+             for suffix, kind in (("", "mean"), ("_var", "variance"))]
     render = mcdenoise.read_inputs(files)          # OpenImageIO.ImageBuf, every AOV merged
-    mcdenoise.validate(render, preset="cycles")    # raises on NaN/Inf, naming file and channel
-    features = mcdenoise.prefilter(render)         # NFOR §5.1
-    with_error = mcdenoise.sure(features, denoiser="nfor")  # NFOR + its SURE error estimate
-    return mcdenoise.mix(with_error, model="analytic")       # progressive mix (PD §4)
+    mcdenoise.validate(render)                     # raises on NaN/Inf, naming file and channel
+    print("denoise:", mcdenoise.plan(render))      # which chain, and why
+    return mcdenoise.denoise(render)
 
 
 if __name__ == "__main__":

@@ -60,14 +60,17 @@ const std::vector<CommandInfo>& command_table()
 {
     static const std::vector<CommandInfo> table = [] {
         std::vector<CommandInfo> t = {
-            { "-i", "FILE", { "as" },
+            { "-i", "FILE", { "as", "part" },
               "Add an input: the render (as=mean, the default), the per-pixel variance of its "
               "mean (as=variance), or a half buffer (as=halfA, as=halfB). A directory is read "
               "as a Tungsten buffer set (color.pfm, colorA.pfm, colorVariance.pfm, ...). "
-              "A bare FILE is the same as -i FILE.",
+              "A multi-part EXR is read as one set of channels (the first part's as they "
+              "are, the others' behind their part's name) and written back with the same "
+              "parts; part=NAME reads one part alone. A bare FILE is the same as -i FILE.",
               run_input, false, check_input },
             { "--aov", "", { "preset", "layer", "colorspace" },
-              "Say which channels are what: preset=cycles|tungsten|generic (default cycles), "
+              "Say which channels are what: preset=cycles|arnold|renderman|tungsten|oidn|"
+              "generic (default: detected from the channel names, printed with -v), "
               "colorspace=NAME (OCIO space of the colour channels; default the file's "
               "oiio:ColorSpace, else scene_linear); "
               "role=ch1,ch2,ch3 words after it override one role (color, color_variance, "
@@ -85,7 +88,8 @@ const std::vector<CommandInfo>& command_table()
               "(or ref=FILE): metric=relmse|se|ae|smape, log10 range min=-4 max=0.",
               run_heatmap, false, check_heatmap },
             { "--ch", "CHANNELS", {},
-              "Channels -o writes, comma-separated (default: the render's own channels).",
+              "Channels -o writes, comma-separated, each a name or a wildcard (mix.alpha.*, "
+              "*.R); default: the render's own channels.",
               run_channels, false, {} },
             { "-o", "FILE", { "datatype", "compression" },
               "Write the current image (datatype=half|float, default float; compression=zip). "
@@ -107,6 +111,16 @@ const std::vector<CommandInfo>& command_table()
             { "--parallel-frames", "N", {},
               "Denoise N frames of a sequence at once, sharing the threads (default 1).",
               nullptr, true, whole_number_at_least(1) },
+            { "--skip-existing", "", {},
+              "Frames whose every output (-o, --heatmap) exists already are skipped, with a "
+              "line each: a farm job that died half-way is run again as it was.",
+              nullptr, true, {} },
+            { "--skip-bad-frames", "", {},
+              "A frame that fails does not stop the sequence: the others are denoised, the "
+              "failed ones listed at the end, and the exit status is 1 (as oiiotool's "
+              "--skip-bad-frames; alias --continue).",
+              nullptr, true, {} },
+            { "--continue", "", {}, "Alias of --skip-bad-frames.", nullptr, true, {} },
         };
         for (auto& stage : stage_commands())
             t.push_back(stage);

@@ -38,6 +38,7 @@ struct CommandInfo {
     CommandAction run;                   // null for commands handled before the frame loop
     bool global = false;                 // --threads, --frames: set once, not per frame
     CommandCheck check;                  // null when any value is accepted
+    std::string needs;                   // what it reads, for --help COMMAND (stages)
 };
 
 /// Every command mcdntool knows, in --help order (built-ins, then the stages).

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <iostream>
 #include <regex>
 
 #include <OpenImageIO/argparse.h>
@@ -53,11 +54,18 @@ void declare(OIIO::ArgParse& ap, CommandLine& line)
         .usage("mcdntool [-i[:as=KIND] FILE ...] [--aov[:preset=NAME] role=chans ...] "
                "[COMMAND ...] -o FILE")
         .description("Commands run left to right, oiiotool style; every command accepts "
-                     ":modifier=value. File names with #, @ or %04d run the whole command "
-                     "line once per frame.")
-        .epilog(format("Example:\n  mcdntool -i box.exr -i:as=variance box_var.exr -i:as=halfA "
-                "box_A.exr -i:as=halfB box_B.exr --aov:preset=cycles --metrics ref.exr "
-                "-o out.exr\n\n"
+                     ":modifier=value, and mcdntool --help COMMAND says what it reads. File "
+                     "names with #, @ or %04d run the whole command line once per frame.")
+        .epilog(format("Examples:\n"
+                "  mcdntool -v -i beauty.exr --denoise -o out.exr\n"
+                "      the best chain the file allows (the renderer is detected: -v says "
+                "which, and why)\n"
+                "  mcdntool -i box.exr -i:as=variance box_var.exr --denoise --metrics ref.exr "
+                "-o out.exr\n"
+                "      a Cycles render with the variance of its mean beside it\n"
+                "  mcdntool -i box.exr -i:as=halfA box_A.exr -i:as=halfB box_B.exr --prefilter "
+                "--nfor -o out.exr\n"
+                "      NFOR on a render with two half buffers\n\n"
                 "Installed data: models {}, colour config {} ($MCDN_MODELS and $OCIO "
                 "override them).\nPlain oiiotool reads .mcdn recipes with this plugin "
                 "folder:\n  export OIIO_LIBRARY_PATH={}", paths.models_dir,
@@ -80,6 +88,10 @@ void declare(OIIO::ArgParse& ap, CommandLine& line)
                 line.parallel_frames = Strutil::stoi(c.args[0]);
             else if (name == "--frames")
                 line.frames = c.args[0];
+            else if (name == "--skip-existing")
+                line.skip_existing = true;
+            else if (name == "--skip-bad-frames" || name == "--continue")
+                line.skip_bad_frames = true;
             line.commands.push_back(c);
         });
     }
@@ -109,12 +121,53 @@ bool wants_version(int argc, const char** argv)
     return false;
 }
 
-bool wants_help(int argc, const char** argv)
+bool wants_help(int argc, const char** argv, std::string* command)
 {
     bool help = argc <= 1;
     for (int i = 1; i < argc; ++i)
-        help |= std::string(argv[i]) == "--help" || std::string(argv[i]) == "-h";
+        if (std::string(argv[i]) == "--help" || std::string(argv[i]) == "-h") {
+            help = true;
+            if (command && i + 1 < argc)
+                *command = argv[i + 1];
+        }
     return help;
+}
+
+bool print_command_help(const std::string& typed)
+{
+    std::string name = typed;
+    if (!find_command(name))
+        name = (typed.size() == 1 ? "-" : "--") + typed;  // `--help nfor`, `--help o`
+    const CommandInfo* info = find_command(name);
+    if (!info) {
+        std::vector<std::string> names;
+        for (const auto& c : command_table())
+            names.push_back(c.name);
+        std::string guess = closest("--" + typed, names);
+        std::cerr << "mcdntool: no command '" << typed << "'"
+                  << (guess.empty() ? std::string() : " (did you mean '" + guess + "'?)")
+                  << "; mcdntool --help lists them\n";
+        return false;
+    }
+    auto wrapped = [](const std::string& text) {
+        std::string out, line;
+        for (const std::string& word : Strutil::splits(text, " ")) {
+            if (!line.empty() && line.size() + 1 + word.size() > 76) {
+                out += "    " + line + "\n";
+                line.clear();
+            }
+            line += (line.empty() ? "" : " ") + word;
+        }
+        return out + (line.empty() ? "" : "    " + line + "\n");
+    };
+    std::cout << info->name << (info->metavar.empty() ? "" : " " + info->metavar) << "\n"
+              << wrapped(info->help);
+    if (!info->needs.empty())
+        std::cout << "\n  Reads:\n" << wrapped(info->needs);
+    if (!info->modifiers.empty())
+        std::cout << "\n  Modifiers (" << info->name << ":name=value):\n"
+                  << wrapped(Strutil::join(info->modifiers, ", "));
+    return true;
 }
 
 void print_help()
@@ -129,6 +182,10 @@ bool parse_command_line(int argc, const char** argv, CommandLine& line, std::str
 {
     if (!check_words(argc, argv, error))
         return false;
+    std::vector<std::string> words { "mcdntool" };
+    for (int i = 1; i < argc; ++i)
+        words.push_back(argv[i]);
+    line.text = Strutil::join(words, " ");
     OIIO::ArgParse ap;
     declare(ap, line);
     if (ap.parse_args(argc, argv) < 0) {

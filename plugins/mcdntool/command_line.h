@@ -15,13 +15,20 @@ struct CommandLine {
     bool verbose = false;           // -v
     std::string frames;             // --frames SPEC
     int parallel_frames = 1;        // --parallel-frames
+    bool skip_existing = false;     // --skip-existing
+    bool skip_bad_frames = false;   // --skip-bad-frames, --continue
+    std::string text;               // "mcdntool ARGS", as typed (Exif:ImageHistory)
 };
 
 /// True when the command line has --version ("mcdntool X.Y.Z" on stdout, exit 0).
 bool wants_version(int argc, const char** argv);
-/// True when the user asked for --help (or gave no arguments).
-bool wants_help(int argc, const char** argv);
+/// True when the user asked for --help (or gave no arguments); `command` is the command
+/// named after it (`--help nfor`, `--help --nfor`), else empty.
+bool wants_help(int argc, const char** argv, std::string* command = nullptr);
 void print_help();
+/// One command's help: what it does, what it reads, its modifiers. False when there is no
+/// such command (with a suggestion on stderr).
+bool print_command_help(const std::string& name);
 
 /// Parses argv (argv[0] is the program) into `line`: command names, modifier keys, argument
 /// counts and modifier values are checked, with suggestions for typos. `line.verbose` keeps

@@ -5,6 +5,7 @@
 //
 // Commands run left to right on one frame; file names with #, @ or %04d make a sequence
 // and the whole command line runs once per frame.
+#include <algorithm>
 #include <iostream>
 #include <new>
 #include <atomic>
@@ -50,6 +51,23 @@ bool find_frames(const std::vector<Command>& commands, const std::string& frames
             if (c.name == "-i" && first_input_pattern.empty())
                 first_input_pattern = normalized;
         }
+    // A sequence written to one file would overwrite it every frame.
+    bool input_sequence = false;
+    for (const auto& c : commands) {
+        std::string normalized, framespec;
+        if (c.name == "-i" && is_sequence(c.args[0], normalized, framespec))
+            input_sequence = true;
+    }
+    for (const auto& c : commands) {
+        std::string normalized, framespec;
+        if (input_sequence && (c.name == "-o" || c.name == "--heatmap")
+            && !is_sequence(c.args[0], normalized, framespec)) {
+            error = format("{} {}: the inputs are a frame sequence but this name has no frame "
+                           "pattern, so every frame would overwrite it (write e.g. "
+                           "out.####.exr)", c.name, c.args[0]);
+            return false;
+        }
+    }
     if (!any_sequence) {
         if (!frames_option.empty()) {
             error = "--frames given but no file name has a frame pattern (#, @ or %04d)";
@@ -89,10 +107,8 @@ bool check_outputs(const std::vector<Command>& commands, std::string& error)
     return true;
 }
 
-// Runs the command line on one frame (frame < 0: no sequence), one of `parallel` frames
-// that run at once on `all_threads` threads together (memory is checked for all of them).
-bool run_frame(std::vector<Command> commands, int frame, int nthreads, int all_threads,
-               int parallel, bool verbose, std::string& error)
+// The command line of one frame (frame < 0: no sequence): patterns replaced by its names.
+std::vector<Command> frame_commands(std::vector<Command> commands, int frame)
 {
     if (frame >= 0)
         for (Command& c : commands)
@@ -101,11 +117,33 @@ bool run_frame(std::vector<Command> commands, int frame, int nthreads, int all_t
                 if (is_sequence(arg, normalized, framespec))
                     arg = frame_name(normalized, frame);
             }
+    return commands;
+}
+
+// True when the frame writes something and all of it exists (--skip-existing).
+bool outputs_exist(const std::vector<Command>& commands)
+{
+    bool any = false;
+    for (const auto& c : commands)
+        if (c.name == "-o" || c.name == "--heatmap") {
+            if (!Filesystem::exists(c.args[0]))
+                return false;
+            any = true;
+        }
+    return any;
+}
+
+// Runs the command line of one frame, one of `parallel` frames that run at once on
+// `all_threads` threads together (memory is checked for all of them).
+bool run_frame(const std::vector<Command>& commands, const std::string& history, int nthreads,
+               int all_threads, int parallel, bool verbose, std::string& error)
+{
     if (!check_outputs(commands, error) || !check_memory(commands, all_threads, parallel, error))
         return false;
     Session session;
     session.nthreads = nthreads;
     session.verbose = verbose;
+    session.history = history;
     for (const Command& c : commands) {
         const CommandInfo* info = find_command(c.name);
         if (info->run && !info->run(session, c, error))
@@ -117,10 +155,15 @@ bool run_frame(std::vector<Command> commands, int frame, int nthreads, int all_t
 }
 
 // Runs every frame, `parallel` at a time (each with its share of the threads); a line per
-// finished frame. Stops starting frames after the first failure; false if any failed.
+// finished frame. Stops starting frames after the first failure unless --skip-bad-frames
+// (then the failed frames are listed at the end); false if any failed.
 bool run_frames(const std::vector<Command>& commands, const std::vector<int>& frames,
-                int nthreads, int parallel, bool verbose)
+                const CommandLine& line)
 {
+    const int nthreads = line.nthreads;
+    int parallel = line.parallel_frames;
+    const bool verbose = line.verbose;
+    std::vector<int> bad;
     parallel = std::max(1, std::min<int>(parallel, int(frames.size())));
     int threads = nthreads > 0 ? nthreads : int(std::thread::hardware_concurrency());
     int per_frame = std::max(1, threads / parallel);
@@ -128,13 +171,20 @@ bool run_frames(const std::vector<Command>& commands, const std::vector<int>& fr
     std::atomic<bool> failed { false };
     std::mutex print;
     auto worker = [&] {
-        for (size_t f; !failed && (f = next++) < frames.size();) {
+        for (size_t f; (!failed || line.skip_bad_frames) && (f = next++) < frames.size();) {
             OIIO::Timer timer;
             std::string error;
             bool ok = false;
+            const std::vector<Command> frame = frame_commands(commands, frames[f]);
+            if (line.skip_existing && outputs_exist(frame)) {
+                std::lock_guard<std::mutex> lock(print);
+                std::cerr << format("mcdntool: frame {} ({}/{}) skipped: its outputs exist "
+                                    "(--skip-existing)\n", frames[f], ++done, frames.size());
+                continue;
+            }
             try {
-                ok = run_frame(commands, frames[f], parallel > 1 ? per_frame : nthreads,
-                               threads, parallel,
+                ok = run_frame(frame, line.text, parallel > 1 ? per_frame : nthreads, threads,
+                               parallel,
                                verbose && parallel == 1, error);
             } catch (const std::bad_alloc&) {
                 // A frame too large for the memory left: one line and a non-zero exit, not
@@ -145,6 +195,7 @@ bool run_frames(const std::vector<Command>& commands, const std::vector<int>& fr
             std::lock_guard<std::mutex> lock(print);
             if (!ok) {
                 failed = true;
+                bad.push_back(frames[f]);
                 std::cerr << "mcdntool: error: "
                           << (frames[f] >= 0 ? format("frame {}: ", frames[f]) : std::string())
                           << error << "\n";
@@ -159,7 +210,28 @@ bool run_frames(const std::vector<Command>& commands, const std::vector<int>& fr
     worker();
     for (auto& t : pool)
         t.join();
+    if (line.skip_bad_frames && !bad.empty() && frames.size() > 1) {
+        std::sort(bad.begin(), bad.end());
+        std::vector<std::string> names;
+        for (int f : bad)
+            names.push_back(std::to_string(f));
+        std::cerr << format("mcdntool: {} of {} frames failed: {}\n", bad.size(), frames.size(),
+                            Strutil::join(names, ","));
+    }
     return !failed;
+}
+
+// A command line that denoises but writes nothing does all the work for nothing: said.
+void warn_without_output(const std::vector<Command>& commands)
+{
+    bool denoises = false, writes = false;
+    for (const auto& c : commands) {
+        denoises |= c.name == "--denoise" || c.name == "--prefilter" || c.name == "--nfor"
+                    || c.name == "--cnn" || c.name == "--sure" || c.name == "--mix";
+        writes |= c.name == "-o";
+    }
+    if (denoises && !writes)
+        std::cerr << "mcdntool: warning: no -o: the denoised image is not written\n";
 }
 
 // SIGINT, SIGTERM, SIGHUP: the output being written is removed, then the signal takes its
@@ -191,7 +263,10 @@ int main(int argc, const char** argv)
         std::cout << "mcdntool " << mcdn::version() << "\n";
         return 0;
     }
-    if (wants_help(argc, argv)) {
+    std::string help_command;
+    if (wants_help(argc, argv, &help_command)) {
+        if (!help_command.empty())
+            return print_command_help(help_command) ? 0 : 1;
         print_help();
         return 0;
     }
@@ -206,7 +281,6 @@ int main(int argc, const char** argv)
     }
     if (frames.empty())
         frames.push_back(-1);  // not a sequence: one run
-    return run_frames(line.commands, frames, line.nthreads, line.parallel_frames, line.verbose)
-               ? 0
-               : 1;
+    warn_without_output(line.commands);
+    return run_frames(line.commands, frames, line) ? 0 : 1;
 }

@@ -1,12 +1,19 @@
 // The built-in commands of mcdntool: inputs, AOVs, info, metrics, heatmaps, output.
+
 #include "session.h"
 
 #include <iostream>
+
+#include <fnmatch.h>
+#include <unistd.h>
 
 #include <OpenImageIO/imagebufalgo.h>
 #include <OpenImageIO/strutil.h>
 #include <OpenImageIO/timer.h>
 
+#include "mcdn/chain.h"
+#include "mcdn/color.h"
+#include "mcdn/denoise.h"
 #include "mcdn/metrics.h"
 #include "mcdn/settings.h"
 
@@ -23,6 +30,9 @@ bool Session::load(std::string& error)
         return false;
     std::vector<Queued> queue;
     std::swap(queue, m_queue);
+    for (const auto& stage : queue)
+        if (stage.name == "prefilter" && !m_input_features.initialized())
+            capture_input_features();
     for (const auto& stage : queue) {
         // The first denoiser's input is kept for a later --sure, which reruns the chain: moved
         // there, not copied (an 8K frame of 40 channels is 5.3 GB).
@@ -32,6 +42,41 @@ bool Session::load(std::string& error)
         if (!apply_to(stage.name, first ? m_chain_input : m_image, stage.op, error))
             return false;
         m_applied.push_back(stage);  // after apply_to(), which starts a new chain
+    }
+    return true;
+}
+
+mcdn::ProgressCallback Session::progress() const
+{
+    if (!verbose || !isatty(STDERR_FILENO))
+        return {};
+    return [](const std::string& stage, float fraction) {
+        // One line, rewritten in place and cleared when the stage is done.
+        std::fprintf(stderr, "\rmcdntool: %s %3d%%\033[K", stage.c_str(), int(100 * fraction));
+        if (fraction >= 1)
+            std::fputs("\r\033[K", stderr);
+        std::fflush(stderr);
+    };
+}
+
+void Session::capture_input_features()
+{
+    m_feature_names = mcdn::feature_channel_names(m_aovs, m_image.spec());
+    std::vector<int> order;
+    for (const std::string& name : m_feature_names)
+        order.push_back(m_image.spec().channelindex(name));
+    if (!order.empty())
+        m_input_features = OIIO::ImageBufAlgo::channels(m_image, int(order.size()), order, {},
+                                                        m_feature_names);
+}
+
+bool Session::restore_input_features(std::string& error)
+{
+    if (!prefilters || features_out || !m_input_features.initialized())
+        return true;
+    if (!mcdn::copy_channels_by_name(m_image, m_input_features, m_feature_names, error)) {
+        error = "putting back the input's features: " + error;
+        return false;
     }
     return true;
 }
@@ -47,6 +92,10 @@ bool Session::take_denoiser_chain(mcdn::Denoiser& chain, int& chain_radius,
         error = "--sure needs a denoiser before it to estimate the error of (e.g. --nfor --sure)";
         return false;
     }
+    if (!m_input_features.initialized() && m_applied.empty())
+        for (const auto& stage : stages)
+            if (stage.name == "prefilter" && !m_input_features.initialized())
+                capture_input_features();
     // Moved out, not copied: the caller's result replaces the current image, which SURE
     // recomputes anyway (y = F(x)).
     chain_input = std::move(m_applied.empty() ? m_image : m_chain_input);
@@ -104,6 +153,22 @@ bool Session::load_inputs(std::string& error)
         return false;
     if (!mcdn::validate_inputs(merged, m_aovs, error))
         return false;
+    std::string colorspace, colorspace_why;
+    if (!mcdn::input_colorspace(colorspace, colorspace_why, aov_spec, merged.spec(), error)) {
+        error = inputs[0].path + ": " + error;
+        return false;
+    }
+    if (verbose)
+        std::cerr << format("mcdntool: colour space '{}' ({}); the stages run in '{}'\n",
+                            colorspace, colorspace_why, mcdn::working_colorspace());
+    if (verbose)
+        std::cerr << format("mcdntool: AOV preset '{}'{}\n", m_aovs.preset(),
+                            m_aovs.detected_because().empty()
+                                ? std::string()
+                                : " (detected: " + m_aovs.detected_because() + ")");
+    // The stages after this one resolve the same preset, whatever channels they add.
+    if (aov_spec.preset.empty())
+        aov_spec.preset = m_aovs.preset();
     if (verbose) {
         // What the stages will have to work with: a missing pass changes what runs.
         std::vector<std::string> found, missing;
@@ -229,7 +294,7 @@ bool run_input(Session& s, const Command& c, std::string& error)
     mcdn::InputKind kind;
     if (!input_kind_of(c, kind, error))
         return false;
-    s.inputs.push_back({ c.args[0], kind });
+    s.inputs.push_back({ c.args[0], kind, c.modifier("part") });
     s.invalidate();
     return true;
 }
@@ -271,6 +336,17 @@ bool run_info(Session& s, const Command& c, std::string& error)
     }
     for (const auto& extra : s.aovs().extras())
         std::cout << format("  extra {:<14} {}\n", extra.name, Strutil::join(extra.names, ", "));
+    if (!s.aovs().detected_because().empty())
+        std::cout << "  preset detected from " << s.aovs().detected_because() << "\n";
+    std::cout << "  stages:\n";
+    for (const char* stage : { "prefilter", "nfor", "cnn", "sure", "mix" }) {
+        std::string how;
+        const bool can = mcdn::stage_can_run(stage, s.aovs(), how);
+        std::cout << format("    --{:<10} {}: {}\n", stage, can ? "yes" : "no ", how);
+    }
+    mcdn::DenoisePlan plan;
+    if (mcdn::plan_denoise(plan, spec, s.aov_spec, error))
+        std::cout << "    --denoise    runs " << plan.describe() << "\n";
     if (c.has("verbose"))
         std::cout << "  channels: " << Strutil::join(spec.channelnames, ", ") << "\n";
     return true;
@@ -383,9 +459,25 @@ bool run_output(Session& s, const Command& c, std::string& error)
     if (!s.load(error))
         return false;
     mcdn::WriteOptions options;
-    if (!write_options_of(c, options, error))
+    if (!write_options_of(c, options, error) || !s.restore_input_features(error))
         return false;
-    options.channels = s.output_channels;
+    options.history = s.history;
+    // --ch words with * ? [ are wildcards over the current image's channels, in its order.
+    for (const std::string& word : s.output_channels) {
+        if (word.find_first_of("*?[") == std::string::npos) {
+            options.channels.push_back(word);
+            continue;
+        }
+        size_t before = options.channels.size();
+        for (const std::string& name : s.image().spec().channelnames)
+            if (fnmatch(word.c_str(), name.c_str(), 0) == 0)
+                options.channels.push_back(name);
+        if (options.channels.size() == before) {
+            error = format("--ch {}: no channel matches (channels: {})", word,
+                           mcdn::channel_list(s.image().spec()));
+            return false;
+        }
+    }
     std::vector<std::string> warnings;
     if (!mcdn::write_image(s.image(), c.args[0], options, error, &warnings))
         return false;

@@ -24,11 +24,15 @@ class Session {
 public:
     int nthreads = 0;
     bool verbose = false;  // a line per stage with its time (-v, or stderr is a terminal)
+    std::string history;   // the command line, for the written files' Exif:ImageHistory
 
     std::vector<mcdn::InputFile> inputs;
     mcdn::AovSpec aov_spec;
     std::vector<std::string> output_channels;  // --ch
     std::string last_reference;                // --metrics REF, for --heatmap
+    /// A --prefilter changes the features; -o writes the input's own unless a stage asked
+    /// for features-out=1.
+    bool prefilters = false, features_out = false;
 
     /// Reads and checks the inputs if not done yet, then runs any queued denoisers:
     /// afterwards image() is the current result.
@@ -52,6 +56,8 @@ public:
     /// Loads, then replaces the current image by op(input), timing it like apply().
     bool apply_to(const std::string& name, const OIIO::ImageBuf& input, const StageOp& op,
                   std::string& error);
+    /// A progress line on a terminal with -v (mcdn/progress.h); empty otherwise.
+    mcdn::ProgressCallback progress() const;
     /// Marks the current image stale (a new -i or --aov arrived).
     void invalidate() { m_loaded = false; }
 
@@ -59,6 +65,9 @@ public:
     const mcdn::AovSet& aovs() const { return m_aovs; }
     /// Replaces the current image by a stage's result and re-resolves the AOV set.
     bool replace_image(OIIO::ImageBuf result, std::string& error);
+    /// The input's feature channels back into the current image (before -o), when a
+    /// prefilter changed them and no stage asked for features-out.
+    bool restore_input_features(std::string& error);
 
 private:
     struct Queued {
@@ -67,10 +76,13 @@ private:
         mcdn::StageReach reach;
     };
     bool load_inputs(std::string& error);
+    void capture_input_features();
     bool m_loaded = false;
     std::vector<Queued> m_queue;    // denoisers waiting for the next load()
     std::vector<Queued> m_applied;  // denoisers that made the current image from m_chain_input
     OIIO::ImageBuf m_chain_input;
+    OIIO::ImageBuf m_input_features;  // the feature channels before the first prefilter
+    std::vector<std::string> m_feature_names;
     OIIO::ImageBuf m_image;
     mcdn::AovSet m_aovs;
 };

@@ -1,9 +1,12 @@
 // The denoising stages as mcdntool commands: each maps its modifiers onto the stage's
 // Options. Denoisers (--prefilter, --nfor) queue up; the next command that needs pixels runs
 // them, and --sure takes the queued chain as the denoiser whose error it estimates.
+#include <iostream>
+
 #include <OpenImageIO/strutil.h>
 
 #include "mcdn/cnn.h"
+#include "mcdn/denoise.h"
 #include "mcdn/mix.h"
 #include "mcdn/nfor.h"
 #include "mcdn/prefilter.h"
@@ -45,6 +48,9 @@ bool queue_prefilter(Session& s, const Command& c, std::string& error)
     if (!stage_options(c, o, error))
         return false;
     o.aovs = s.aov_spec;
+    o.progress = s.progress();
+    s.prefilters = true;
+    s.features_out |= o.features_out;
     s.queue("prefilter", [o](ImageBuf& dst, const ImageBuf& src, int nthreads) {
         return mcdn::prefilter(dst, src, o, {}, nthreads);
     }, mcdn::stage_reach(o));
@@ -57,6 +63,8 @@ bool queue_nfor(Session& s, const Command& c, std::string& error)
     if (!stage_options(c, o, error))
         return false;
     o.aovs = o.prefilter.aovs = s.aov_spec;
+    o.progress = s.progress();
+    s.features_out |= o.features_out;
     s.queue("nfor", [o](ImageBuf& dst, const ImageBuf& src, int nthreads) {
         return mcdn::nfor(dst, src, o, {}, nthreads);
     }, mcdn::stage_reach(o));
@@ -69,6 +77,7 @@ bool queue_cnn(Session& s, const Command& c, std::string& error)
     if (!stage_options(c, o, error))
         return false;
     o.aovs = s.aov_spec;
+    o.progress = s.progress();
     s.queue("cnn", [o](ImageBuf& dst, const ImageBuf& src, int nthreads) {
         return mcdn::cnn(dst, src, o, {}, nthreads);
     });
@@ -81,6 +90,7 @@ bool run_sure(Session& s, const Command& c, std::string& error)
     if (!stage_options(c, o, error))
         return false;
     o.aovs = s.aov_spec;
+    o.progress = s.progress();
     mcdn::Denoiser denoiser;
     ImageBuf render;
     if (!s.take_denoiser_chain(denoiser, o.denoiser_radius, render, error))
@@ -96,9 +106,35 @@ bool run_mix(Session& s, const Command& c, std::string& error)
     if (!stage_options(c, o, error))
         return false;
     o.aovs = s.aov_spec;
+    o.progress = s.progress();
     return s.apply("mix", [&](ImageBuf& dst, const ImageBuf& src, int nthreads) {
         return mcdn::mix(dst, src, o, {}, nthreads);
     }, error);
+}
+
+// The best chain the inputs allow (mcdn/denoise.h), run as the stage commands would run it.
+bool run_denoise(Session& s, const Command& c, std::string& error)
+{
+    if (!s.load(error))
+        return false;
+    mcdn::DenoisePlan plan;
+    if (!mcdn::plan_denoise(plan, s.image().spec(), s.aov_spec, error)) {
+        error = "--denoise: " + error;
+        return false;
+    }
+    if (s.verbose)
+        std::cerr << "mcdntool: --denoise runs " << plan.describe() << "\n";
+    for (const std::string& stage : plan.stages) {
+        Command step { "--" + stage, {}, {} };
+        if (stage == "mix")
+            step.modifiers["model"] = "net";
+        const bool ok = stage == "cnn"    ? queue_cnn(s, step, error)
+                        : stage == "sure" ? run_sure(s, step, error)
+                                          : run_mix(s, step, error);
+        if (!ok)
+            return false;
+    }
+    return true;
 }
 
 }  // namespace
@@ -106,38 +142,61 @@ bool run_mix(Session& s, const Command& c, std::string& error)
 std::vector<CommandInfo> stage_commands()
 {
     return {
+        { "--denoise", "", {},
+          "The best chain the inputs allow: with a colour variance --cnn --sure --mix "
+          "(KPCN, its SURE, the progressive mix by the network: never much worse than the "
+          "better of render and CNN), without one --cnn alone. -v prints which and why. "
+          "To choose stages and their settings, name them instead.",
+          run_denoise, false, {},
+          "the colour (any preset); with its variance (the renderer's variance AOV, Cycles "
+          "via -i:as=variance, a Tungsten folder) the mixed chain. Albedo, normal and depth "
+          "help the CNN; missing ones are zero (-v names them)." },
         { "--prefilter", "", mcdn::setting_keys("prefilter"),
           "NFOR feature prefilter (§5.1): NL-means cross-filtering of albedo, normal, depth "
           "and visibility with their half buffers. window=11 patch=7 k=0.5; features=a,b "
           "adds extra feature channels.",
-          queue_prefilter, false, check<mcdn::PrefilterOptions> },
+          queue_prefilter, false, check<mcdn::PrefilterOptions>,
+          "the features (albedo, normal, depth, visibility) with their half buffers "
+          "(-i:as=halfA, -i:as=halfB) and variances; without halves each feature is "
+          "filtered by its own variance." },
         { "--nfor", "", mcdn::setting_keys("nfor"),
           "NFOR denoiser (§5.2-5.4): first-order regression on the features, collaborative, "
           "bandwidth chosen per pixel. window=19 patch=7 k=0.5,1.0; mse=1 and selection=1 "
           "add nfor.mse.* and nfor.selection.* channels. Prefilters the features itself "
           "unless --prefilter ran. Extra AOVs (light groups, extra.NAME) are denoised with "
           "the beauty's weights so they still add up (extras=0: keep them as they are).",
-          queue_nfor, false, check<mcdn::NforOptions> },
+          queue_nfor, false, check<mcdn::NforOptions>,
+          "the colour and its two half buffers (each the mean of half the samples: "
+          "-i:as=halfA, -i:as=halfB; a Tungsten folder has them); the variance of the mean "
+          "(else the halves' difference); features, prefiltered unless --prefilter ran. "
+          "Without halves, render them, or use --denoise or --cnn." },
         { "--cnn", "", mcdn::setting_keys("cnn"),
           "Kernel-predicting CNN denoiser (KPCN): diffuse/specular split, our trained weights "
           "(models/kpcn.mcdnw; weights=FILE), tiled (tile=512). Extra AOVs take their share "
           "of the beauty's denoised light through its kernels (extras=0: keep them).",
-          queue_cnn, false, check<mcdn::CnnOptions> },
+          queue_cnn, false, check<mcdn::CnnOptions>,
+          "the colour; the diffuse/specular split (Cycles' DiffCol/Dir/Ind and Gloss*, or "
+          "diffuse.*, specular.*) where present; albedo, normal, depth and their variances "
+          "(missing ones are zero: -v names them)." },
         { "--sure", "", mcdn::setting_keys("sure"),
           "Monte-Carlo SURE of the denoisers before it (PD §3.2): adds sure.*, "
           "sure.divergence.*, sure.residual.* and noisy.* channels. probes=1 (K; costs K+1 "
           "denoiser runs), eps=1e-3 (relative probe step).",
-          run_sure, false, check<mcdn::SureOptions> },
+          run_sure, false, check<mcdn::SureOptions>,
+          "the colour and the variance of its mean, and a denoiser before it (--cnn, --nfor, "
+          "--prefilter --nfor), which it runs probes+1 times." },
         { "--mix", "", mcdn::setting_keys("mix"),
           "Progressive mix of the render and the denoised image (PD §4), after --sure: "
-          "model=analytic|net, ttest=1 bounds alpha by the t-test (eq. 18), alpha=1 adds "
+          "model=net|analytic (default net), ttest=1 bounds alpha by the t-test (eq. 18), "
+          "alpha=1 adds "
           "mix.alpha.* channels; with model=net: the network trained for the denoiser before "
           "--sure (models/mix_cnn.mcdnw after --cnn, else models/mix.mcdnw; weights=FILE), "
           "afloor=1, alpha is at least the analytic model's; "
           "outlier=0.3, alpha is at least eq. 9 where the "
           "render's variance exceeds 0.3 (y^2 + 0.01), drop=1.5: alpha = 1 where it exceeds "
           "1.5 (y^2 + 0.01) (0: off).",
-          run_mix, false, check<mcdn::MixOptions> },
+          run_mix, false, check<mcdn::MixOptions>,
+          "what --sure adds (sure.*, noisy.*): give --sure first; the colour's variance." },
     };
 }
 

@@ -135,7 +135,7 @@ bool job_from_recipe(const Recipe& recipe, Job& job, std::string& error)
                               std::pair { "halfB", mcdn::InputKind::HalfB } })
         if (!get(key).empty())
             job.inputs.push_back({ get(key), kind });
-    job.chain.aovs.preset = get("preset", "cycles");
+    job.chain.aovs.preset = get("preset");
     job.chain.aovs.layer = get("layer");
     job.chain.aovs.colorspace = get("colorspace");
     for (const auto& [key, value] : recipe)
@@ -144,7 +144,7 @@ bool job_from_recipe(const Recipe& recipe, Job& job, std::string& error)
     job.channels = Strutil::splits(get("channels"), ",");
     if (!mcdn::parse_threads(get("threads", "0"), job.threads, error))
         return false;
-    return mcdn::parse_chain(job.chain.stages, get("chain", "prefilter,nfor"), error);
+    return mcdn::parse_chain(job.chain.stages, get("chain", "denoise"), error);
 }
 
 std::string recipe_key(const std::string& name)

@@ -7,6 +7,7 @@
 
 #include "mcdn/aov.h"
 #include "mcdn/cnn.h"
+#include "mcdn/denoise.h"
 #include "mcdn/io.h"
 #include "mcdn/metrics.h"
 #include "mcdn/mix.h"
@@ -159,7 +160,7 @@ PYBIND11_MODULE(mcdenoise, m)
                   || !mcdn::validate_inputs(image, set, error))
                   throw std::runtime_error(error);
           },
-          py::arg("image"), py::arg("preset") = "cycles",
+          py::arg("image"), py::arg("preset") = "",
           py::arg("aovs") = std::map<std::string, std::string>(),
           "Raise if the colour, halves or features hold NaN, Inf or huge values.");
 
@@ -176,7 +177,7 @@ PYBIND11_MODULE(mcdenoise, m)
                   return mcdn::prefilter(d, s, o, {}, nthreads);
               });
           },
-          py::arg("image"), py::arg("preset") = "cycles",
+          py::arg("image"), py::arg("preset") = "",
           py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
           py::arg("window") = 11, py::arg("patch") = 7, py::arg("k") = 0.5f,
           py::arg("skip") = true, py::arg("converged") = mcdn::SkipOptions().max_relative_error,
@@ -197,7 +198,7 @@ PYBIND11_MODULE(mcdenoise, m)
                   return mcdn::nfor(d, s, o, {}, nthreads);
               });
           },
-          py::arg("image"), py::arg("preset") = "cycles",
+          py::arg("image"), py::arg("preset") = "",
           py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
           py::arg("window") = 19, py::arg("patch") = 7, py::arg("mse") = false,
           py::arg("selection") = false, py::arg("extras") = true, py::arg("skip") = true,
@@ -219,7 +220,7 @@ PYBIND11_MODULE(mcdenoise, m)
                   return mcdn::cnn(d, s, o, {}, nthreads);
               });
           },
-          py::arg("image"), py::arg("preset") = "cycles",
+          py::arg("image"), py::arg("preset") = "",
           py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
           py::arg("weights") = "", py::arg("extras") = true, py::arg("skip") = true,
           py::arg("converged") = mcdn::SkipOptions().max_relative_error, py::arg("nthreads") = 0,
@@ -259,7 +260,7 @@ PYBIND11_MODULE(mcdenoise, m)
                   return mcdn::sure(d, s, f, o, {}, nthreads);
               });
           },
-          py::arg("image"), py::arg("denoiser") = "nfor", py::arg("preset") = "cycles",
+          py::arg("image"), py::arg("denoiser") = "nfor", py::arg("preset") = "",
           py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
           py::arg("probes") = 1, py::arg("eps") = 1e-3f, py::arg("skip") = true,
           py::arg("converged") = mcdn::SkipOptions().max_relative_error, py::arg("nthreads") = 0,
@@ -282,15 +283,57 @@ PYBIND11_MODULE(mcdenoise, m)
                   return mcdn::mix(d, s, o, {}, nthreads);
               });
           },
-          py::arg("image"), py::arg("model") = "analytic", py::arg("weights") = "",
-          py::arg("t_test") = true, py::arg("alpha") = false, py::arg("preset") = "cycles",
+          py::arg("image"), py::arg("model") = "net", py::arg("weights") = "",
+          py::arg("t_test") = true, py::arg("alpha") = false, py::arg("preset") = "",
           py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
           py::arg("skip") = true, py::arg("converged") = mcdn::SkipOptions().max_relative_error,
           py::arg("nthreads") = 0,
           "Progressive mix (PD §4) of the output of sure(): z = x + alpha'(y - x). With "
-          "model='net' and no weights: the network trained for the denoiser named in the "
+          "model='net' (the default; 'analytic': eq. 9) and no weights: the network trained for the denoiser named in the "
           "image's 'mcdn:denoiser' attribute (set by nfor and cnn; models/mix_cnn.mcdnw for "
           "'cnn', else models/mix.mcdnw).");
+
+    m.def("denoise",
+          [](const ImageBuf& src, const std::string& preset,
+             const std::map<std::string, std::string>& aovs, const std::string& colorspace,
+             const std::map<std::string, std::string>& settings, py::object progress,
+             int nthreads) {
+              mcdn::DenoiseOptions o;
+              o.aovs = aov_spec(preset, aovs, colorspace);
+              o.settings = settings;
+              if (!progress.is_none())
+                  o.progress = [progress](const std::string& stage, float fraction) {
+                      py::gil_scoped_acquire gil;
+                      try {
+                          progress(stage, fraction);
+                      } catch (py::error_already_set& e) {
+                          e.discard_as_unraisable("mcdenoise.denoise progress");
+                      }
+                  };
+              return run(src, [&](ImageBuf& d, const ImageBuf& s) {
+                  return mcdn::denoise(d, s, o, {}, nthreads);
+              });
+          },
+          py::arg("image"), py::arg("preset") = "",
+          py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
+          py::arg("settings") = std::map<std::string, std::string>(),
+          py::arg("progress") = py::none(), py::arg("nthreads") = 0,
+          "The best chain the inputs allow: with a colour variance cnn, sure and mix (the "
+          "network), without one cnn alone (plan() says which and why). settings: "
+          "{'cnn.tile': '256', 'mix.ttest': '0', ...}, the stages' keys. progress: called as "
+          "progress(stage, fraction) while the stages run.");
+    m.def("plan",
+          [](const ImageBuf& src, const std::string& preset,
+             const std::map<std::string, std::string>& aovs) {
+              mcdn::DenoisePlan plan;
+              std::string error;
+              if (!mcdn::plan_denoise(plan, src.spec(), aov_spec(preset, aovs, ""), error))
+                  throw std::runtime_error(error);
+              return plan.describe();
+          },
+          py::arg("image"), py::arg("preset") = "",
+          py::arg("aovs") = std::map<std::string, std::string>(),
+          "One line: the chain denoise() runs on this image, and why.");
 
     m.def("metrics",
           [](const ImageBuf& image, const ImageBuf& reference, std::vector<int> channels,

@@ -55,6 +55,30 @@ TEST(Color, InputSpaceComesFromTheSpecThenTheFileThenTheRole)
     EXPECT_EQ(input_colorspace(AovSpec(), untagged), "lin_rec709");
 }
 
+// A tag or a name the config does not know is an error naming it and the config, never the
+// working space unsaid; OIIO's generic "Linear" leaves the choice to the chromaticities.
+TEST(Color, UnknownNamesAreErrorsAndChromaticitiesAreRead)
+{
+    std::string name, why, error;
+    ImageSpec tagged(4, 4, 3);
+    tagged.attribute("oiio:ColorSpace", "Weird Gamut");
+    EXPECT_FALSE(input_colorspace(name, why, AovSpec(), tagged, error));
+    EXPECT_NE(error.find("'Weird Gamut'"), std::string::npos) << error;
+    EXPECT_NE(error.find("config.ocio"), std::string::npos) << error;
+    AovSpec named;
+    named.colorspace = "nonesuch";
+    EXPECT_FALSE(input_colorspace(name, why, named, ImageSpec(4, 4, 3), error));
+    EXPECT_NE(error.find("'nonesuch'"), std::string::npos) << error;
+
+    ImageSpec ap0(4, 4, 3);
+    ap0.attribute("oiio:ColorSpace", "Linear");
+    const float xy[8] = { 0.7347f, 0.2653f, 0.0f, 1.0f, 0.0001f, -0.077f, 0.32168f, 0.33767f };
+    ap0.attribute("chromaticities", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 8), xy);
+    ASSERT_TRUE(input_colorspace(name, why, AovSpec(), ap0, error)) << error;
+    EXPECT_EQ(name, "aces2065_1");
+    EXPECT_NE(why.find("AP0"), std::string::npos) << why;
+}
+
 TEST(Color, MatricesAndNonLinearSpaces)
 {
     std::array<double, 9> m;

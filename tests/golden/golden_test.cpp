@@ -16,12 +16,14 @@ namespace {
 const std::vector<std::string> kBoxColor = { "ViewLayer.Combined.R", "ViewLayer.Combined.G",
                                               "ViewLayer.Combined.B" };
 
-ImageBuf chain(const ImageBuf& src, const std::vector<std::string>& stages, const std::string& preset)
+ImageBuf chain(const ImageBuf& src, const std::vector<std::string>& stages,
+               const std::string& preset, const std::string& mix_model = "analytic")
 {
     ChainOptions o;
     o.aovs.preset = preset;
     o.stages = stages;
     o.settings["mix.alpha"] = "1";
+    o.settings["mix.model"] = mix_model;
     ImageBuf out;
     EXPECT_TRUE(run_chain(out, src, o)) << out.geterror();
     return out;
@@ -66,4 +68,19 @@ TEST(Golden, NforSureMixBox)
     loose.mean_relative = 1e-2;
     loose.fail_fraction = 0.01;
     EXPECT_TRUE(matches_golden(out, names, "nfor_sure_mix_box16", loose));
+}
+
+// The default: what `--denoise` picks on a render with a variance (cnn, sure, mix by the
+// network), with the preset detected.
+TEST(Golden, DenoiseBox)
+{
+    ImageBuf out = chain(box16(), { "denoise" }, "", "net");
+    std::vector<std::string> names = kBoxColor;
+    for (const char* n : { "sure.R", "sure.G", "sure.B", "mix.alpha.R", "mix.alpha.G", "mix.alpha.B" })
+        names.push_back(n);
+    GoldenThresholds loose;  // SURE's finite difference, as above
+    loose.relative = 2e-2;
+    loose.mean_relative = 1e-2;
+    loose.fail_fraction = 0.01;
+    EXPECT_TRUE(matches_golden(out, names, "denoise_box16", loose));
 }

@@ -4,10 +4,12 @@
 
 Layers, lowest first (a file may include its own layer and those below it):
   0 foundation  lib/src/{core,aov,io,color,metrics,skip}/, mcdn/{aov,io,color,metrics,skip,
+                progress,
                 threads,version}.h: what every op stands on
   1 engines     lib/src/{nl_means,nn}/: the NL-means filter and the network engine
   2 stages      lib/src/{prefilter,nfor,cnn,sure,mix}/ and their public headers
-  3 chains      lib/src/chain/, mcdn/{chain,settings}.h: the only code that knows every stage
+  3 chains      lib/src/chain/, mcdn/{chain,settings,denoise}.h: the only code that knows
+                every stage
 Public headers follow the same rule by the layer of the header itself.
 """
 import os
@@ -22,8 +24,9 @@ FOLDERS = {
 }
 HEADERS = {
     "aov": 0, "io": 0, "color": 0, "metrics": 0, "skip": 0, "threads": 0, "version": 0,
+    "progress": 0,
     "prefilter": 2, "nfor": 2, "cnn": 2, "sure": 2, "mix": 2,
-    "chain": 3, "settings": 3,
+    "chain": 3, "settings": 3, "denoise": 3,
 }
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"', re.M)
 

@@ -105,5 +105,5 @@ TEST(Mix, NeedsSureChannels)
     options.aovs = generic_spec();
     ImageBuf out;
     EXPECT_FALSE(mix(out, src, options));
-    EXPECT_NE(out.geterror().find("run sure first"), std::string::npos) << out.geterror();
+    EXPECT_NE(out.geterror().find("run --sure before it"), std::string::npos) << out.geterror();
 }

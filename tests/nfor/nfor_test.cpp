@@ -165,8 +165,33 @@ TEST(Nfor, MissingHalvesIsAnErrorNamingTheRole)
     OIIO::ImageBuf out;
     EXPECT_FALSE(nfor(out, in, generic_options()));
     std::string error = out.geterror();
-    EXPECT_NE(error.find("nfor"), std::string::npos) << error;
-    EXPECT_NE(error.find("color_a"), std::string::npos) << error;
+    EXPECT_NE(error.find("nfor needs two half buffers or the colour's variance"),
+              std::string::npos) << error;
+    EXPECT_NE(error.find("color_a, color_b, color_variance"), std::string::npos) << error;
+}
+
+// A renderer's colour and variance without halves (Arnold, RenderMan): the one-buffer path,
+// SURE picking the bandwidth; below the render's error, the same for any thread count, and
+// what nfor:halves=0 gives on an input that has halves.
+TEST(Nfor, OneBufferPathWithoutHalves)
+{
+    const std::string b = mcdn_test::test_data("box16/box_0016spp");
+    OIIO::ImageBuf in;
+    ASSERT_TRUE(read_inputs(in, { { b + ".exr", InputKind::Mean },
+                                  { b + "_var.exr", InputKind::Variance } }));
+    NforOptions o;
+    OIIO::ImageBuf one = nfor(in, o, {}, 1), two = nfor(in, o, {}, 2);
+    ASSERT_FALSE(one.has_error()) << one.geterror();
+    EXPECT_EQ(pixels(one), pixels(two));
+    std::vector<int> rgb = color_channels(in, "cycles");
+    const std::string ref = mcdn_test::test_data("box16/box_ref.exr");
+    const double noisy = relmse(in, rgb, ref), denoised = relmse(one, rgb, ref);
+    EXPECT_LT(denoised, 0.25 * noisy) << "render " << noisy;
+    OIIO::ImageBuf full = mcdn_test::box16();
+    o.use_halves = false;
+    OIIO::ImageBuf without = nfor(full, o);
+    ASSERT_FALSE(without.has_error()) << without.geterror();
+    EXPECT_DOUBLE_EQ(relmse(without, color_channels(full, "cycles"), ref), denoised);
 }
 
 TEST(Nfor, RoiLimitsTheWrittenPixels)

@@ -90,3 +90,30 @@ TEST(OiioPlugin, ErrorsAreOiiotoolErrorsNotCrashes)
     }
     EXPECT_FALSE(OIIO::Filesystem::exists(dir + "/out.exr"));
 }
+
+// The README's example as it is written: a render and its variance, no chain (denoise), no
+// preset (detected), plain oiiotool's own colour names without $OCIO.
+TEST(OiioPlugin, TheReadmeExampleWorksWithoutOcio)
+{
+    if (!mcdn_test::has_oiiotool())
+        GTEST_SKIP() << "oiiotool not installed";
+    std::string dir = mcdn_test::temp_dir("plugin_readme");
+    std::string d = mcdn_test::test_data("box16/");
+    auto run = mcdn_test::run_command(
+        "env -u OCIO OIIO_LIBRARY_PATH='" + std::string(MCDN_PLUGIN_DIR) + "' timeout 300 oiiotool "
+        + quote("shot.mcdn?in=" + d + "box_0016spp.exr&variance=" + d + "box_0016spp_var.exr")
+        + " --ch R=ViewLayer.Combined.R,G=ViewLayer.Combined.G,B=ViewLayer.Combined.B"
+          " --colorconvert linear sRGB -o " + quote(dir + "/preview.png"));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_TRUE(OIIO::Filesystem::exists(dir + "/preview.png"));
+    // The denoised image itself, below the render's error.
+    run = oiiotool(quote("shot.mcdn?in=" + d + "box_0016spp.exr&variance=" + d + "box_0016spp_var.exr")
+                   + " --ch R=ViewLayer.Combined.R,G=ViewLayer.Combined.G,B=ViewLayer.Combined.B -o "
+                   + quote(dir + "/denoised.exr"));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    auto noisy = oiiotool(quote(d + "box_0016spp.exr")
+                          + " --ch R=ViewLayer.Combined.R,G=ViewLayer.Combined.G,B=ViewLayer.Combined.B -o "
+                          + quote(dir + "/noisy.exr"));
+    ASSERT_EQ(noisy.exit_code, 0) << noisy.output;
+    EXPECT_LT(relmse_of(dir + "/denoised.exr"), 0.5 * relmse_of(dir + "/noisy.exr"));
+}

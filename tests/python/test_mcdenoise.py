@@ -63,6 +63,14 @@ class OpsTakeAndReturnImageBufs(unittest.TestCase):
         again = mcdenoise.metrics(mcdenoise.cnn(self.render), self.reference)
         self.assertEqual(again["relmse"], after["relmse"])
 
+    def test_denoise_picks_the_chain_and_denoises(self):
+        self.assertTrue(mcdenoise.plan(self.render).startswith("cnn -> sure -> mix (net)"))
+        noisy = mcdenoise.metrics(self.render, self.reference)
+        after = mcdenoise.metrics(mcdenoise.denoise(self.render), self.reference)
+        self.assertLess(after["relmse"], 0.5 * noisy["relmse"])
+        with self.assertRaises(RuntimeError):
+            mcdenoise.denoise(self.render, settings={"cnn.tiles": "256"})  # misspelt key
+
     def test_chain_prefilter_nfor_sure_mix(self):
         out = mcdenoise.prefilter(self.render)
         out = mcdenoise.sure(out, denoiser="nfor")
@@ -107,7 +115,7 @@ class OpsTakeAndReturnImageBufs(unittest.TestCase):
         self.assertIn("nfor: window=4 must be an odd width", str(caught.exception))
         with self.assertRaises(RuntimeError) as caught:
             mcdenoise.mix(self.render)
-        self.assertIn("run sure first", str(caught.exception))
+        self.assertIn("run --sure before it", str(caught.exception))
 
     def test_write_is_atomic_and_keeps_the_render_channels(self):
         with tempfile.TemporaryDirectory() as tmp:

@@ -64,8 +64,9 @@ const char* input_kind_prefix(InputKind kind);
 
 /// What the user asked for: a preset plus per-role overrides.
 struct AovSpec {
-    /// cycles | tungsten | generic
-    std::string preset = "cycles";
+    /// cycles | arnold | renderman | tungsten | oidn | generic; empty or "auto": detected
+    /// from the channel names (detect_aov_preset).
+    std::string preset;
     /// Blender view layer for the cycles preset; empty = the first layer with a Combined pass.
     std::string layer;
     /// OCIO colour space of the colour channels (color.h); empty = the image's
@@ -104,7 +105,10 @@ public:
         std::vector<int> variance, half_a, half_b;
     };
     const std::vector<Extra>& extras() const { return m_extras; }
+    /// The preset the roles were resolved with, and why it was chosen when it was detected
+    /// (empty when the spec named it).
     const std::string& preset() const { return m_preset; }
+    const std::string& detected_because() const { return m_detected_because; }
 
     /// True when the light is split into diffuse and specular components (KPCN §4).
     bool has_component_split() const;
@@ -116,11 +120,17 @@ public:
 
 private:
     friend bool resolve_aovs(AovSet&, const AovSpec&, const ImageSpec&, std::string&);
-    std::string m_preset;
+    std::string m_preset, m_detected_because;
     std::vector<int> m_channels[kRoleCount];
     std::vector<std::string> m_names[kRoleCount];
     std::vector<Extra> m_extras;
 };
+
+/// The preset whose names a merged buffer's channels follow: cycles (a Blender view layer's
+/// "<layer>.Combined.R"), renderman (Ci.r), tungsten (a buffer directory among the inputs),
+/// arnold (RGBA.R, a variance layer in the render, RGBA_<group>, denoise_albedo), oidn (a
+/// beauty with albedo/normal and no variance or halves), else generic. `why` says which.
+std::string detect_aov_preset(const ImageSpec& merged, std::string* why = nullptr);
 
 /// Resolves `spec` against the channel names of a merged buffer. Roles the preset knows but
 /// the buffer lacks are simply absent (use AovSet::require); an override or extra naming a

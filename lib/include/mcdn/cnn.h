@@ -19,6 +19,7 @@
 #include <OpenImageIO/imagebuf.h>
 
 #include "mcdn/aov.h"
+#include "mcdn/progress.h"
 #include "mcdn/skip.h"
 
 namespace mcdn {
@@ -40,6 +41,8 @@ struct CnnOptions {
     /// the halo of a converged tile can differ from an unskipped run (mcdn/skip.h). Feature
     /// AOVs are fixed network inputs: absent ones are zero, constant ones are used as they are.
     SkipOptions skip;
+    /// Called as the stage advances (mcdn/progress.h); empty: nothing is reported.
+    ProgressCallback progress;
 };
 
 /// kpcn.mcdnw in the models directory: $MCDN_MODELS when set, else the one installed with

@@ -26,8 +26,15 @@ std::string ocio_config_path();
 /// The working space of every op: the config's scene_linear role.
 std::string working_colorspace();
 
-/// The space `spec` says the input is in: AovSpec::colorspace when set, else the image's
-/// "oiio:ColorSpace" attribute when the config knows it, else the scene_linear role.
+/// The space the input is in, and `why` (for -v): AovSpec::colorspace when set; else the
+/// image's "oiio:ColorSpace" unless it only says "Linear" (OIIO's EXR reader tags every file
+/// so); else EXR's `chromaticities` when they are Rec.709, ACES AP1 or AP0 primaries; else
+/// the config's scene_linear role. False with `error` naming the name and the config when a
+/// name is not in the config, the chromaticities are other primaries, or the config cannot
+/// be read: nothing falls back to the working space unsaid.
+bool input_colorspace(std::string& name, std::string& why, const AovSpec& aovs,
+                      const ImageSpec& image, std::string& error);
+/// The same, the working space on error (for callers that checked it before).
 std::string input_colorspace(const AovSpec& aovs, const ImageSpec& image);
 
 /// The 3x3 matrix (row-major) of a scene-linear conversion; false with `error` when either

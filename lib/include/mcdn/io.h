@@ -18,10 +18,13 @@ namespace mcdn {
 struct InputFile {
     std::string path;
     InputKind kind = InputKind::Mean;
+    /// A multi-part EXR's part to read alone (-i:part=NAME); empty: every part.
+    std::string part;
 };
 
 /// Reads every channel of every subimage (multi-part EXR) of `path` into a float buffer.
-/// Multi-part channels are prefixed with their part name unless they already carry it.
+/// The first part's channels keep their names (the beauty, in a renderer's multi-part file);
+/// the other parts' are prefixed with their part name unless they already carry it.
 /// Errors (unreadable, truncated, not an image) are set on `dst`, naming the file.
 bool read_image(ImageBuf& dst, const std::string& path);
 
@@ -56,6 +59,9 @@ struct WriteOptions {
     /// Appended to the image's `Software` metadata (after "; ", once), as oiiotool records
     /// itself: what made the file. Empty: `Software` is written as it is.
     std::string software = software_name();
+    /// Appended as a line to the image's `Exif:ImageHistory`, as oiiotool records its own
+    /// command line there (mcdntool: its command line). Empty: left as it is.
+    std::string history;
 };
 
 /// The compressions write_image accepts, OpenEXR's names (an optional ":LEVEL" for zip, zips,

@@ -13,6 +13,7 @@
 #include <OpenImageIO/imagebuf.h>
 
 #include "mcdn/aov.h"
+#include "mcdn/progress.h"
 #include "mcdn/skip.h"
 
 namespace mcdn {
@@ -30,7 +31,7 @@ struct MixOptions {
         /// alpha = (<sigma^2> - <sigma^2 f'(x)>) / <||y - x||^2>, clipped to [0, 1].
         Analytic,
     };
-    Model model = Model::Analytic;
+    Model model = Model::Net;
     /// Weights file of the mixing network (Model::Net); empty: default_mix_weights() of the
     /// denoiser src's "mcdn:denoiser" attribute names.
     std::string weights;
@@ -76,6 +77,8 @@ struct MixOptions {
     /// t-test's, rounded up to 32): the same output (the network's within float round-off:
     /// its tiles fall differently), memory that follows the band. 0: the whole frame.
     int64_t band_pixels = int64_t(1) << 22;
+    /// Called as the stage advances (mcdn/progress.h); empty: nothing is reported.
+    ProgressCallback progress;
 };
 
 /// The mixing network trained for `denoiser`'s outputs (PD §5.3 trains one per denoiser):

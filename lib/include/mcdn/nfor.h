@@ -15,6 +15,7 @@
 #include <OpenImageIO/imagebuf.h>
 
 #include "mcdn/aov.h"
+#include "mcdn/progress.h"
 #include "mcdn/prefilter.h"
 #include "mcdn/skip.h"
 
@@ -58,6 +59,12 @@ struct NforOptions {
     /// nfor.selection.R/G/B (0: k = candidate_k[0], 1: candidate_k[1]).
     bool output_mse = false;
     bool output_selection = false;
+    /// Write the features nfor prefiltered itself (§5.1) over their channels; default they
+    /// keep the input's values.
+    bool features_out = false;
+    /// Use the half buffers when there are; false: the one-buffer path (the render and its
+    /// variance, SURE for §5.3, no §5.4), as for a renderer that writes no halves.
+    bool use_halves = true;
 
     /// Frames with more pixels run in horizontal bands of at most this many pixels (about
     /// twice 1920×1080), each with NFOR's receptive radius of extra rows above and below
@@ -70,6 +77,8 @@ struct NforOptions {
     /// constant over the frame are left out of the prefilter and the regressions
     /// (mcdn/skip.h). Off: exactly the unskipped filter.
     SkipOptions skip;
+    /// Called as the stage advances (mcdn/progress.h); empty: nothing is reported.
+    ProgressCallback progress;
 };
 
 /// Denoises the colour. dst = src (every channel kept) with the colour role's channels

@@ -14,6 +14,7 @@
 #include <OpenImageIO/imagebuf.h>
 
 #include "mcdn/aov.h"
+#include "mcdn/progress.h"
 #include "mcdn/skip.h"
 
 namespace mcdn {
@@ -44,6 +45,12 @@ struct PrefilterOptions {
     /// features constant over the frame are left as they are (mcdn/skip.h). nfor's own
     /// prefilter follows NforOptions::skip instead.
     SkipOptions skip;
+    /// The op always writes the prefiltered features (they are what it makes). A chain
+    /// (mcdntool, run_chain) puts the input's own features back into its output unless this
+    /// is set (features-out=1), so that `--prefilter --nfor -o` changes only the colour.
+    bool features_out = false;
+    /// Called as the stage advances (mcdn/progress.h); empty: nothing is reported.
+    ProgressCallback progress;
 };
 
 /// Prefilters every feature channel. dst = src with the features' mean, half A and half B

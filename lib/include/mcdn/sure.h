@@ -15,6 +15,7 @@
 #include <OpenImageIO/imagebuf.h>
 
 #include "mcdn/aov.h"
+#include "mcdn/progress.h"
 #include "mcdn/skip.h"
 
 namespace mcdn {
@@ -59,6 +60,8 @@ struct SureOptions {
     /// and they run it whole instead of cutting it again: at any frame size the peak is the
     /// render, sure's output and one band.
     int64_t band_pixels = int64_t(1) << 21;
+    /// Called as the stage advances (mcdn/progress.h); empty: nothing is reported.
+    ProgressCallback progress;
 };
 
 /// Channel names the op writes (besides replacing the colour role by y = F(x)).

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/strutil.h>
 
 namespace mcdn {
@@ -52,7 +53,24 @@ std::vector<std::string> with_suffixes(const std::string& stem, const char* suff
 using Candidates = std::vector<std::vector<std::string>>;
 
 // Where a preset keeps the mean face of `role`: channel-name lists to try in order.
-// The other faces are the same names behind the input-kind prefix.
+// The other faces are the same names behind the input-kind prefix (a separate -i:as= file),
+// or where the renderer writes them into the render file itself: preset_face_candidates.
+//
+// The renderers' names, from their documentation:
+// - Cycles (Blender's multilayer EXR, "<layer>.<pass>.<channel>"): Combined, Denoising
+//   Albedo/Normal/Depth, DiffCol/Dir/Ind, GlossCol/Dir/Ind, Emit, Env; light groups
+//   Combined_<group> (blender intern/cycles/blender/sync.cpp). No variance pass: K seeds give
+//   the mean, the variance of the mean and halves A/B (training/datagen).
+// - Arnold (help.autodesk.com, Arnold User Guide: AOVs, Expression AOVs, Arnold Denoiser):
+//   the beauty RGBA as R,G,B,A, or RGBA.R,... with "Preserve Layer Name"; N, Z; the albedo
+//   LPE AOVs albedo, denoise_albedo, diffuse_albedo; light groups RGBA_<group>. The variance
+//   is an output of the beauty through variance_filter, named by the output line; `variance`
+//   (variance.R,G,B) is what the noice documentation and the exporters use.
+// - RenderMan (rmanwiki.pixar.com, Denoising): Ci (Ci.r,g,b; or R,G,B), a; mse (the error
+//   estimate of Ci); albedo, albedo_var; normal, normal_var; zfiltered, zfiltered_var;
+//   diffuse, specular (and their _mse); forward/backward (motion, not read).
+// - OIDN-style files: the beauty with an albedo and a normal, no variance (what Blender's and
+//   OIDN's own denoiser need).
 Candidates preset_candidates(const std::string& preset, const std::string& layer, Role role)
 {
     if (preset == "cycles") {
@@ -74,19 +92,79 @@ Candidates preset_candidates(const std::string& preset, const std::string& layer
         default: return {};
         }
     }
-    // generic, and tungsten (read_tungsten_directory produces the generic layout)
+    if (preset == "arnold") {
+        switch (role) {
+        case Role::Color: return { { "R", "G", "B" }, with_suffixes("RGBA", "RGB") };
+        case Role::Albedo:
+            return { with_suffixes("denoise_albedo", "RGB"), with_suffixes("albedo", "RGB"),
+                     with_suffixes("diffuse_albedo", "RGB") };
+        case Role::Normal: return { with_suffixes("N", "XYZ"), with_suffixes("N", "RGB") };
+        case Role::Depth: return { { "Z" }, { "Z.Z" }, { "Z.R" } };
+        default: return {};
+        }
+    }
+    if (preset == "renderman") {
+        switch (role) {
+        case Role::Color:
+            return { with_suffixes("Ci", "rgb"), with_suffixes("Ci", "RGB"), { "R", "G", "B" } };
+        case Role::Albedo: return { with_suffixes("albedo", "rgb"), with_suffixes("albedo", "RGB") };
+        case Role::Normal:
+            return { with_suffixes("normal", "xyz"), with_suffixes("normal", "rgb"),
+                     with_suffixes("normal", "XYZ"), with_suffixes("normal", "RGB") };
+        case Role::Depth:
+            return { { "zfiltered" }, { "zfiltered.r" }, { "zfiltered.z" }, { "zfiltered.Z" } };
+        case Role::Diffuse:
+            return { with_suffixes("diffuse", "rgb"), with_suffixes("diffuse", "RGB") };
+        case Role::Specular:
+            return { with_suffixes("specular", "rgb"), with_suffixes("specular", "RGB") };
+        default: return {};
+        }
+    }
+    // generic, oidn, and tungsten (read_tungsten_directory produces the generic layout)
     switch (role) {
-    case Role::Color: return { { "R", "G", "B" } };
+    case Role::Color: return { { "R", "G", "B" }, with_suffixes("color", "RGB") };
     case Role::Albedo: return { with_suffixes("albedo", "RGB") };
     case Role::Normal:
         return { with_suffixes("N", "XYZ"), with_suffixes("normal", "XYZ"),
                  with_suffixes("normal", "RGB") };
     case Role::Depth: return { { "Z" }, { "depth.Z" }, { "depth" } };
-    case Role::Visibility: return { { "visibility" }, { "visibility.Y" } };
-    case Role::Diffuse: return { with_suffixes("diffuse", "RGB") };
-    case Role::Specular: return { with_suffixes("specular", "RGB") };
+    case Role::Visibility:
+        if (preset == "oidn")
+            return {};
+        return { { "visibility" }, { "visibility.Y" } };
+    case Role::Diffuse:
+    case Role::Specular:
+        if (preset == "oidn")
+            return {};
+        return { with_suffixes(role == Role::Diffuse ? "diffuse" : "specular", "RGB") };
     default: return {};
     }
+}
+
+// Faces a renderer writes into the render file under their own names (tried before the
+// prefixed names of a separate -i:as= file).
+Candidates preset_face_candidates(const std::string& preset, Role base, Face face)
+{
+    if (face != Face::Variance)
+        return {};
+    if (preset == "arnold" && base == Role::Color)
+        return { with_suffixes("variance", "RGB"), with_suffixes("RGBA_variance", "RGB"),
+                 with_suffixes("beauty_variance", "RGB") };
+    if (preset == "renderman") {
+        switch (base) {
+        case Role::Color: return { with_suffixes("mse", "rgb"), with_suffixes("mse", "RGB") };
+        case Role::Albedo:
+            return { with_suffixes("albedo_var", "rgb"), with_suffixes("albedo_var", "RGB") };
+        case Role::Normal:
+            return { with_suffixes("normal_var", "xyz"), with_suffixes("normal_var", "rgb"),
+                     with_suffixes("normal_var", "XYZ"), with_suffixes("normal_var", "RGB") };
+        case Role::Depth:
+            return { { "zfiltered_var" }, { "zfiltered_var.r" }, { "zfiltered_var.z" },
+                     { "zfiltered_var.Z" } };
+        default: return {};
+        }
+    }
+    return {};
 }
 
 std::vector<std::string> prefixed(const char* prefix, const std::vector<std::string>& names)
@@ -128,7 +206,56 @@ std::string find_cycles_layer(const ImageSpec& spec)
     return {};
 }
 
+bool has_channel(const ImageSpec& spec, const char* name) { return spec.channelindex(name) >= 0; }
+
+bool has_channel_starting(const ImageSpec& spec, const char* stem)
+{
+    for (const auto& name : spec.channelnames)
+        if (OIIO::Strutil::starts_with(name, stem))
+            return true;
+    return false;
+}
+
+bool has_input_of_kind(const ImageSpec& merged, InputKind kind)
+{
+    for (const InputFile& file : merged_input_files(merged))
+        if (file.kind == kind)
+            return true;
+    return false;
+}
+
 }  // namespace
+
+std::string detect_aov_preset(const ImageSpec& merged, std::string* why)
+{
+    auto said = [&](const char* preset, std::string reason) {
+        if (why)
+            *why = std::move(reason);
+        return std::string(preset);
+    };
+    const std::string layer = find_cycles_layer(merged);
+    if (!layer.empty())
+        return said("cycles", "Blender view layer '" + layer + "' (" + layer + ".Combined.R)");
+    if (has_channel(merged, "Ci.r") || has_channel(merged, "Ci.R"))
+        return said("renderman", "RenderMan's Ci channels");
+    for (const InputFile& file : merged_input_files(merged))
+        if (OIIO::Filesystem::is_directory(file.path))
+            return said("tungsten", "a Tungsten buffer directory (" + file.path + ")");
+    const bool variance_in_render = !has_input_of_kind(merged, InputKind::Variance)
+                                    && has_channel(merged, "variance.R");
+    if (has_channel(merged, "RGBA.R") || variance_in_render
+        || has_channel(merged, "denoise_albedo.R") || has_channel(merged, "diffuse_albedo.R")
+        || has_channel_starting(merged, "RGBA_"))
+        return said("arnold", has_channel(merged, "RGBA.R")  ? "Arnold's RGBA layer"
+                              : variance_in_render            ? "a variance layer in the render"
+                                                              : "Arnold's AOV names");
+    const bool features = has_channel(merged, "albedo.R") || has_channel(merged, "N.X")
+                          || has_channel(merged, "normal.X") || has_channel(merged, "normal.R");
+    const bool variance = has_channel(merged, "variance.R") || has_channel(merged, "A.R");
+    if (features && !variance)
+        return said("oidn", "a beauty with albedo/normal and no variance or half buffers");
+    return said("generic", "no renderer's names (R,G,B, albedo.*, N.*, Z, variance.*)");
+}
 
 const char* role_name(Role role) { return kRoleNames[int(role)]; }
 
@@ -183,7 +310,8 @@ const char* input_kind_prefix(InputKind kind)
 
 const std::vector<std::string>& aov_presets()
 {
-    static const std::vector<std::string> presets = { "cycles", "tungsten", "generic" };
+    static const std::vector<std::string> presets = { "cycles", "arnold", "renderman", "tungsten",
+                                                      "oidn", "generic" };
     return presets;
 }
 
@@ -242,15 +370,20 @@ bool resolve_aovs(AovSet& set, const AovSpec& spec, const ImageSpec& merged,
                   std::string& error)
 {
     const auto& presets = aov_presets();
-    if (std::find(presets.begin(), presets.end(), spec.preset) == presets.end()) {
-        error = OIIO::Strutil::fmt::format("unknown aov preset '{}' (presets: {})",
-                                           spec.preset, join(presets, ", "));
+    std::string why;
+    const std::string preset = spec.preset.empty() || spec.preset == "auto"
+                                   ? detect_aov_preset(merged, &why)
+                                   : spec.preset;
+    if (std::find(presets.begin(), presets.end(), preset) == presets.end()) {
+        error = OIIO::Strutil::fmt::format("unknown aov preset '{}' (presets: {}, or auto)",
+                                           preset, join(presets, ", "));
         return false;
     }
     set = AovSet();
-    set.m_preset = spec.preset;
+    set.m_preset = preset;
+    set.m_detected_because = why;
     std::string layer = spec.layer;
-    if (spec.preset == "cycles" && layer.empty())
+    if (preset == "cycles" && layer.empty())
         layer = find_cycles_layer(merged);
 
     // Overrides first: they win, and a misspelt channel is an error rather than "absent".
@@ -288,9 +421,14 @@ bool resolve_aovs(AovSet& set, const AovSpec& spec, const ImageSpec& merged,
         if (faced && faced->second != Face::Mean && overridden[int(base)])
             candidates = { set.m_names[int(base)] };  // faces follow an overridden mean
         else
-            candidates = preset_candidates(spec.preset, layer, base);
-        for (const auto& names : candidates) {
-            std::vector<std::string> full = prefixed(prefix, names);
+            candidates = preset_candidates(preset, layer, base);
+        for (auto& names : candidates)
+            names = prefixed(prefix, names);
+        if (faced && !overridden[int(base)]) {  // the renderer's own names first
+            Candidates own = preset_face_candidates(preset, base, faced->second);
+            candidates.insert(candidates.begin(), own.begin(), own.end());
+        }
+        for (const auto& full : candidates) {
             std::vector<int> indices = find_channels(merged, full);
             if (!indices.empty()) {
                 set.m_channels[r] = indices;
@@ -311,9 +449,10 @@ bool resolve_aovs(AovSet& set, const AovSpec& spec, const ImageSpec& merged,
         }
         set.m_extras.push_back({ name, names, indices, {}, {}, {} });
     }
-    // Blender light groups ("<layer>.Combined_<group>.RGB") are denoised alongside.
-    if (spec.preset == "cycles" && !layer.empty()) {
-        const std::string stem = layer + ".Combined_";
+    // Light groups are denoised alongside: Blender's "<layer>.Combined_<group>.RGB",
+    // Arnold's "RGBA_<group>.RGB".
+    if ((preset == "cycles" && !layer.empty()) || preset == "arnold") {
+        const std::string stem = preset == "cycles" ? layer + ".Combined_" : "RGBA_";
         for (const auto& ch : merged.channelnames) {
             if (OIIO::Strutil::starts_with(ch, stem) && OIIO::Strutil::ends_with(ch, ".R")) {
                 std::string group = ch.substr(0, ch.size() - 2);
@@ -356,16 +495,31 @@ bool AovSet::require(const std::vector<Role>& required, const ImageSpec& merged,
         Role base = faced ? faced->first : role;
         const char* prefix = faced ? input_kind_prefix(InputKind(int(faced->second))) : "";
         std::string layer = m_preset == "cycles" ? find_cycles_layer(merged) : "";
-        Candidates candidates = preset_candidates(m_preset, layer, base);
-        std::string wanted = candidates.empty()
-                                 ? std::string("(no default in this preset)")
-                                 : join(prefixed(prefix, candidates[0]), ",");
+        Candidates candidates = faced ? preset_face_candidates(m_preset, base, faced->second)
+                                      : Candidates();
+        for (const auto& names : preset_candidates(m_preset, layer, base))
+            candidates.push_back(prefixed(prefix, names));
+        std::string wanted = candidates.empty() ? std::string("(no default in this preset)")
+                                                : join(candidates[0], ",");
         std::string source = candidates.empty() ? channel_source(merged, prefix)
-                                                : channel_source(merged, prefixed(prefix, candidates[0])[0]);
+                                                : channel_source(merged, candidates[0][0]);
+        // What to do about it: for the colour's faces that is rendering them (or a stage
+        // that does without), not renaming channels.
+        std::string fix;
+        if (role == Role::ColorA || role == Role::ColorB)
+            fix = "render two half buffers (each the mean of half the samples; -i:as=halfA, "
+                  "-i:as=halfB), or use a stage that needs none (--denoise, --cnn); if the "
+                  "file has them under other names: --aov ";
+        else if (role == Role::ColorVariance)
+            fix = "give the variance of the mean (the renderer's variance AOV, or "
+                  "-i:as=variance FILE), or use a stage that needs none (--cnn; --denoise "
+                  "picks it); if the file has it under another name: --aov ";
+        else
+            fix = "name them with --aov ";
         error = OIIO::Strutil::fmt::format(
             "aov preset '{}': role '{}' not found, looked for {} in {}; channels there: {}; "
-            "name them with --aov {}=ch1,...",
-            m_preset, role_name(role), wanted, source, channel_list(merged),
+            "{}{}=ch1,...",
+            m_preset, role_name(role), wanted, source, channel_list(merged), fix,
             role_name(role));
         return false;
     }

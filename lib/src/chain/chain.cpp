@@ -6,6 +6,7 @@
 #include <OpenImageIO/strutil.h>
 
 #include "mcdn/cnn.h"
+#include "mcdn/denoise.h"
 #include "mcdn/mix.h"
 #include "mcdn/nfor.h"
 #include "mcdn/prefilter.h"
@@ -27,6 +28,7 @@ bool stage_options(Options& options, const ChainOptions& o, const std::string& s
                    std::string& error)
 {
     options.aovs = o.aovs;
+    options.progress = o.progress;
     if (apply_settings(options, stage_settings(o.settings, stage), error))
         return true;
     error = stage + "." + error;  // "nfor.window=4 must be ..."
@@ -91,11 +93,16 @@ std::pair<std::string, Denoiser> denoiser_stage(const std::string& name, const C
 bool parse_chain(std::vector<std::string>& stages, const std::string& text, std::string& error)
 {
     stages = Strutil::splits(text, ",");
+    if (stages.size() == 1 && stages[0] == "denoise")
+        return true;  // the best chain the inputs allow (mcdn/denoise.h)
     bool seen_sure = false;
     for (const auto& s : stages) {
         if (std::find(kStages.begin(), kStages.end(), s) == kStages.end()) {
-            error = format("unknown stage '{}' in chain '{}' (stages: {})", s, text,
-                           Strutil::join(kStages, ", "));
+            error = format(s == "denoise" ? "chain '{1}': denoise picks the whole chain itself; "
+                                            "give it alone or name the stages"
+                                          : "unknown stage '{0}' in chain '{1}' (stages: {2}, or "
+                                            "denoise alone)",
+                           s, text, Strutil::join(kStages, ", "));
             return false;
         }
         if (s == "mix" && !seen_sure) {
@@ -111,13 +118,96 @@ bool parse_chain(std::vector<std::string>& stages, const std::string& text, std:
     return true;
 }
 
+std::vector<std::string> feature_channel_names(const AovSet& aovs, const ImageSpec& spec)
+{
+    std::vector<std::string> names;
+    for (Role base : { Role::Albedo, Role::Normal, Role::Depth, Role::Visibility })
+        for (Face face : { Face::Mean, Face::Variance, Face::HalfA, Face::HalfB })
+            for (int c : aovs.channels(face_of(base, face)))
+                names.push_back(spec.channel_name(c));
+    return names;
+}
+
+bool copy_channels_by_name(ImageBuf& dst, const ImageBuf& input,
+                           const std::vector<std::string>& names, std::string& error)
+{
+    std::vector<float> plane;
+    for (const std::string& name : names) {
+        const int from = input.spec().channelindex(name), to = dst.spec().channelindex(name);
+        if (from < 0 || to < 0) {
+            error = format("channel '{}' is not in the {}", name, from < 0 ? "input" : "output");
+            return false;
+        }
+        ROI r = input.roi();
+        r.chbegin = from;
+        r.chend = from + 1;
+        ROI w = dst.roi();
+        w.chbegin = to;
+        w.chend = to + 1;
+        plane.resize(r.npixels());
+        if (r.npixels() != w.npixels() || !input.get_pixels(r, OIIO::TypeDesc::FLOAT, plane.data())
+            || !dst.set_pixels(w, OIIO::TypeDesc::FLOAT, plane.data())) {
+            error = format("could not copy channel '{}'", name);
+            return false;
+        }
+    }
+    return true;
+}
+
+namespace {
+
+// A prefilter in the chain changes the features, which the output keeps only when asked.
+bool keeps_prefiltered_features(const ChainOptions& o)
+{
+    if (std::find(o.stages.begin(), o.stages.end(), "prefilter") == o.stages.end())
+        return true;
+    for (const char* key : { "prefilter.features-out", "nfor.features-out" }) {
+        auto it = o.settings.find(key);
+        if (it != o.settings.end() && it->second != "0")
+            return true;
+    }
+    return false;
+}
+
+bool run_stages(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, ROI roi,
+                int nthreads);
+
+}  // namespace
+
 bool run_chain(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, ROI roi, int nthreads)
+{
+    if (!run_stages(dst, src, o, roi, nthreads))
+        return false;
+    if (keeps_prefiltered_features(o))
+        return true;
+    AovSet aovs;
+    std::string error;
+    if (!resolve_aovs(aovs, o.aovs, src.spec(), error)
+        || !copy_channels_by_name(dst, src, feature_channel_names(aovs, src.spec()), error)) {
+        dst.errorfmt("putting back the input's features: {}", error);
+        return false;
+    }
+    dst.specmod().erase_attribute("mcdn:prefiltered");
+    return true;
+}
+
+namespace {
+
+bool run_stages(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, ROI roi,
+                int nthreads)
 {
     std::vector<std::string> check;
     std::string error;
     if (!parse_chain(check, Strutil::join(o.stages, ","), error) || !check_settings(o, error)) {
         dst.errorfmt("{}", error);
         return false;
+    }
+    if (o.stages.size() == 1 && o.stages[0] == "denoise") {
+        DenoiseOptions d;
+        d.aovs = o.aovs;
+        d.settings = o.settings;
+        d.progress = o.progress;
+        return denoise(dst, src, d, roi, nthreads);
     }
     ImageBuf current = src;
     std::vector<std::pair<std::string, Denoiser>> pending;  // denoisers since the last sure/mix
@@ -156,5 +246,7 @@ bool run_chain(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, ROI ro
     }
     return compose(std::move(pending))(dst, current);
 }
+
+}  // namespace
 
 }  // namespace mcdn

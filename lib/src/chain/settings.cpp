@@ -167,8 +167,9 @@ bool parse_seed(const std::string& text, uint64_t& seed)
 const std::vector<std::string>& setting_keys(const std::string& stage)
 {
     static const std::map<std::string, std::vector<std::string>> keys = {
-        { "prefilter", { "window", "patch", "k", "features", "skip", "converged" } },
-        { "nfor", { "window", "patch", "k", "mse", "selection", "features", "extras", "skip", "converged" } },
+        { "prefilter", { "window", "patch", "k", "features", "features-out", "skip", "converged" } },
+        { "nfor", { "window", "patch", "k", "mse", "selection", "features", "features-out",
+                    "halves", "extras", "skip", "converged" } },
         { "cnn", { "weights", "tile", "extras", "skip", "converged" } },
         { "sure", { "probes", "eps", "seed", "skip", "converged" } },
         { "mix", { "model", "weights", "ttest", "alpha", "afloor", "outlier", "drop", "skip", "converged" } },
@@ -185,6 +186,7 @@ bool apply_settings(PrefilterOptions& o, const Settings& s, std::string& error)
         .width("patch", o.patch_radius)
         .number("k", o.k)
         .list("features", o.extra_features)
+        .flag("features-out", o.features_out)
         .skip(o.skip)
         .ok();
 }
@@ -200,6 +202,8 @@ bool apply_settings(NforOptions& o, const Settings& s, std::string& error)
                   .flag("selection", o.output_selection)
                   .flag("extras", o.denoise_extras)
                   .list("features", o.extra_features)
+                  .flag("features-out", o.features_out)
+                  .flag("halves", o.use_halves)
                   .skip(o.skip)
                   .ok();
     // The second pass (§5.4) filters with the first pass's window.

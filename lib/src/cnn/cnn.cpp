@@ -17,6 +17,7 @@
 #include "cnn/worker_pool.h"
 #include "core/attributes.h"
 #include "core/op_prepare.h"
+#include "core/progress.h"
 #include "core/trace.h"
 #include "nn/network_regions.h"
 #include "skip/converged_tiles.h"
@@ -193,6 +194,7 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
         if (!output_rect(tile.core, dst, where).empty())
             tiles.push_back(tile);
     trace.mark("networks and depth range");
+    ProgressCounter progress(options.progress, "cnn", int(tiles.size()));
 
     // §4.2 then eq. 4, a tile at a time: one tile per worker, each with its own networks.
     const bool ran = with_threads(nthreads, [&] {
@@ -225,6 +227,7 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
             }
             recombine(frame, output_rect(tile.core, dst, where), tile.window, k, split, src, aovs,
                       extras, converged);
+            progress.advance();
             return true;
         };
         return nn::for_each_tile(int(tiles.size()), workers, run_tile);

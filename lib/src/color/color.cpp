@@ -102,19 +102,92 @@ std::string working_colorspace()
     return cs ? cs->getName() : "scene_linear";
 }
 
+namespace {
+
+// EXR's chromaticities (red, green, blue, white xy) of the primaries our config names.
+struct Primaries {
+    const char* colorspace;
+    const char* name;
+    float xy[8];
+};
+constexpr Primaries kPrimaries[] = {
+    { "lin_rec709", "Rec.709", { 0.64f, 0.33f, 0.30f, 0.60f, 0.15f, 0.06f, 0.3127f, 0.3290f } },
+    { "acescg", "ACES AP1",
+      { 0.713f, 0.293f, 0.165f, 0.830f, 0.128f, 0.044f, 0.32168f, 0.33767f } },
+    { "aces2065_1", "ACES AP0",
+      { 0.7347f, 0.2653f, 0.0f, 1.0f, 0.0001f, -0.077f, 0.32168f, 0.33767f } },
+};
+
+// OIIO's EXR reader tags every file "Linear": linear, but not which primaries.
+bool says_only_linear(const std::string& tag)
+{
+    return OIIO::Strutil::iequals(tag, "linear") || OIIO::Strutil::iequals(tag, "scene_linear");
+}
+
+}  // namespace
+
+bool input_colorspace(std::string& name, std::string& why, const AovSpec& aovs,
+                      const ImageSpec& image, std::string& error)
+{
+    auto config = load_config(error);
+    if (!config)
+        return false;
+    auto known = [&](const std::string& n) { return config->getColorSpace(n.c_str()); };
+    // A buffer run_in_working_space converted is in the working space, whatever the spec says.
+    if (image.get_int_attribute("mcdn:in_working_space") == 1) {
+        name = working_colorspace();
+        why = "converted already";
+        return true;
+    }
+    if (!aovs.colorspace.empty()) {
+        if (!known(aovs.colorspace)) {
+            error = format("colour space '{}' (--aov:colorspace) is not in the OCIO config {}",
+                           aovs.colorspace, ocio_config_path());
+            return false;
+        }
+        name = known(aovs.colorspace)->getName();
+        why = "--aov:colorspace";
+        return true;
+    }
+    const std::string tagged = image.get_string_attribute("oiio:ColorSpace");
+    if (!tagged.empty() && !says_only_linear(tagged)) {
+        if (!known(tagged)) {
+            error = format("the file says oiio:ColorSpace '{}', which the OCIO config {} does "
+                           "not know: give --aov:colorspace=NAME", tagged, ocio_config_path());
+            return false;
+        }
+        name = known(tagged)->getName();
+        why = "the file's oiio:ColorSpace '" + tagged + "'";
+        return true;
+    }
+    const OIIO::ParamValue* chroma = image.find_attribute("chromaticities");
+    if (chroma && chroma->type().basetype == OIIO::TypeDesc::FLOAT && chroma->nvalues() * chroma->type().numelements() * chroma->type().aggregate >= 8) {
+        const float* xy = static_cast<const float*>(chroma->data());
+        for (const Primaries& p : kPrimaries) {
+            bool same = true;
+            for (int i = 0; i < 8; ++i)
+                same = same && std::abs(xy[i] - p.xy[i]) < 2e-3f;
+            if (same && known(p.colorspace)) {
+                name = known(p.colorspace)->getName();
+                why = format("the file's chromaticities ({} primaries)", p.name);
+                return true;
+            }
+        }
+        error = format("the file's chromaticities (red {},{} green {},{} blue {},{} white {},{}) "
+                       "are none of Rec.709, ACES AP1, AP0: give --aov:colorspace=NAME",
+                       xy[0], xy[1], xy[2], xy[3], xy[4], xy[5], xy[6], xy[7]);
+        return false;
+    }
+    name = working_colorspace();
+    why = tagged.empty() ? "no colour-space tag: the config's scene_linear"
+                         : "the file's oiio:ColorSpace '" + tagged + "': the config's scene_linear";
+    return true;
+}
+
 std::string input_colorspace(const AovSpec& aovs, const ImageSpec& image)
 {
-    // A buffer run_in_working_space converted is in the working space, whatever the spec says.
-    if (image.get_int_attribute("mcdn:in_working_space") == 1)
-        return working_colorspace();
-    if (!aovs.colorspace.empty())
-        return aovs.colorspace;
-    std::string error;
-    auto config = load_config(error);
-    std::string tagged = image.get_string_attribute("oiio:ColorSpace");
-    if (config && !tagged.empty() && config->getColorSpace(tagged.c_str()))
-        return config->getColorSpace(tagged.c_str())->getName();
-    return working_colorspace();
+    std::string name, why, error;
+    return input_colorspace(name, why, aovs, image, error) ? name : working_colorspace();
 }
 
 bool linear_transform(std::array<double, 9>& m, const std::string& from, const std::string& to,
@@ -196,10 +269,14 @@ bool run_in_working_space(ImageBuf& dst, const ImageBuf& src, const AovSpec& spe
                           const char* op_name,
                           const std::function<bool(ImageBuf& dst, const ImageBuf& src)>& op)
 {
-    std::string from = input_colorspace(spec, src.spec()), working = working_colorspace();
+    std::string from, why, error;
+    if (!input_colorspace(from, why, spec, src.spec(), error)) {
+        dst.errorfmt("{}: {}", op_name, error);
+        return false;
+    }
+    const std::string working = working_colorspace();
     if (from == working)
         return op(dst, src);
-    std::string error;
     AovSet aovs;
     ImageBuf converted = src.copy(OIIO::TypeDesc::FLOAT);
     if (!resolve_aovs(aovs, spec, converted.spec(), error)

@@ -52,6 +52,13 @@ void write_rows(ImageBuf& frame, int channel, const Plane& band_plane, int band_
                      OIIO::stride_t(band_plane.width * sizeof(float)));
 }
 
+int band_count(const ROI& whole, int halo, int64_t band_pixels)
+{
+    if (band_pixels <= 0 || int64_t(whole.npixels()) <= band_pixels)
+        return 1;
+    return int(plan_bands(whole, halo, band_pixels).size());
+}
+
 bool run_in_bands(ImageBuf& dst, const ImageBuf& src, int halo, int64_t band_pixels,
                   const BandOp& op)
 {

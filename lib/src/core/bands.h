@@ -30,6 +30,8 @@ struct Band {
 /// band_pixels pixels or band_pixels <= 0; else equal bands of at most band_pixels own
 /// pixels, starts and halos rounded to whole converged tiles (mcdn/skip.h).
 std::vector<Band> plan_bands(const ROI& whole, int halo, int64_t band_pixels);
+/// How many bands run_in_bands (run_local_op) runs src in: 1 when it runs it whole.
+int band_count(const ROI& whole, int halo, int64_t band_pixels);
 
 /// Writes the rows of `band_plane` (whose row 0 is frame row band_y) inside `roi` into
 /// channel `channel` of `frame`.

@@ -56,10 +56,21 @@ std::string roi_text(const ROI& roi)
 
 // A file's channels as read_image names them, from its header alone: each part's float spec
 // and, in order, every part's channels (behind the part's name when there are several).
+// A part's channel as the merged buffer names it: behind the part's name unless it is the
+// first part, has no name, or the channel carries the name already.
+std::string part_qualified(const ImageSpec& part, bool first, const std::string& channel)
+{
+    const std::string name = part.get_string_attribute("name");
+    if (first || name.empty() || Strutil::starts_with(channel, name + "."))
+        return channel;
+    return name + "." + channel;
+}
+
 struct FileLayout {
     std::string path;
     std::vector<ImageSpec> parts;
     std::vector<std::string> names;
+    std::vector<int> subimages;  // each part's subimage in the file
 
     // The merged buffer's spec: the first part's metadata with every part's channels.
     ImageSpec merged_spec() const
@@ -73,7 +84,48 @@ struct FileLayout {
     }
 };
 
-bool read_layout(FileLayout& layout, const std::string& path, std::string& error)
+// The parts of a multi-part render, kept in the merged buffer so that write_image writes
+// the same parts: a line per part, its name then pairs of merged and original channel names,
+// tab-separated.
+constexpr const char* kPartsAttribute = "mcdn:parts";
+
+std::string parts_text(const FileLayout& layout)
+{
+    std::vector<std::string> lines;
+    size_t k = 0;
+    for (const ImageSpec& part : layout.parts) {
+        std::vector<std::string> fields { part.get_string_attribute("name") };
+        for (const std::string& original : part.channelnames) {
+            fields.push_back(layout.names[k++]);
+            fields.push_back(original);
+        }
+        lines.push_back(Strutil::join(fields, "\t"));
+    }
+    return Strutil::join(lines, "\n");
+}
+
+struct Part {
+    std::string name;
+    std::vector<std::pair<std::string, std::string>> channels;  // merged, original
+};
+
+std::vector<Part> parse_parts(const std::string& text)
+{
+    std::vector<Part> parts;
+    for (const std::string& line : Strutil::splits(text, "\n")) {
+        std::vector<std::string> fields = Strutil::splits(line, "\t");
+        if (fields.empty())
+            continue;
+        Part part { fields[0], {} };
+        for (size_t i = 1; i + 1 < fields.size(); i += 2)
+            part.channels.emplace_back(fields[i], fields[i + 1]);
+        parts.push_back(std::move(part));
+    }
+    return parts;
+}
+
+bool read_layout(FileLayout& layout, const std::string& path, const std::string& part,
+                 std::string& error)
 {
     if (!Filesystem::exists(path)) {
         error = format("{}: no such file", path);
@@ -89,9 +141,13 @@ bool read_layout(FileLayout& layout, const std::string& path, std::string& error
         error = format("{}: cannot read: {}", path, OIIO::geterror());
         return false;
     }
-    layout = { path, {}, {} };
+    layout = { path, {}, {}, {} };
+    std::vector<std::string> part_names;
     for (int s = 0; in->seek_subimage(s, 0); ++s) {
         ImageSpec spec = in->spec(s, 0);
+        part_names.push_back(spec.get_string_attribute("name"));
+        if (!part.empty() && part_names.back() != part)
+            continue;  // -i:part=NAME reads that part alone
         if (spec.deep) {
             error = format("{}: deep images are not supported (subimage {})", path, s);
             return false;
@@ -104,19 +160,22 @@ bool read_layout(FileLayout& layout, const std::string& path, std::string& error
         spec.set_format(TypeDesc::FLOAT);
         spec.channelformats.clear();
         layout.parts.push_back(spec);
+        layout.subimages.push_back(s);
+    }
+    if (layout.parts.empty() && !part.empty()) {
+        error = format("{}: no part named '{}' (parts: {})", path, part,
+                       Strutil::join(part_names, ", "));
+        return false;
     }
     if (layout.parts.empty()) {
         error = format("{}: no image in file", path);
         return false;
     }
-    for (const auto& spec : layout.parts) {
-        std::string part_name = spec.get_string_attribute("name");
-        for (const auto& ch : spec.channelnames) {
-            bool named = layout.parts.size() == 1 || part_name.empty()
-                         || Strutil::starts_with(ch, part_name + ".");
-            layout.names.push_back(named ? ch : part_name + "." + ch);
-        }
-    }
+    // The first part's channels keep their names (what a reader of part 0 alone sees: the
+    // beauty, in a renderer's multi-part file); the other parts' go behind their part's name.
+    for (size_t p = 0; p < layout.parts.size(); ++p)
+        for (const auto& ch : layout.parts[p].channelnames)
+            layout.names.push_back(part_qualified(layout.parts[p], p == 0, ch));
     return true;
 }
 
@@ -145,7 +204,7 @@ bool read_pixels_into(ImageBuf& dst, int first, const FileLayout& layout, std::s
     float* out = static_cast<float*>(dst.localpixels()) + first;
     for (size_t s = 0; s < layout.parts.size(); ++s) {
         const int n = layout.parts[s].nchannels;
-        if (!in->read_image(int(s), 0, 0, n, TypeDesc::FLOAT, out, pixel,
+        if (!in->read_image(layout.subimages[s], 0, 0, n, TypeDesc::FLOAT, out, pixel,
                             pixel * layout.parts[s].width)) {
             error = format("{}: cannot read pixels (truncated or corrupt?): {}", layout.path,
                            in->geterror());
@@ -162,7 +221,7 @@ bool read_image(ImageBuf& dst, const std::string& path)
 {
     FileLayout layout;
     std::string error;
-    if (!read_layout(layout, path, error)) {
+    if (!read_layout(layout, path, "", error)) {
         dst.errorfmt("{}", error);
         return false;
     }
@@ -271,8 +330,8 @@ bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs)
                 return false;
             }
             const ImageSpec& spec = directories[i].spec();
-            layouts[i] = { input.path, { spec }, spec.channelnames };
-        } else if (!read_layout(layouts[i], input.path, error)) {
+            layouts[i] = { input.path, { spec }, spec.channelnames, { 0 } };
+        } else if (!read_layout(layouts[i], input.path, input.part, error)) {
             dst.errorfmt("{}", error);
             return false;
         }
@@ -312,6 +371,9 @@ bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs)
     spec.channelnames = names;
     spec.alpha_channel = spec.z_channel = -1;
     spec.attribute("mcdn:inputs", Strutil::join(provenance, "\n"));
+    // A multi-part render is written back with the same parts (write_image).
+    if (layouts[meta_from].parts.size() > 1)
+        spec.attribute(kPartsAttribute, parts_text(layouts[meta_from]));
     spec.attribute("mcdn:output_channels", Strutil::join(output_channels, "\n"));
     ImageBuf out(spec);
     if (!allocated(out, inputs[meta_from].path, error)) {
@@ -633,16 +695,40 @@ bool write_image(const ImageBuf& src, const std::string& path, const WriteOption
         wanted = Strutil::splits(in_spec.get_string_attribute("mcdn:output_channels"), "\n");
     if (wanted.empty())
         wanted = in_spec.channelnames;
-    std::vector<int> order;
-    for (const auto& name : wanted) {
-        int c = in_spec.channelindex(name);
-        if (c < 0) {
+    for (const auto& name : wanted)
+        if (in_spec.channelindex(name) < 0) {
             error = format("{}: cannot write channel '{}': not in the image; channels there: {}",
                            path, name, channel_list(in_spec));
             return false;
         }
-        order.push_back(c);
+    // A multi-part render goes back into its parts (an EXR only): each channel into the part
+    // it came from, channels the stages added into the first; parts left empty are dropped.
+    std::vector<Part> parts = parse_parts(in_spec.get_string_attribute(kPartsAttribute));
+    std::vector<std::vector<std::string>> part_channels;  // original names, per part
+    if (parts.size() > 1 && Strutil::iends_with(path, ".exr")) {
+        std::vector<std::vector<std::string>> grouped(parts.size());
+        part_channels.resize(parts.size());
+        for (const auto& name : wanted) {
+            size_t p = 0;
+            std::string original = name;
+            for (size_t q = 0; q < parts.size(); ++q)
+                for (const auto& [merged, own] : parts[q].channels)
+                    if (merged == name) {
+                        p = q;
+                        original = own;
+                    }
+            grouped[p].push_back(name);
+            part_channels[p].push_back(original);
+        }
+        wanted.clear();
+        for (const auto& g : grouped)
+            wanted.insert(wanted.end(), g.begin(), g.end());
+    } else {
+        parts.clear();
     }
+    std::vector<int> order;
+    for (const auto& name : wanted)
+        order.push_back(in_spec.channelindex(name));
     ImageBuf out = OIIO::ImageBufAlgo::channels(src, int(order.size()), order);
     if (out.has_error()) {
         error = format("{}: {}", path, out.geterror());
@@ -654,7 +740,7 @@ bool write_image(const ImageBuf& src, const std::string& path, const WriteOption
     if (warnings)
         warnings->insert(warnings->end(), found.begin(), found.end());
     ImageSpec spec = out.spec();
-    for (const auto& name : { "mcdn:inputs", "mcdn:output_channels" })
+    for (const auto& name : { "mcdn:inputs", "mcdn:output_channels", kPartsAttribute })
         spec.erase_attribute(name);
     spec.set_format(options.datatype);
     spec.channelformats.clear();
@@ -664,6 +750,11 @@ bool write_image(const ImageBuf& src, const std::string& path, const WriteOption
         if (!Strutil::ends_with(software, options.software))
             software += (software.empty() ? "" : "; ") + options.software;
         spec.attribute("Software", software);
+    }
+    if (!options.history.empty()) {
+        std::string history = spec.get_string_attribute("Exif:ImageHistory");
+        spec.attribute("Exif:ImageHistory",
+                       (history.empty() ? "" : history + "\n") + options.history);
     }
     spec.alpha_channel = spec.channelindex("A");
     spec.z_channel     = spec.channelindex("Z");
@@ -679,8 +770,37 @@ bool write_image(const ImageBuf& src, const std::string& path, const WriteOption
     remove_stale_temporaries(path);
     std::string tmp = format("{}{}-{}", temporary_prefix(path), ::getpid(), counter++);
     TemporaryRegistration registration(tmp);
-    bool ok = output->open(tmp, spec)
-              && output->write_image(TypeDesc::FLOAT, out.localpixels());
+    bool ok;
+    if (parts.empty()) {
+        ok = output->open(tmp, spec) && output->write_image(TypeDesc::FLOAT, out.localpixels());
+    } else {
+        std::vector<ImageSpec> specs;
+        std::vector<int> first_channel;
+        int first = 0;
+        for (size_t p = 0; p < parts.size(); ++p) {
+            const int n = int(part_channels[p].size());
+            if (n == 0)
+                continue;
+            ImageSpec part = spec;
+            part.nchannels = n;
+            part.channelnames = part_channels[p];
+            part.attribute("name", parts[p].name);
+            part.attribute("oiio:subimagename", parts[p].name);
+            part.alpha_channel = part.channelindex("A");
+            part.z_channel = part.channelindex("Z");
+            specs.push_back(part);
+            first_channel.push_back(first);
+            first += n;
+        }
+        const OIIO::stride_t pixel = OIIO::stride_t(out.nchannels()) * sizeof(float);
+        const float* pixels = static_cast<const float*>(out.localpixels());
+        ok = output->supports("multiimage")
+             && output->open(tmp, int(specs.size()), specs.data());
+        for (size_t p = 0; ok && p < specs.size(); ++p)
+            ok = (p == 0 || output->open(tmp, specs[p], ImageOutput::AppendSubimage))
+                 && output->write_image(TypeDesc::FLOAT, pixels + first_channel[p], pixel,
+                                        pixel * spec.width);
+    }
     ok = output->close() && ok;
     std::string rename_error;
     if (ok && !Filesystem::rename(tmp, path, rename_error)) {

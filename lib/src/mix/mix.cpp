@@ -11,6 +11,7 @@
 #include "core/channels.h"
 #include "core/attributes.h"
 #include "core/op_prepare.h"
+#include "core/progress.h"
 #include "core/trace.h"
 #include "mcdn/sure.h"
 #include "mix/mix_steps.h"
@@ -23,6 +24,13 @@ namespace {
 struct MixChannels {
     int y[3], variance[3], x[3], sure[3], divergence[3], residual[3];
 };
+
+std::string needs_sure(const char* missing)
+{
+    return OIIO::Strutil::fmt::format(
+        "mix mixes the render with a denoiser by the error --sure estimates: run --sure "
+        "before it (--cnn --sure --mix, or --denoise); the input has no '{}'", missing);
+}
 
 // The channels sure wrote, by name; a missing one is an error that says to run --sure.
 bool find_mix_channels(MixChannels& ch, const ImageSpec& spec, const AovSet& aovs,
@@ -40,9 +48,7 @@ bool find_mix_channels(MixChannels& ch, const ImageSpec& spec, const AovSet& aov
         for (const auto& [channel, name] : named) {
             *channel = spec.channelindex(name);
             if (*channel < 0) {
-                error = OIIO::Strutil::fmt::format(
-                    "mix: channel '{}' not found: run sure first (mcdntool ... --nfor --sure --mix)",
-                    name);
+                error = needs_sure(name);
                 return false;
             }
         }
@@ -84,6 +90,11 @@ bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options, ROI roi,
     trace.mark("copy src to dst");
     std::string error;
     MixChannels channels;
+    // Without --sure before it, that is the fix to name (not a missing channel of its own).
+    if (src.spec().channelindex(sure_channels::kSure[0]) < 0) {
+        dst.errorfmt("{}", needs_sure(sure_channels::kSure[0]));
+        return false;
+    }
     if (!aovs.require({ Role::Color, Role::ColorVariance }, src.spec(), error)
         || !find_mix_channels(channels, src.spec(), aovs, error)) {
         dst.errorfmt("{}", error);
@@ -109,7 +120,9 @@ bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options, ROI roi,
     if (options.output_alpha)
         alpha_channels = add_channels(dst, { "mix.alpha.R", "mix.alpha.G", "mix.alpha.B" });
     const int radius = mix_radius(options, use_net ? &net : nullptr);
-    for (const Band& band : plan_bands(src.roi(), radius, options.band_pixels)) {
+    const std::vector<Band> bands = plan_bands(src.roi(), radius, options.band_pixels);
+    ProgressCounter progress(options.progress, "mix", int(bands.size()));
+    for (const Band& band : bands) {
         const MixInputs in = read_mix_inputs(src, channels, band.cut);
         Plane alpha[3];
         ConvergedTiles passed;
@@ -147,6 +160,7 @@ bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options, ROI roi,
             }
         }
         trace.mark("band: z = x + alpha (y - x)");
+        progress.advance();
     }
     return true;
 }

@@ -60,6 +60,19 @@ void ExtraAovs::second_pass(const RegressionInputs& second, int nthreads)
     }
 }
 
+void ExtraAovs::blend_is_result()
+{
+    for (Extra& e : m_extras) {
+        e.denoised.clear();
+        for (int c = 0; c < 3; ++c) {
+            e.denoised.push_back(std::move(e.combined[c]));
+            for (size_t i = 0; i < e.denoised[c].size(); ++i)
+                if (!std::isfinite(e.denoised[c].px[i]))
+                    e.denoised[c].px[i] = e.planes.mean[c].px[i];
+        }
+    }
+}
+
 void ExtraAovs::share_rounding(const Plane color[3], const std::vector<Plane>& denoised_color)
 {
     constexpr double kAddsUp = 1e-5;  // relative to the pixel's magnitude

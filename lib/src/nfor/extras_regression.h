@@ -31,6 +31,8 @@ public:
     void blend(const std::vector<Plane>& selection);
     /// §5.4: the beauty's second-pass regression (guided by its combined halves).
     void second_pass(const RegressionInputs& second, int nthreads);
+    /// Without half buffers there is no second pass: the blend is the result.
+    void blend_is_result();
 
     /// Linear in exact arithmetic, the regressions round their float sums differently for
     /// each AOV, and ill-conditioned windows amplify that (well above float epsilon of the

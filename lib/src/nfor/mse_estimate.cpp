@@ -22,6 +22,24 @@ std::vector<Plane> estimate_mse(const Plane* const half_a[3], const Plane* const
     return mse;
 }
 
+std::vector<Plane> sure_mse(const Plane* const render[3], const Plane* const variance[3],
+                            const Plane probe[3], double eps, const std::vector<Plane>& fit,
+                            const std::vector<Plane>& probed_fit)
+{
+    std::vector<Plane> mse;
+    for (int c = 0; c < 3; ++c) {
+        Plane m(fit[c].width, fit[c].height);
+        for (size_t i = 0; i < m.size(); ++i) {
+            const double residual = double(fit[c].px[i]) - render[c]->px[i];
+            const double divergence =
+                eps > 0 ? probe[c].px[i] * (double(probed_fit[c].px[i]) - fit[c].px[i]) / eps : 0.0;
+            m.px[i] = sanitize(float(residual * residual + 2.0 * divergence - variance[c]->px[i]));
+        }
+        mse.push_back(std::move(m));
+    }
+    return mse;
+}
+
 std::vector<Plane> select_candidate(const std::vector<Plane>& mse0, const std::vector<Plane>& mse1)
 {
     std::vector<Plane> selection;

@@ -1,9 +1,15 @@
 // mcdn::nfor, reading like the paper: prefiltered features (§5.1), first pass of
 // cross-filtered regressions for two bandwidths (§5.2), MSE estimate and bandwidth selection
 // (§5.3), second pass on the averaged halves (§5.4).
+//
+// Renderers that write a variance but no half buffers (Arnold, RenderMan) take the
+// one-buffer path: §5.2 fits the render with its own weights, §5.3 picks the bandwidth by
+// SURE (PD §2.3) on a probed second fit, and there is no §5.4 (its variance is the halves'
+// difference).
 #include "mcdn/nfor.h"
 
 #include <algorithm>
+#include <cmath>
 
 #include <OpenImageIO/imagebufalgo.h>
 
@@ -16,6 +22,8 @@
 #include "nl_means/nl_means.h"
 #include "core/bands.h"
 #include "core/op_prepare.h"
+#include "core/progress.h"
+#include "core/random.h"
 #include "core/trace.h"
 #include "mcdn/color.h"
 #include "nfor/extras_regression.h"
@@ -25,6 +33,8 @@
 
 namespace mcdn {
 namespace {
+
+constexpr uint64_t kNforProbeSeed = 0x6e666f72;  // "nfor": the one-buffer SURE probe
 
 bool check_options(ImageBuf& dst, const NforOptions& o)
 {
@@ -47,8 +57,10 @@ struct ColorPlanes {
 /// What the op reads from src before anything is written (dst may be src).
 struct NforInputs {
     AovSet aovs;
+    bool halves = false;  // else the one-buffer path: the render and its variance only
     ColorPlanes color;
     std::vector<FeaturePlanes> features;
+    std::vector<FeatureChannel> feature_channels;  // where each of `features` came from
     std::vector<ExtraPlanes> extras;
 };
 
@@ -56,12 +68,29 @@ bool read_inputs(NforInputs& in, ImageBuf& dst, const ImageBuf& src, const NforO
 {
     const char* op = "nfor";
     std::string error;
-    std::vector<FeatureChannel> feature_channels;
+    std::vector<FeatureChannel>& feature_channels = in.feature_channels;
     if (!resolve_aovs(in.aovs, options.aovs, src.spec(), error)
-        || !in.aovs.require({ Role::Color, Role::ColorA, Role::ColorB }, src.spec(), error)
+        || !in.aovs.require({ Role::Color }, src.spec(), error)
         || !find_feature_channels(feature_channels, in.aovs, src.spec(), options.extra_features,
                                   op, error)) {
         dst.errorfmt("{}: {}", op, error);
+        return false;
+    }
+    // Two half buffers (§5.2's cross filtering), else the render's variance (the one-buffer
+    // path); with neither there is nothing to estimate the error from.
+    in.halves = options.use_halves && in.aovs.has(Role::ColorA) && in.aovs.has(Role::ColorB);
+    if (!options.use_halves)  // as if the renderer wrote none: the features' go too
+        for (FeatureChannel& f : feature_channels)
+            f.half_a = f.half_b = -1;
+    if (!in.halves && !in.aovs.has(Role::ColorVariance)) {
+        dst.errorfmt("nfor needs two half buffers or the colour's variance, and {} has "
+                     "neither: render two half buffers (each the mean of half the samples: "
+                     "-i:as=halfA, -i:as=halfB) or the variance (the renderer's variance "
+                     "AOV, or -i:as=variance FILE), or use a stage that needs none "
+                     "(--denoise, --cnn); roles color_a, color_b, color_variance (preset '{}')",
+                     channel_source(src.spec(), src.spec().channel_name(
+                                                    in.aovs.channels(Role::Color)[0])),
+                     in.aovs.preset());
         return false;
     }
     if (int(feature_channels.size()) > kMaxRegressionFeatures) {
@@ -78,8 +107,10 @@ bool read_inputs(NforInputs& in, ImageBuf& dst, const ImageBuf& src, const NforO
     ColorPlanes& color = in.color;
     for (int c = 0; c < 3; ++c) {
         color.mean[c] = read_plane(src, in.aovs.channels(Role::Color)[c]);
-        color.half_a[c] = read_plane(src, in.aovs.channels(Role::ColorA)[c]);
-        color.half_b[c] = read_plane(src, in.aovs.channels(Role::ColorB)[c]);
+        if (in.halves) {
+            color.half_a[c] = read_plane(src, in.aovs.channels(Role::ColorA)[c]);
+            color.half_b[c] = read_plane(src, in.aovs.channels(Role::ColorB)[c]);
+        }
         if (in.aovs.has(Role::ColorVariance)) {
             color.variance[c] = read_plane(src, in.aovs.channels(Role::ColorVariance)[c], true);
         } else {  // two-buffer estimate of the variance of the mean
@@ -93,10 +124,14 @@ bool read_inputs(NforInputs& in, ImageBuf& dst, const ImageBuf& src, const NforO
     for (const FeatureChannel& f : feature_channels)
         in.features.push_back(read_feature(src, f));
     if (denoises_extras(options.denoise_extras, src)
-        && !read_extras(in.extras, src, in.aovs, true, error)) {
+        && !read_extras(in.extras, src, in.aovs, in.halves, error)) {
         dst.errorfmt("{}: {}", op, error);
         return false;
     }
+    if (!in.halves)  // the one-buffer path fits each extra itself, as it fits the render
+        for (ExtraPlanes& e : in.extras)
+            for (int c = 0; c < 3; ++c)
+                e.half_a[c] = e.half_b[c] = e.mean[c];
     return true;
 }
 
@@ -155,21 +190,10 @@ FirstPass first_pass(const ColorPlanes& color, std::vector<FeaturePlanes>& featu
     return pass;
 }
 
-/// §5.3's result: the candidates blended per pixel, which is what §5.4 filters, and the
-/// blended MSE estimate and selection map when asked for.
-struct Selected {
-    Plane combined[3], combined_variance[3];
-    std::vector<Plane> mse, selection;
-};
-
-/// §5.3: the two-buffer MSE estimate of each candidate, NL-means filtered on the mean colour;
-/// the lower one picked per pixel; that selection map filtered the same way and the
-/// candidates blended with it. Consumes the fits and the colour's halves and variance.
-Selected select_bandwidths(ColorPlanes& color, FirstPass& pass, ExtraAovs& extras,
-                           const NforOptions& options, const ConvergedTiles& converged,
-                           int nthreads)
+/// §5.3 by the two-buffer estimate: each candidate's MSE from the other half. The colour's
+/// halves are not needed after it.
+void two_buffer_mse(std::vector<Plane> mse[2], ColorPlanes& color, const FirstPass& pass)
 {
-    std::vector<Plane> mse[2];
     for (int j = 0; j < 2; ++j) {
         const Plane* half_a[3] = { &color.half_a[0], &color.half_a[1], &color.half_a[2] };
         const Plane* half_b[3] = { &color.half_b[0], &color.half_b[1], &color.half_b[2] };
@@ -180,7 +204,90 @@ Selected select_bandwidths(ColorPlanes& color, FirstPass& pass, ExtraAovs& extra
         color.half_a[c] = Plane();
         color.half_b[c] = Plane();
     }
+}
 
+/// The probe step of the one-buffer SURE, relative to the render's scale as in the sure op
+/// (SureOptions::epsilon_relative): eps sqrt(Var) moves a pixel by ~1e-3 of the mean |x|.
+double probe_step(const ColorPlanes& color)
+{
+    double sum_abs = 0, sum_var = 0;
+    size_t n = 0;
+    for (int c = 0; c < 3; ++c)
+        for (size_t i = 0; i < color.mean[c].size(); ++i, ++n) {
+            sum_abs += std::fabs(color.mean[c].px[i]);
+            sum_var += color.variance[c].px[i];
+        }
+    if (n == 0 || sum_var <= 0 || sum_abs <= 0)
+        return 0;  // no noise, or a black image: nothing to probe
+    return 1e-3 * (sum_abs / n) / std::sqrt(sum_var / n);
+}
+
+/// Without half buffers (a renderer's colour and its variance, as Arnold and RenderMan
+/// write them), §5.2 fits the render itself with its own weights and the mean features for
+/// both candidates, and once more probed by eps b, b = sqrt(Var) n (n standard normal, from
+/// the pixel's index: the same for any thread count), so that §5.3 can pick by SURE
+/// (PD §2.3) instead of the two-buffer estimate. fit_b stays empty.
+FirstPass first_pass_one_buffer(const ColorPlanes& color, std::vector<FeaturePlanes>& features,
+                                ExtraAovs& extras, const NforOptions& options,
+                                const ConvergedTiles& converged, int nthreads,
+                                std::vector<Plane> mse[2])
+{
+    RegressionInputs first;
+    first.window_radius = options.window_radius;
+    first.patch_radius = options.patch_radius;
+    first.bandwidths = { options.candidate_k[0], options.candidate_k[1] };
+    first.variance_scale = options.variance_scale;
+    first.skip_tiles = &converged;
+    for (const FeaturePlanes& f : features)
+        first.features.push_back(&f.mean);
+    const double eps = probe_step(color);
+    Plane probe[3], probed[3];
+    for (int c = 0; c < 3; ++c) {
+        first.image[c] = first.guide[c] = &color.mean[c];
+        first.variance[c] = &color.variance[c];
+        probe[c] = Plane(color.mean[c].width, color.mean[c].height);
+        probed[c] = probe[c];
+        for (size_t i = 0; i < probe[c].size(); ++i) {
+            probe[c].px[i] = std::sqrt(color.variance[c].px[i])
+                             * standard_normal(kNforProbeSeed, uint64_t(c), uint64_t(i));
+            probed[c].px[i] = float(color.mean[c].px[i] + eps * probe[c].px[i]);
+        }
+    }
+    RegressionInputs probed_inputs = first;
+    for (int c = 0; c < 3; ++c)
+        probed_inputs.image[c] = probed_inputs.guide[c] = &probed[c];
+    FirstPass pass;
+    std::vector<std::vector<Plane>> fits = collaborative_regression(first, nthreads);
+    pass.fit_a[0] = std::move(fits[0]);
+    pass.fit_a[1] = std::move(fits[1]);
+    fits = collaborative_regression(probed_inputs, nthreads);
+    const Plane* render[3] = { &color.mean[0], &color.mean[1], &color.mean[2] };
+    const Plane* variance[3] = { &color.variance[0], &color.variance[1], &color.variance[2] };
+    for (int j = 0; j < 2; ++j)
+        mse[j] = sure_mse(render, variance, probe, eps, pass.fit_a[j], fits[j]);
+    extras.first_pass(first, first, nthreads);
+    for (FeaturePlanes& f : features) {
+        f.half_a = Plane();
+        f.half_b = Plane();
+    }
+    return pass;
+}
+
+/// §5.3's result: the candidates blended per pixel, which is what §5.4 filters, and the
+/// blended MSE estimate and selection map when asked for.
+struct Selected {
+    Plane combined[3], combined_variance[3];
+    std::vector<Plane> mse, selection;
+};
+
+/// §5.3: each candidate's MSE estimate NL-means filtered on the mean colour; the lower one
+/// picked per pixel; that selection map filtered the same way and the candidates blended
+/// with it (both halves' fits, or the render's alone on the one-buffer path). Consumes the
+/// MSE estimates, the fits and the colour's variance.
+Selected select_bandwidths(ColorPlanes& color, std::vector<Plane> mse[2], FirstPass& pass,
+                           ExtraAovs& extras, const NforOptions& options,
+                           const ConvergedTiles& converged, int nthreads)
+{
     const NlMeansParams map_params { options.map_patch_radius, options.map_window_radius,
                                      options.map_k, 1.0f };
     std::vector<const Plane*> map_guide, map_variance, noisy;
@@ -217,7 +324,7 @@ Selected select_bandwidths(ColorPlanes& color, FirstPass& pass, ExtraAovs& extra
         for (size_t i = 0; i < out.combined[c].size(); ++i) {
             float s = selection[c].px[i];
             float a = blend_candidates(pass.fit_a, c, i, s);
-            float b = blend_candidates(pass.fit_b, c, i, s);
+            float b = pass.fit_b[0].empty() ? a : blend_candidates(pass.fit_b, c, i, s);
             // §5.4 filters the average of the halves, whose variance the halves' squared
             // difference estimates.
             out.combined[c].px[i] = 0.5f * (a + b);
@@ -263,7 +370,8 @@ std::vector<Plane> second_pass(Selected& selected, std::vector<FeaturePlanes>& f
         selected.combined[c] = Plane();
         selected.combined_variance[c] = Plane();
     }
-    features.clear();
+    if (!options.features_out)
+        features.clear();
     return denoised;
 }
 
@@ -296,7 +404,7 @@ bool write_maps(ImageBuf& dst, Selected& selected, ROI roi)
 }
 
 bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions& options,
-                           ROI roi, int nthreads)
+                           ROI roi, int nthreads, ProgressCounter& progress)
 {
     if (!check_options(dst, options))
         return false;
@@ -311,19 +419,38 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     const ConvergedTiles converged = converged_tiles_of(src, color.mean, color.variance,
                                                         options.skip);
     if (options.skip.enabled)
-        drop_constant_features(in.features);
+        drop_constant_features(in.features, &in.feature_channels);
     trace.mark("read planes");
 
     const bool prefiltered = src.spec().get_int_attribute("mcdn:prefiltered", 0) == 1;
     prefilter_features(in.features, options, prefiltered, converged, nthreads);
     trace.mark("prefilter (5.1)");
-    FirstPass pass = first_pass(color, in.features, extras, options, converged, nthreads);
+    progress.advance();
+    std::vector<Plane> mse[2];
+    FirstPass pass = in.halves ? first_pass(color, in.features, extras, options, converged,
+                                            nthreads)
+                               : first_pass_one_buffer(color, in.features, extras, options,
+                                                       converged, nthreads, mse);
+    if (in.halves)
+        two_buffer_mse(mse, color, pass);
     trace.mark("first pass regressions (5.2)");
-    Selected selected = select_bandwidths(color, pass, extras, options, converged, nthreads);
+    progress.advance();
+    Selected selected = select_bandwidths(color, mse, pass, extras, options, converged,
+                                          nthreads);
     trace.mark("MSE + selection maps (5.3)");
-    std::vector<Plane> denoised = second_pass(selected, in.features, extras, options,
-                                              converged, nthreads);
+    progress.advance();
+    std::vector<Plane> denoised;
+    if (in.halves) {
+        denoised = second_pass(selected, in.features, extras, options, converged, nthreads);
+    } else {  // §5.4 filters the halves' average with their difference as its variance
+        for (int c = 0; c < 3; ++c)
+            denoised.push_back(std::move(selected.combined[c]));
+        extras.blend_is_result();
+        if (!options.features_out)
+            in.features.clear();
+    }
     trace.mark("second pass (5.4)");
+    progress.advance();
 
     // Nothing non-finite leaves the op (the regression already falls back per pixel).
     for (int c = 0; c < 3; ++c)
@@ -349,6 +476,10 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     }
     if (!write_maps(dst, selected, roi))
         return false;
+    // features-out: the means it prefiltered (§5.1) over their channels.
+    if (options.features_out && !prefiltered && options.prefilter_features)
+        for (size_t i = 0; i < in.features.size(); ++i)
+            write_plane(dst, in.feature_channels[i].mean, in.features[i].mean, roi);
     trace.mark("write");
     return true;
 }
@@ -376,9 +507,13 @@ bool nfor(ImageBuf& dst, const ImageBuf& src, const NforOptions& options, ROI ro
     if (!check_op_threads(dst, nthreads, "nfor"))
         return false;
     bool prefiltered = src.spec().get_int_attribute("mcdn:prefiltered", 0) == 1;
-    if (!run_local_op(dst, src, options.aovs, "nfor", receptive_radius(options, prefiltered),
-                      options.band_pixels, [&](ImageBuf& d, const ImageBuf& s) {
-                          return nfor_in_working_space(d, s, options, roi, nthreads);
+    const int radius = receptive_radius(options, prefiltered);
+    // Four steps a band: §5.1, §5.2, §5.3, §5.4.
+    ProgressCounter progress(options.progress, "nfor",
+                             4 * band_count(src.roi(), radius, options.band_pixels));
+    if (!run_local_op(dst, src, options.aovs, "nfor", radius, options.band_pixels,
+                      [&](ImageBuf& d, const ImageBuf& s) {
+                          return nfor_in_working_space(d, s, options, roi, nthreads, progress);
                       }))
         return false;
     dst.specmod().attribute(kDenoiserAttribute, "nfor");

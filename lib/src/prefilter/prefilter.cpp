@@ -6,6 +6,7 @@
 #include "core/feature_channels.h"
 #include "core/bands.h"
 #include "core/op_prepare.h"
+#include "core/progress.h"
 #include "core/trace.h"
 #include "mcdn/color.h"
 #include "prefilter/feature_prefilter.h"
@@ -15,7 +16,8 @@ namespace mcdn {
 namespace {
 
 bool prefilter_in_working_space(ImageBuf& dst, const ImageBuf& src,
-                                const PrefilterOptions& options, ROI roi, int nthreads)
+                                const PrefilterOptions& options, ROI roi, int nthreads,
+                                ProgressCounter& progress)
 {
     const char* op = "prefilter";
     if (options.window_radius < 0 || options.patch_radius < 0 || options.second_window_radius < 0
@@ -65,6 +67,7 @@ bool prefilter_in_working_space(ImageBuf& dst, const ImageBuf& src,
     }
     dst.specmod().attribute("mcdn:prefiltered", 1);
     trace.mark("write");
+    progress.advance();
     return true;
 }
 
@@ -80,9 +83,11 @@ bool prefilter(ImageBuf& dst, const ImageBuf& src, const PrefilterOptions& optio
 {
     if (!check_op_threads(dst, nthreads, "prefilter"))
         return false;
+    ProgressCounter progress(options.progress, "prefilter",
+                             band_count(src.roi(), receptive_radius(options), options.band_pixels));
     return run_local_op(dst, src, options.aovs, "prefilter", receptive_radius(options),
                         options.band_pixels, [&](ImageBuf& d, const ImageBuf& s) {
-                            return prefilter_in_working_space(d, s, options, roi, nthreads);
+                            return prefilter_in_working_space(d, s, options, roi, nthreads, progress);
                         });
 }
 

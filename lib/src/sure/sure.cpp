@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "core/op_prepare.h"
+#include "core/progress.h"
 #include "core/trace.h"
 #include "mcdn/color.h"
 #include "sure/sure_steps.h"
@@ -103,6 +104,7 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
             ? plan_bands(frame.whole, options.denoiser_radius, options.band_pixels)
             : plan_bands(frame.whole, 0, 0);
     ImageBuf out;
+    ProgressCounter progress(options.progress, "sure", int(bands.size()));
     for (const Band& band : bands) {
         ImageBuf noisy;
         if (bands.size() == 1) {
@@ -117,6 +119,7 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
             return false;
         }
         trace.mark("band: denoiser, probe, eq. 7");
+        progress.advance();
     }
     dst = std::move(out);
     return true;

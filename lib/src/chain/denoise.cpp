@@ -1,0 +1,113 @@
+// mcdn::denoise: the plan (mcdn/denoise.h says which chain and why), then run_chain.
+#include "mcdn/denoise.h"
+
+#include <OpenImageIO/strutil.h>
+
+#include "mcdn/chain.h"
+
+namespace mcdn {
+
+using OIIO::Strutil::fmt::format;
+namespace Strutil = OIIO::Strutil;
+
+std::string DenoisePlan::describe() const
+{
+    std::vector<std::string> shown;
+    for (const std::string& s : stages)
+        shown.push_back(s == "mix" ? "mix (net)" : s);
+    std::string line = Strutil::join(shown, " -> ") + ": " + why;
+    if (!zero_filled.empty())
+        line += "; no " + Strutil::join(zero_filled, ", ") + " (read as zero by the CNN)";
+    return line;
+}
+
+bool plan_denoise(DenoisePlan& plan, const ImageSpec& merged, const AovSpec& spec,
+                  std::string& error)
+{
+    AovSet aovs;
+    if (!resolve_aovs(aovs, spec, merged, error) || !aovs.require({ Role::Color }, merged, error))
+        return false;
+    plan = DenoisePlan();
+    plan.preset = aovs.preset();
+    plan.preset_why = aovs.detected_because();
+    if (aovs.has(Role::ColorVariance)) {
+        plan.stages = { "cnn", "sure", "mix" };
+        plan.why = format("the input has a colour variance ({})",
+                          Strutil::join(aovs.names(Role::ColorVariance), ","));
+    } else {
+        plan.stages = { "cnn" };
+        plan.why = "no colour variance, which SURE and the mix need (render one, or give "
+                   "-i:as=variance FILE, for the mixed chain)";
+    }
+    for (Role r : { Role::Albedo, Role::Normal, Role::Depth })
+        if (!aovs.has(r))
+            plan.zero_filled.push_back(role_name(r));
+    return true;
+}
+
+bool stage_can_run(const std::string& stage, const AovSet& aovs, std::string& how)
+{
+    const bool variance = aovs.has(Role::ColorVariance);
+    const bool halves = aovs.has(Role::ColorA) && aovs.has(Role::ColorB);
+    bool features = false;
+    for (Role r : { Role::Albedo, Role::Normal, Role::Depth, Role::Visibility })
+        features |= aovs.has(r);
+    if (!aovs.has(Role::Color)) {
+        how = "no colour";
+        return false;
+    }
+    if (stage == "prefilter") {
+        how = !features ? "no albedo, normal, depth or visibility to filter"
+              : halves   ? "cross-filters the features' halves"
+                         : "no half buffers: each feature by its own variance";
+        return features;
+    }
+    if (stage == "nfor") {
+        how = halves     ? "two-buffer (§5.2-5.4)"
+              : variance ? "one-buffer: no half buffers, SURE picks the bandwidth, no §5.4"
+                         : "needs two half buffers or the colour's variance";
+        return halves || variance;
+    }
+    if (stage == "cnn") {
+        how = features ? "with the features there are" : "no features: the CNN reads zeros";
+        return true;
+    }
+    if (stage == "sure" || stage == "mix") {
+        how = variance ? (stage == "sure" ? "after a denoiser" : "after --sure")
+                       : "needs the colour's variance";
+        return variance;
+    }
+    how = "not a stage";
+    return false;
+}
+
+bool denoise(ImageBuf& dst, const ImageBuf& src, const DenoiseOptions& options, ROI roi,
+             int nthreads)
+{
+    DenoisePlan plan;
+    std::string error;
+    if (!plan_denoise(plan, src.spec(), options.aovs, error)) {
+        dst.errorfmt("denoise: {}", error);
+        return false;
+    }
+    ChainOptions chain;
+    chain.aovs = options.aovs;
+    chain.stages = plan.stages;
+    chain.settings = options.settings;
+    chain.progress = options.progress;
+    if (!chain.settings.count("mix.model"))
+        chain.settings["mix.model"] = "net";
+    if (!run_chain(dst, src, chain, roi, nthreads))
+        return false;
+    dst.specmod().attribute("mcdn:denoise_plan", plan.describe());
+    return true;
+}
+
+ImageBuf denoise(const ImageBuf& src, const DenoiseOptions& options, ROI roi, int nthreads)
+{
+    ImageBuf dst;
+    denoise(dst, src, options, roi, nthreads);
+    return dst;
+}
+
+}  // namespace mcdn

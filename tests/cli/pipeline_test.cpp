@@ -1,0 +1,217 @@
+// What a TD meets in a pipeline: the silent cases of issue 20 are each an error, a warning or
+// a documented choice.
+#include <OpenImageIO/imagebuf.h>
+#include <OpenImageIO/imagebufalgo.h>
+
+#include "mcdn_test.h"
+
+using mcdn_test::quote;
+using mcdn_test::run_mcdntool;
+
+namespace {
+
+std::string box(const std::string& name) { return quote(mcdn_test::test_data("box16/" + name)); }
+
+/// Three frames of box16 (render and variance) in `dir`: shot.0001.exr ... and shot_var.*.
+void make_shot(const std::string& dir)
+{
+    for (int f : { 1, 2, 3 })
+        for (const char* face : { "", "_var" })
+            OIIO::Filesystem::copy(mcdn_test::test_data(std::string("box16/box_0016spp") + face + ".exr"),
+                                   OIIO::Strutil::fmt::format("{}/shot{}.{:04d}.exr", dir, face, f));
+}
+
+bool same_channel(const std::string& a, const std::string& b, const std::string& channel)
+{
+    OIIO::ImageBuf x(a), y(b);
+    const int cx = x.spec().channelindex(channel), cy = y.spec().channelindex(channel);
+    if (cx < 0 || cy < 0)
+        return false;
+    auto d = OIIO::ImageBufAlgo::compare(OIIO::ImageBufAlgo::channels(x, 1, { cx }),
+                                         OIIO::ImageBufAlgo::channels(y, 1, { cy }), 0, 0);
+    return d.maxerror == 0;
+}
+
+}  // namespace
+
+TEST(Pipeline, ASequenceIntoOneFileIsAnError)
+{
+    std::string dir = mcdn_test::temp_dir("pipeline_pattern");
+    make_shot(dir);
+    auto run = run_mcdntool("-i " + quote(dir + "/shot.#.exr") + " --cnn -o " + quote(dir + "/out.exr"));
+    EXPECT_EQ(run.exit_code, 1);
+    EXPECT_NE(run.output.find("every frame would overwrite it"), std::string::npos) << run.output;
+    EXPECT_FALSE(OIIO::Filesystem::exists(dir + "/out.exr"));
+}
+
+TEST(Pipeline, DenoisingWithoutOutputWarns)
+{
+    auto run = run_mcdntool("-i " + box("box_0016spp.exr") + " --cnn");
+    EXPECT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_NE(run.output.find("warning: no -o"), std::string::npos) << run.output;
+    run = run_mcdntool("-i " + box("box_0016spp.exr") + " --info");
+    EXPECT_EQ(run.output.find("warning: no -o"), std::string::npos) << run.output;
+}
+
+TEST(Pipeline, SkipExistingAndSkipBadFrames)
+{
+    std::string dir = mcdn_test::temp_dir("pipeline_frames");
+    make_shot(dir);
+    const std::string shot = "-i " + quote(dir + "/shot.#.exr") + " -i:as=variance "
+                             + quote(dir + "/shot_var.#.exr") + " --denoise -o "
+                             + quote(dir + "/out.#.exr");
+    OIIO::Filesystem::copy(dir + "/shot.0001.exr", dir + "/out.0002.exr");  // "done" already
+    auto run = run_mcdntool(shot + " --skip-existing");
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_NE(run.output.find("frame 2 ("), std::string::npos) << run.output;
+    EXPECT_NE(run.output.find("skipped: its outputs exist"), std::string::npos) << run.output;
+    EXPECT_TRUE(same_channel(dir + "/out.0002.exr", dir + "/shot.0001.exr", "ViewLayer.Combined.R"))
+        << "an existing output is left alone";
+    EXPECT_TRUE(OIIO::Filesystem::exists(dir + "/out.0003.exr"));
+
+    // A truncated frame 2: without --skip-bad-frames the sequence stops there, with it the
+    // other frames are written, the bad one listed, and the exit status says so.
+    OIIO::Filesystem::remove(dir + "/out.0001.exr");
+    OIIO::Filesystem::remove(dir + "/out.0002.exr");
+    OIIO::Filesystem::remove(dir + "/out.0003.exr");
+    std::string bytes;
+    OIIO::Filesystem::read_text_file(dir + "/shot.0002.exr", bytes);
+    std::FILE* f = std::fopen((dir + "/shot.0002.exr").c_str(), "wb");
+    std::fwrite(bytes.data(), 1, bytes.size() / 3, f);
+    std::fclose(f);
+    run = run_mcdntool(shot + " --parallel-frames 1");
+    EXPECT_EQ(run.exit_code, 1);
+    EXPECT_FALSE(OIIO::Filesystem::exists(dir + "/out.0003.exr")) << run.output;
+    for (const char* flag : { " --skip-bad-frames", " --continue" }) {
+        OIIO::Filesystem::remove(dir + "/out.0001.exr");
+        OIIO::Filesystem::remove(dir + "/out.0003.exr");
+        run = run_mcdntool(shot + flag);
+        EXPECT_EQ(run.exit_code, 1) << run.output;
+        EXPECT_TRUE(OIIO::Filesystem::exists(dir + "/out.0001.exr")) << run.output;
+        EXPECT_TRUE(OIIO::Filesystem::exists(dir + "/out.0003.exr")) << run.output;
+        EXPECT_FALSE(OIIO::Filesystem::exists(dir + "/out.0002.exr")) << run.output;
+        EXPECT_NE(run.output.find("1 of 3 frames failed: 2"), std::string::npos) << run.output;
+    }
+}
+
+TEST(Pipeline, ChannelWildcardsSelectWhatIsWritten)
+{
+    std::string dir = mcdn_test::temp_dir("pipeline_ch");
+    auto run = run_mcdntool("-i " + box("box_0016spp.exr") + " -i:as=variance " + box("box_0016spp_var.exr")
+                            + " --cnn --sure --mix:alpha=1 --ch 'ViewLayer.Combined.*,mix.alpha.*' -o "
+                            + quote(dir + "/out.exr"));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    OIIO::ImageBuf out(dir + "/out.exr");
+    EXPECT_EQ(out.spec().nchannels, 7);
+    EXPECT_GE(out.spec().channelindex("mix.alpha.G"), 0);
+    run = run_mcdntool("-i " + box("box_0016spp.exr") + " --cnn --ch 'nothing.*' -o " + quote(dir + "/x.exr"));
+    EXPECT_EQ(run.exit_code, 1);
+    EXPECT_NE(run.output.find("--ch nothing.*: no channel matches"), std::string::npos) << run.output;
+}
+
+TEST(Pipeline, FeaturesAreWrittenBackUnchangedUnlessAsked)
+{
+    std::string dir = mcdn_test::temp_dir("pipeline_features");
+    const std::string in = "-i " + box("box_0016spp.exr") + " -i:as=variance " + box("box_0016spp_var.exr")
+                           + " -i:as=halfA " + box("box_0016spp_A.exr") + " -i:as=halfB "
+                           + box("box_0016spp_B.exr");
+    const std::string render = mcdn_test::test_data("box16/box_0016spp.exr");
+    const std::string albedo = "ViewLayer.Denoising Albedo.R";
+    int k = 0;  // a new name each run: OIIO's image cache keeps what it read of a name
+    for (const char* chain : { "--nfor", "--prefilter --nfor", "--prefilter --nfor --sure --mix" }) {
+        const std::string out = dir + "/out" + std::to_string(k++) + ".exr";
+        auto run = run_mcdntool(in + " " + chain + " -o " + quote(out));
+        ASSERT_EQ(run.exit_code, 0) << run.output;
+        EXPECT_TRUE(same_channel(out, render, albedo)) << chain;
+        EXPECT_FALSE(same_channel(out, render, "ViewLayer.Combined.R")) << chain;
+    }
+    for (const char* chain : { "--prefilter:features-out=1 --nfor", "--nfor:features-out=1" }) {
+        const std::string out = dir + "/out" + std::to_string(k++) + ".exr";
+        auto run = run_mcdntool(in + " " + chain + " -o " + quote(out));
+        ASSERT_EQ(run.exit_code, 0) << run.output;
+        EXPECT_FALSE(same_channel(out, render, albedo)) << chain;
+    }
+}
+
+TEST(Pipeline, ColorSpaceIsSaidAndNeverGuessed)
+{
+    std::string dir = mcdn_test::temp_dir("pipeline_color");
+    // The file's own tag is printed with -v.
+    auto run = run_mcdntool("-v -i " + box("box_0016spp.exr") + " --cnn -o " + quote(dir + "/a.exr"));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_NE(run.output.find("colour space 'lin_rec709'"), std::string::npos) << run.output;
+    // An unknown name is an error naming it and the config.
+    run = run_mcdntool("-i " + box("box_0016spp.exr") + " --aov:colorspace=nonesuch --cnn -o " + quote(dir + "/b.exr"));
+    EXPECT_EQ(run.exit_code, 1);
+    EXPECT_NE(run.output.find("'nonesuch'"), std::string::npos) << run.output;
+    EXPECT_NE(run.output.find("config.ocio"), std::string::npos) << run.output;
+    // An unreadable config is an error naming it.
+    run = run_mcdntool("-i " + box("box_0016spp.exr") + " --cnn -o " + quote(dir + "/c.exr"),
+                       "OCIO=" + dir + "/missing.ocio");
+    EXPECT_EQ(run.exit_code, 1);
+    EXPECT_NE(run.output.find("missing.ocio"), std::string::npos) << run.output;
+    EXPECT_FALSE(OIIO::Filesystem::exists(dir + "/c.exr"));
+
+    // ACEScg by its chromaticities (AP1), no oiio:ColorSpace beyond OIIO's "Linear".
+    OIIO::ImageBuf render(mcdn_test::test_data("box16/box_0016spp.exr"));
+    render.read(0, 0, true, OIIO::TypeDesc::FLOAT);
+    const float ap1[8] = { 0.713f, 0.293f, 0.165f, 0.830f, 0.128f, 0.044f, 0.32168f, 0.33767f };
+    render.specmod().attribute("chromaticities", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 8), ap1);
+    ASSERT_TRUE(render.write(dir + "/acescg.exr"));
+    run = run_mcdntool("-v -i " + quote(dir + "/acescg.exr") + " --cnn -o " + quote(dir + "/d.exr"));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_NE(run.output.find("colour space 'acescg' (the file's chromaticities (ACES AP1"),
+              std::string::npos) << run.output;
+    // Other primaries are an error, not Rec.709.
+    const float p3[8] = { 0.680f, 0.320f, 0.265f, 0.690f, 0.150f, 0.060f, 0.3127f, 0.3290f };
+    render.specmod().attribute("chromaticities", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 8), p3);
+    ASSERT_TRUE(render.write(dir + "/p3.exr"));
+    run = run_mcdntool("-i " + quote(dir + "/p3.exr") + " --cnn -o " + quote(dir + "/e.exr"));
+    EXPECT_EQ(run.exit_code, 1);
+    EXPECT_NE(run.output.find("chromaticities"), std::string::npos) << run.output;
+}
+
+TEST(Pipeline, HelpPerCommandAndInfoSayWhatEachStageNeeds)
+{
+    auto run = run_mcdntool("--help nfor");
+    EXPECT_EQ(run.exit_code, 0);
+    EXPECT_NE(run.output.find("two half buffers"), std::string::npos) << run.output;
+    EXPECT_NE(run.output.find("Modifiers"), std::string::npos) << run.output;
+    run = run_mcdntool("--help --mix");
+    EXPECT_NE(run.output.find("give --sure first"), std::string::npos) << run.output;
+    run = run_mcdntool("--help nofr");
+    EXPECT_EQ(run.exit_code, 1);
+    EXPECT_NE(run.output.find("did you mean '--nfor'"), std::string::npos) << run.output;
+
+    run = run_mcdntool("-i " + box("box_0016spp.exr") + " --info");
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_NE(run.output.find("--sure       no : needs the colour's variance"), std::string::npos)
+        << run.output;
+    EXPECT_NE(run.output.find("--denoise    runs cnn:"), std::string::npos) << run.output;
+}
+
+TEST(Pipeline, ErrorsNameTheRealFix)
+{
+    // --nfor on a render alone: render halves, or use a stage that needs none.
+    auto run = run_mcdntool("-i " + box("box_0016spp.exr") + " --nfor -o /tmp/mcdn_never.exr");
+    EXPECT_EQ(run.exit_code, 1);
+    EXPECT_NE(run.output.find("render two half buffers"), std::string::npos) << run.output;
+    EXPECT_NE(run.output.find("--denoise"), std::string::npos) << run.output;
+    // --mix without --sure says so.
+    run = run_mcdntool("-i " + box("box_0016spp.exr") + " -i:as=variance " + box("box_0016spp_var.exr")
+                       + " --cnn --mix -o /tmp/mcdn_never.exr");
+    EXPECT_EQ(run.exit_code, 1);
+    EXPECT_NE(run.output.find("--sure"), std::string::npos) << run.output;
+}
+
+TEST(Pipeline, HistoryRecordsTheCommandLine)
+{
+    std::string dir = mcdn_test::temp_dir("pipeline_history");
+    auto run = run_mcdntool("-i " + box("box_0016spp.exr") + " --cnn -o " + quote(dir + "/out.exr"));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    OIIO::ImageBuf out(dir + "/out.exr");
+    const std::string history = out.spec().get_string_attribute("Exif:ImageHistory");
+    EXPECT_NE(history.find("\nmcdntool -i "), std::string::npos) << history;
+    EXPECT_NE(history.find("--cnn -o"), std::string::npos) << history;
+    EXPECT_NE(out.spec().get_string_attribute("Software").find("mcdenoise"), std::string::npos);
+}

@@ -1,0 +1,277 @@
+// Files named as each renderer writes them, made from our Cycles render (tests/data/box16),
+// denoised with `mcdntool -i FILE --denoise -o OUT` and no other flag: the preset is detected,
+// the chain picked, and the result is closer to the reference than the render is.
+#include <map>
+
+#include <OpenImageIO/imagebufalgo.h>
+#include <OpenImageIO/imageio.h>
+
+#include "mcdn/aov.h"
+#include "mcdn/metrics.h"
+
+#include "mcdn_test.h"
+
+namespace {
+
+using OIIO::ImageBuf;
+using OIIO::ImageBufAlgo::channels;
+using mcdn_test::run_mcdntool;
+using mcdn_test::test_data;
+
+const std::string kBox = "box16/box_0016spp";
+
+ImageBuf read(const std::string& rel)
+{
+    ImageBuf b(test_data(rel));
+    EXPECT_TRUE(b.read(0, 0, true, OIIO::TypeDesc::FLOAT)) << b.geterror();
+    return b;
+}
+
+/// One renderer channel: its name, and the box16 file and channel it is made of.
+struct Source {
+    std::string name;
+    std::string file;  // "" (the render), "_var", "_A", "_B"
+    std::string channel;
+};
+
+/// A file whose channels are the sources, in order; ops on the channels (diffuse/specular)
+/// are done by the caller through `extra`.
+ImageBuf assemble(const std::vector<Source>& sources, const std::vector<std::pair<std::string, ImageBuf>>& extra = {})
+{
+    std::map<std::string, ImageBuf> files;
+    for (const char* f : { "", "_var", "_A", "_B" })
+        files[f] = read(kBox + f + ".exr");
+    ImageBuf out;
+    std::vector<std::string> names;
+    for (const Source& s : sources) {
+        const ImageBuf& from = files[s.file];
+        int c = from.spec().channelindex(s.channel);
+        EXPECT_GE(c, 0) << s.channel;
+        ImageBuf one = channels(from, 1, { c });
+        out = out.initialized() ? OIIO::ImageBufAlgo::channel_append(out, one) : one;
+        names.push_back(s.name);
+    }
+    for (const auto& [name, plane] : extra) {
+        out = OIIO::ImageBufAlgo::channel_append(out, plane);
+        names.push_back(name);
+    }
+    out.specmod().channelnames = names;
+    out.specmod().alpha_channel = -1;
+    out.specmod().z_channel = -1;
+    return out;
+}
+
+std::vector<Source> rgb(const std::vector<std::string>& names, const std::string& file,
+                        const std::string& stem, const char* suffixes = "RGB")
+{
+    std::vector<Source> out;
+    for (int i = 0; i < 3; ++i)
+        out.push_back({ names[i], file, "ViewLayer." + stem + "." + suffixes[i] });
+    return out;
+}
+
+std::vector<Source> concat(std::initializer_list<std::vector<Source>> parts)
+{
+    std::vector<Source> out;
+    for (const auto& p : parts)
+        out.insert(out.end(), p.begin(), p.end());
+    return out;
+}
+
+double relmse(const ImageBuf& image, const std::vector<std::string>& color)
+{
+    ImageBuf reference = read("box16/box_ref.exr");
+    mcdn::MetricsOptions o;
+    o.image_channels.clear();
+    for (const auto& c : color)
+        o.image_channels.push_back(image.spec().channelindex(c));
+    o.reference_channels = { reference.spec().channelindex("ViewLayer.Combined.R"),
+                             reference.spec().channelindex("ViewLayer.Combined.G"),
+                             reference.spec().channelindex("ViewLayer.Combined.B") };
+    mcdn::Metrics m;
+    std::string error;
+    EXPECT_TRUE(mcdn::compute_metrics(m, image, reference, o, error)) << error;
+    return m.relmse;
+}
+
+/// Writes `file`, denoises it with --denoise alone, and checks the detected preset, the
+/// chain picked and the error against the render's.
+void denoises_below_the_render(const std::string& name, const ImageBuf& file,
+                               const std::vector<std::string>& color, const std::string& preset,
+                               const std::string& chain)
+{
+    const std::string dir = mcdn_test::temp_dir("presets_" + name);
+    ASSERT_TRUE(file.write(dir + "/beauty.exr")) << file.geterror();
+    auto run = run_mcdntool("-v -i " + dir + "/beauty.exr --denoise -o " + dir + "/out.exr");
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_NE(run.output.find("AOV preset '" + preset + "'"), std::string::npos) << run.output;
+    EXPECT_NE(run.output.find("--denoise runs " + chain + ":"), std::string::npos) << run.output;
+    ImageBuf written(dir + "/beauty.exr"), out(dir + "/out.exr");
+    ASSERT_TRUE(out.read(0, 0, true, OIIO::TypeDesc::FLOAT)) << out.geterror();
+    ASSERT_TRUE(written.read(0, 0, true, OIIO::TypeDesc::FLOAT)) << written.geterror();
+    EXPECT_EQ(out.spec().channelnames, written.spec().channelnames) << "channels kept";
+    const double render = relmse(written, color), denoised = relmse(out, color);
+    EXPECT_LT(denoised, 0.5 * render) << name << ": render " << render << ", denoised " << denoised;
+}
+
+const std::vector<std::string> kRGB = { "R", "G", "B" };
+
+// Arnold: beauty R,G,B (Preserve Layer Name off), its variance_filter output `variance`, N,
+// Z, denoise_albedo (help.autodesk.com, Arnold User Guide: Arnold Denoiser, AOVs).
+TEST(Presets, ArnoldBeautyWithVarianceRunsTheMixedChain)
+{
+    ImageBuf file = assemble(concat({ rgb(kRGB, "", "Combined"),
+                                      rgb({ "variance.R", "variance.G", "variance.B" }, "_var", "Combined"),
+                                      rgb({ "N.X", "N.Y", "N.Z" }, "", "Denoising Normal", "XYZ"),
+                                      { { "Z", "", "ViewLayer.Denoising Depth.Z" } },
+                                      rgb({ "denoise_albedo.R", "denoise_albedo.G", "denoise_albedo.B" }, "", "Denoising Albedo") }));
+    denoises_below_the_render("arnold", file, kRGB, "arnold", "cnn -> sure -> mix (net)");
+}
+
+// Arnold with Preserve Layer Name on: RGBA.R, ...
+TEST(Presets, ArnoldLayerNamesAreDetected)
+{
+    const std::vector<std::string> color = { "RGBA.R", "RGBA.G", "RGBA.B" };
+    ImageBuf file = assemble(concat({ rgb(color, "", "Combined"),
+                                      rgb({ "variance.R", "variance.G", "variance.B" }, "_var", "Combined"),
+                                      rgb({ "N.R", "N.G", "N.B" }, "", "Denoising Normal", "XYZ"),
+                                      rgb({ "albedo.R", "albedo.G", "albedo.B" }, "", "Denoising Albedo") }));
+    denoises_below_the_render("arnold_layers", file, color, "arnold", "cnn -> sure -> mix (net)");
+}
+
+// RenderMan's denoise outputs: Ci, mse, albedo(_var), normal(_var), zfiltered(_var)
+// (rmanwiki.pixar.com: Denoising).
+TEST(Presets, RenderManDenoiseChannelsRunTheMixedChain)
+{
+    const std::vector<std::string> color = { "Ci.r", "Ci.g", "Ci.b" };
+    ImageBuf file = assemble(concat({ rgb(color, "", "Combined"),
+                                      rgb({ "mse.r", "mse.g", "mse.b" }, "_var", "Combined"),
+                                      rgb({ "albedo.r", "albedo.g", "albedo.b" }, "", "Denoising Albedo"),
+                                      rgb({ "albedo_var.r", "albedo_var.g", "albedo_var.b" }, "_var", "Denoising Albedo"),
+                                      rgb({ "normal.x", "normal.y", "normal.z" }, "", "Denoising Normal", "XYZ"),
+                                      rgb({ "normal_var.x", "normal_var.y", "normal_var.z" }, "_var", "Denoising Normal", "XYZ"),
+                                      { { "zfiltered", "", "ViewLayer.Denoising Depth.Z" },
+                                        { "zfiltered_var", "_var", "ViewLayer.Denoising Depth.Z" } } }));
+    denoises_below_the_render("renderman", file, color, "renderman", "cnn -> sure -> mix (net)");
+}
+
+// What OIDN needs (and many Blender users have): the beauty with albedo and normal.
+TEST(Presets, BeautyAlbedoNormalOnlyRunsTheCnn)
+{
+    ImageBuf file = assemble(concat({ rgb(kRGB, "", "Combined"),
+                                      rgb({ "albedo.R", "albedo.G", "albedo.B" }, "", "Denoising Albedo"),
+                                      rgb({ "normal.X", "normal.Y", "normal.Z" }, "", "Denoising Normal", "XYZ") }));
+    denoises_below_the_render("oidn", file, kRGB, "oidn", "cnn");
+}
+
+// Blender's own names, beauty with Denoising Albedo/Normal only (no variance, no halves).
+TEST(Presets, CyclesBeautyWithDenoisingPassesRunsTheCnn)
+{
+    const std::vector<std::string> color = { "ViewLayer.Combined.R", "ViewLayer.Combined.G",
+                                             "ViewLayer.Combined.B" };
+    std::vector<Source> s = rgb(color, "", "Combined");
+    for (const char* c : { "R", "G", "B" })
+        s.push_back({ std::string("ViewLayer.Denoising Albedo.") + c, "", std::string("ViewLayer.Denoising Albedo.") + c });
+    for (const char* c : { "X", "Y", "Z" })
+        s.push_back({ std::string("ViewLayer.Denoising Normal.") + c, "", std::string("ViewLayer.Denoising Normal.") + c });
+    denoises_below_the_render("cycles_oidn", assemble(s), color, "cycles", "cnn");
+}
+
+// The full Cycles render, as our generator writes it: the variance file beside it.
+TEST(Presets, CyclesWithVarianceFileRunsTheMixedChain)
+{
+    const std::string dir = mcdn_test::temp_dir("presets_cycles");
+    auto run = run_mcdntool("-v -i " + test_data(kBox + ".exr") + " -i:as=variance "
+                            + test_data(kBox + "_var.exr") + " --denoise -o " + dir + "/out.exr");
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_NE(run.output.find("AOV preset 'cycles'"), std::string::npos) << run.output;
+    EXPECT_NE(run.output.find("--denoise runs cnn -> sure -> mix (net):"), std::string::npos)
+        << run.output;
+}
+
+// A Tungsten buffer directory is detected from the folder layout.
+TEST(Presets, TungstenDirectoryIsDetected)
+{
+    const std::string dir = mcdn_test::temp_dir("presets_tungsten");
+    auto run = run_mcdntool("-v -i " + test_data("cornell20") + " --denoise -o " + dir + "/out.exr");
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_NE(run.output.find("AOV preset 'tungsten'"), std::string::npos) << run.output;
+    EXPECT_NE(run.output.find("--denoise runs cnn -> sure -> mix (net):"), std::string::npos)
+        << run.output;
+}
+
+TEST(Presets, DetectionSaysWhy)
+{
+    OIIO::ImageSpec spec(4, 4, 3, OIIO::TypeDesc::FLOAT);
+    spec.channelnames = { "Ci.r", "Ci.g", "Ci.b" };
+    std::string why;
+    EXPECT_EQ(mcdn::detect_aov_preset(spec, &why), "renderman");
+    EXPECT_FALSE(why.empty());
+    spec.channelnames = { "R", "G", "B" };
+    EXPECT_EQ(mcdn::detect_aov_preset(spec, &why), "generic");
+    spec.channelnames = { "RGBA.R", "RGBA.G", "RGBA.B" };
+    EXPECT_EQ(mcdn::detect_aov_preset(spec, &why), "arnold");
+}
+
+}  // namespace
+
+namespace {
+
+/// Writes `parts` (name, image) as one multi-part EXR.
+bool write_parts(const std::string& path, const std::vector<std::pair<std::string, ImageBuf>>& parts)
+{
+    std::vector<OIIO::ImageSpec> specs;
+    for (const auto& [name, image] : parts) {
+        specs.push_back(image.spec());
+        specs.back().attribute("name", name);
+    }
+    auto out = OIIO::ImageOutput::create(path);
+    bool ok = out && out->open(path, int(specs.size()), specs.data());
+    for (size_t p = 0; ok && p < parts.size(); ++p)
+        ok = (p == 0 || out->open(path, specs[p], OIIO::ImageOutput::AppendSubimage))
+             && out->write_image(OIIO::TypeDesc::FLOAT, parts[p].second.localpixels());
+    return out && out->close() && ok;
+}
+
+}  // namespace
+
+// Arnold's multi-part output: the beauty in the first part, each AOV a part of its own. Read
+// as one AOV set (no --aov overrides), written back with the same parts.
+TEST(Presets, MultiPartExrIsOneAovSetAndIsWrittenBackInParts)
+{
+    const std::string dir = mcdn_test::temp_dir("presets_multipart");
+    const std::vector<std::pair<std::string, ImageBuf>> parts = {
+        { "rgba", assemble(rgb(kRGB, "", "Combined")) },
+        { "variance", assemble(rgb(kRGB, "_var", "Combined")) },
+        { "N", assemble(rgb({ "X", "Y", "Z" }, "", "Denoising Normal", "XYZ")) },
+        { "denoise_albedo", assemble(rgb(kRGB, "", "Denoising Albedo")) },
+    };
+    ASSERT_TRUE(write_parts(dir + "/beauty.exr", parts));
+    auto run = run_mcdntool("-v -i " + dir + "/beauty.exr --denoise -o " + dir + "/out.exr");
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_NE(run.output.find("AOV preset 'arnold'"), std::string::npos) << run.output;
+    EXPECT_NE(run.output.find("--denoise runs cnn -> sure -> mix (net):"), std::string::npos)
+        << run.output;
+    auto in = OIIO::ImageInput::open(dir + "/out.exr");
+    ASSERT_TRUE(in);
+    for (size_t p = 0; p < parts.size(); ++p) {
+        ASSERT_TRUE(in->seek_subimage(int(p), 0)) << "part " << p;
+        EXPECT_EQ(in->spec().get_string_attribute("name"), parts[p].first);
+        EXPECT_EQ(in->spec().channelnames, parts[p].second.spec().channelnames) << parts[p].first;
+    }
+    EXPECT_FALSE(in->seek_subimage(int(parts.size()), 0)) << "no part added";
+    in->close();
+    // The beauty part alone, denoised, against the render.
+    ImageBuf beauty(dir + "/out.exr", 0, 0);
+    ASSERT_TRUE(beauty.read(0, 0, true, OIIO::TypeDesc::FLOAT));
+    EXPECT_LT(relmse(beauty, kRGB), 0.5 * relmse(parts[0].second, kRGB));
+
+    // -i:part=NAME reads one part alone.
+    run = run_mcdntool("-i:part=rgba " + dir + "/beauty.exr --info");
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_NE(run.output.find("3 channels"), std::string::npos) << run.output;
+    run = run_mcdntool("-i:part=nonesuch " + dir + "/beauty.exr --info");
+    EXPECT_EQ(run.exit_code, 1);
+    EXPECT_NE(run.output.find("no part named 'nonesuch' (parts: rgba, variance, N, denoise_albedo)"),
+              std::string::npos) << run.output;
+}
