@@ -133,6 +133,28 @@ bool outputs_exist(const std::vector<Command>& commands)
     return any;
 }
 
+// What the command line's stages read of the variance and half-buffer files: the faces of
+// the roles, and the halves only for NFOR (or where no variance is given, from which the
+// stages then take the halves' difference). Everything when a command names channels.
+mcdn::InputSelection input_selection(const std::vector<Command>& commands)
+{
+    mcdn::InputSelection selection;
+    selection.only_roles = true;
+    bool nfor = false, variance = false;
+    for (const auto& c : commands) {
+        if (c.name == "--ch" || (c.name == "--info" && c.has("verbose"))
+            || (c.name == "--metrics" && c.has("channels")))
+            selection.only_roles = false;
+        nfor |= c.name == "--prefilter" || c.name == "--nfor";
+        variance |= c.name == "-i" && c.modifier("as") == "variance";
+        if ((c.name == "--prefilter" || c.name == "--nfor") && c.has("features"))
+            for (const std::string& f : Strutil::splits(c.modifier("features"), ","))
+                selection.extra_features.push_back(f);
+    }
+    selection.halves = nfor || !variance;
+    return selection;
+}
+
 // Runs the command line of one frame, one of `parallel` frames that run at once on
 // `all_threads` threads together (memory is checked for all of them).
 bool run_frame(const std::vector<Command>& commands, const std::string& history, int nthreads,
@@ -144,6 +166,7 @@ bool run_frame(const std::vector<Command>& commands, const std::string& history,
     session.nthreads = nthreads;
     session.verbose = verbose;
     session.history = history;
+    session.selection = input_selection(commands);
     for (const Command& c : commands) {
         const CommandInfo* info = find_command(c.name);
         if (info->run && !info->run(session, c, error))
@@ -221,16 +244,17 @@ bool run_frames(const std::vector<Command>& commands, const std::vector<int>& fr
     return !failed;
 }
 
-// A command line that denoises but writes nothing does all the work for nothing: said.
+// A command line that denoises but neither writes nor measures the result does all the work
+// for nothing: said.
 void warn_without_output(const std::vector<Command>& commands)
 {
-    bool denoises = false, writes = false;
+    bool denoises = false, uses = false;
     for (const auto& c : commands) {
         denoises |= c.name == "--denoise" || c.name == "--prefilter" || c.name == "--nfor"
                     || c.name == "--cnn" || c.name == "--sure" || c.name == "--mix";
-        writes |= c.name == "-o";
+        uses |= c.name == "-o" || c.name == "--metrics" || c.name == "--heatmap";
     }
-    if (denoises && !writes)
+    if (denoises && !uses)
         std::cerr << "mcdntool: warning: no -o: the denoised image is not written\n";
 }
 

@@ -143,7 +143,9 @@ bool Session::load_inputs(std::string& error)
     if (m_loaded)
         return true;
     ImageBuf merged;
-    if (!mcdn::read_inputs(merged, inputs)) {
+    mcdn::InputSelection select = selection;
+    select.aovs = aov_spec;
+    if (!mcdn::read_inputs(merged, inputs, select)) {
         error = merged.geterror();
         return false;
     }

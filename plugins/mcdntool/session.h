@@ -25,6 +25,8 @@ public:
     int nthreads = 0;
     bool verbose = false;  // a line per stage with its time (-v, or stderr is a terminal)
     std::string history;   // the command line, for the written files' Exif:ImageHistory
+    /// Which variance and half channels to read (its aovs: the session's aov_spec).
+    mcdn::InputSelection selection;
 
     std::vector<mcdn::InputFile> inputs;
     mcdn::AovSpec aov_spec;

@@ -123,7 +123,7 @@ TEST(Cli, UnknownCommandsAndModifiersSuggestTheRightOne)
     EXPECT_NE(run.output.find("is not one of mean, variance"), std::string::npos) << run.output;
 }
 
-// Values that used to abort (std::stoull, printf of a '%' in a file name) or to reach the
+// Values that would abort a naive parser (std::stoull, printf of a '%' in a file name) or reach the
 // ops as NaN fail in the parser, before any file is read.
 TEST(Cli, BadModifierValuesFailInTheParser)
 {

@@ -51,6 +51,32 @@ TEST(Pipeline, DenoisingWithoutOutputWarns)
     EXPECT_NE(run.output.find("warning: no -o"), std::string::npos) << run.output;
     run = run_mcdntool("-i " + box("box_0016spp.exr") + " --info");
     EXPECT_EQ(run.output.find("warning: no -o"), std::string::npos) << run.output;
+    run = run_mcdntool("-i " + box("box_0016spp.exr") + " --cnn --metrics " + box("box_ref.exr"));
+    EXPECT_EQ(run.output.find("warning: no -o"), std::string::npos) << run.output;
+}
+
+// The variance and half files are read only as far as the chain uses them (the faces of
+// the roles; no feature halves without NFOR), with the same result as reading them whole.
+TEST(Pipeline, OnlyTheChannelsTheChainUsesAreRead)
+{
+    std::string dir = mcdn_test::temp_dir("pipeline_selection");
+    const std::string in = "-i " + box("box_0016spp.exr") + " -i:as=variance " + box("box_0016spp_var.exr")
+                           + " -i:as=halfA " + box("box_0016spp_A.exr") + " -i:as=halfB "
+                           + box("box_0016spp_B.exr");
+    auto info = run_mcdntool(in + " --cnn --info");
+    EXPECT_NE(info.output.find("79 channels from 4 input(s)"), std::string::npos) << info.output;
+    info = run_mcdntool(in + " --nfor --info");
+    EXPECT_NE(info.output.find("141 channels from 4 input(s)"), std::string::npos) << info.output;
+    int k = 0;
+    for (const char* chain : { "--denoise", "--prefilter --nfor --sure --mix" }) {
+        const std::string a = dir + "/a" + std::to_string(k) + ".exr";
+        const std::string b = dir + "/b" + std::to_string(k++) + ".exr";
+        ASSERT_EQ(run_mcdntool(in + " " + chain + " -o " + quote(a)).exit_code, 0);
+        // --info:verbose lists every channel, so everything is read.
+        ASSERT_EQ(run_mcdntool(in + " --info:verbose " + chain + " -o " + quote(b)).exit_code, 0);
+        EXPECT_TRUE(same_channel(a, b, "ViewLayer.Combined.R")) << chain;
+        EXPECT_TRUE(same_channel(a, b, "ViewLayer.Combined.B")) << chain;
+    }
 }
 
 TEST(Pipeline, SkipExistingAndSkipBadFrames)

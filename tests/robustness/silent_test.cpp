@@ -1,4 +1,4 @@
-// Results that used to be silently wrong, and errors that pointed the wrong way: a variance
+// Results that could be silently wrong, and errors that must point the right way: a variance
 // file without a variance, fireflies beyond half, NaN in pass-through channels, unreadable
 // inputs, recipes that fail, and features a run goes without.
 #include <cmath>

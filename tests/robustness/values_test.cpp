@@ -1,4 +1,4 @@
-// Inputs that used to hang or crash, and values that used to pass silently: nested and
+// Inputs that could hang or crash a front end, and values that could pass silently: nested and
 // looping recipes, thread counts, compressions, SURE's step (one rule in every front end).
 #include <fstream>
 

@@ -39,6 +39,21 @@ bool read_tungsten_directory(ImageBuf& dst, const std::string& dir);
 /// "mcdn:output_channels" (the channels -o writes by default: those of the mean inputs).
 bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs);
 
+/// Which channels of the variance and half-buffer files read_inputs reads: the render's own
+/// are always read whole (they are what -o writes), and by default so are the others. With
+/// `only_roles`, a variance or half file's channel is read only when it is a face of a role
+/// (or extra AOV) that `aovs` resolves to, or of one of `extra_features`; with `halves`
+/// false, of the half buffers only the colour's (a chain without NFOR and with a colour
+/// variance reads no other).
+struct InputSelection {
+    bool only_roles = false;
+    bool halves = true;
+    AovSpec aovs;
+    std::vector<std::string> extra_features;
+};
+bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs,
+                 const InputSelection& selection);
+
 /// The files a merged buffer was read from, in order: its "mcdn:inputs" attribute, one
 /// "kind=path" line per file (read_inputs sets it; ops keep it on their results).
 std::vector<InputFile> merged_input_files(const ImageSpec& merged);

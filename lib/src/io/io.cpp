@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <set>
 
 #include <signal.h>
 #include <sys/stat.h>
@@ -193,24 +194,60 @@ bool allocated(const ImageBuf& buf, const std::string& path, std::string& error)
 
 // Reads every part of the file straight into dst's channels [first, first + its channels),
 // with strides: no buffer per file, so merging costs the merged frame only.
-bool read_pixels_into(ImageBuf& dst, int first, const FileLayout& layout, std::string& error)
+// Reads the file's channels into dst from channel `first` on: every channel, or those `keep`
+// marks (in the layout's order). A selection is read in bands of rows, all of a part's
+// channels at once (an EXR block holds every channel: one decode per block), and the kept
+// ones copied out, so the whole file never sits in memory beside the merged buffer.
+bool read_pixels_into(ImageBuf& dst, int first, const FileLayout& layout,
+                      const std::vector<bool>& keep, std::string& error)
 {
     auto in = ImageInput::open(layout.path);
     if (!in) {
         error = format("{}: cannot read: {}", layout.path, OIIO::geterror());
         return false;
     }
-    const OIIO::stride_t pixel = OIIO::stride_t(dst.nchannels()) * sizeof(float);
+    auto failed = [&] {
+        error = format("{}: cannot read pixels (truncated or corrupt?): {}", layout.path,
+                       in->geterror());
+        return false;
+    };
+    const int total = dst.nchannels();
+    const OIIO::stride_t pixel = OIIO::stride_t(total) * sizeof(float);
     float* out = static_cast<float*>(dst.localpixels()) + first;
+    const bool all = std::find(keep.begin(), keep.end(), false) == keep.end();
+    size_t k = 0;  // index into keep over every part's channels
+    std::vector<float> rows;
     for (size_t s = 0; s < layout.parts.size(); ++s) {
-        const int n = layout.parts[s].nchannels;
-        if (!in->read_image(layout.subimages[s], 0, 0, n, TypeDesc::FLOAT, out, pixel,
-                            pixel * layout.parts[s].width)) {
-            error = format("{}: cannot read pixels (truncated or corrupt?): {}", layout.path,
-                           in->geterror());
-            return false;
+        const ImageSpec& part = layout.parts[s];
+        const int n = part.nchannels;
+        if (all) {
+            if (!in->read_image(layout.subimages[s], 0, 0, n, TypeDesc::FLOAT, out, pixel,
+                                pixel * part.width))
+                return failed();
+            out += n;
+            continue;
         }
-        out += n;
+        std::vector<int> kept;
+        for (int c = 0; c < n; ++c, ++k)
+            if (keep[k])
+                kept.push_back(c);
+        if (kept.empty())
+            continue;
+        const int band = std::max(1, int((int64_t(1) << 22) / (int64_t(part.width) * n)));
+        for (int y = part.y; y < part.y + part.height; y += band) {
+            const int y1 = std::min(part.y + part.height, y + band);
+            rows.resize(size_t(y1 - y) * part.width * n);
+            if (!in->read_scanlines(layout.subimages[s], 0, y, y1, part.z, 0, n, TypeDesc::FLOAT,
+                                    rows.data()))
+                return failed();
+            for (size_t p = 0; p < size_t(y1 - y) * part.width; ++p) {
+                float* to = out + (size_t(y - part.y) * part.width + p) * total;
+                const float* from = rows.data() + p * n;
+                for (size_t j = 0; j < kept.size(); ++j)
+                    to[j] = from[kept[j]];
+            }
+        }
+        out += kept.size();
     }
     return true;
 }
@@ -226,7 +263,7 @@ bool read_image(ImageBuf& dst, const std::string& path)
         return false;
     }
     ImageBuf out(layout.merged_spec());
-    if (!allocated(out, path, error) || !read_pixels_into(out, 0, layout, error)) {
+    if (!allocated(out, path, error) || !read_pixels_into(out, 0, layout, {}, error)) {
         dst.errorfmt("{}", error);
         return false;
     }
@@ -304,6 +341,61 @@ bool read_tungsten_directory(ImageBuf& dst, const std::string& dir)
 
 bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs)
 {
+    return read_inputs(dst, inputs, InputSelection());
+}
+
+namespace {
+
+// The variance and half-buffer channels `selection` keeps of a merged buffer's full list of
+// names (`spec`, before any pixel is read).
+std::set<std::string> selected_faces(const ImageSpec& spec, const InputSelection& selection)
+{
+    std::set<std::string> wanted;
+    AovSet aovs;
+    std::string error;
+    if (!resolve_aovs(aovs, selection.aovs, spec, error)) {
+        for (const auto& name : spec.channelnames)  // the ops will say what is wrong
+            wanted.insert(name);
+        return wanted;
+    }
+    auto add = [&](const std::vector<int>& channels) {
+        for (int c : channels)
+            wanted.insert(spec.channelnames[c]);
+    };
+    for (int r = 0; r < kRoleCount; ++r)
+        add(aovs.channels(Role(r)));
+    for (const AovSet::Extra& e : aovs.extras())
+        add(e.channels);
+    // Every face of each of them: roles without faces of their own (Blender's DiffCol,
+    // GlossDir, ...) have their variance read by name too (the CNN's delta method).
+    std::vector<std::string> means(selection.extra_features);
+    for (const std::string& name : wanted)
+        means.push_back(name);
+    for (const std::string& name : means)
+        for (InputKind k : { InputKind::Variance, InputKind::HalfA, InputKind::HalfB })
+            wanted.insert(input_kind_prefix(k) + name);
+    // Without halves, the colour's own stay (a half file is checked to supply them, and
+    // they are six planes): the features' and extras' halves go.
+    if (!selection.halves) {
+        std::set<std::string> color_halves;
+        for (Role r : { Role::ColorA, Role::ColorB })
+            for (int c : aovs.channels(r))
+                color_halves.insert(spec.channelnames[c]);
+        for (auto it = wanted.begin(); it != wanted.end();)
+            it = (Strutil::starts_with(*it, input_kind_prefix(InputKind::HalfA))
+                  || Strutil::starts_with(*it, input_kind_prefix(InputKind::HalfB)))
+                         && !color_halves.count(*it)
+                     ? wanted.erase(it)
+                     : std::next(it);
+    }
+    return wanted;
+}
+
+}  // namespace
+
+bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs,
+                 const InputSelection& selection)
+{
     if (inputs.empty()) {
         dst.errorfmt("no input image: give one with -i FILE");
         return false;
@@ -357,6 +449,27 @@ bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs)
         provenance.push_back(format("{}={}", input_kind_name(input.kind), input.path));
     }
 
+    // Only the variance and half channels the selection wants (the render's: all of them).
+    std::vector<std::vector<bool>> keep(inputs.size());
+    for (size_t i = 0; i < inputs.size(); ++i)
+        keep[i].assign(layouts[i].names.size(), true);
+    if (selection.only_roles) {
+        ImageSpec all;
+        all.channelnames = names;
+        all.nchannels = int(names.size());
+        all.attribute("mcdn:inputs", Strutil::join(provenance, "\n"));
+        const std::set<std::string> wanted = selected_faces(all, selection);
+        names.clear();
+        for (size_t i = 0; i < inputs.size(); ++i)
+            for (size_t c = 0; c < layouts[i].names.size(); ++c) {
+                const std::string name = input_kind_prefix(inputs[i].kind) + layouts[i].names[c];
+                keep[i][c] = inputs[i].kind == InputKind::Mean || directories[i].initialized()
+                             || wanted.count(name);
+                if (keep[i][c])
+                    names.push_back(name);
+            }
+    }
+
     // The first mean input's metadata (colour space, camera, renderer) is the output's.
     size_t meta_from = 0;
     for (size_t i = 0; i < inputs.size(); ++i)
@@ -384,12 +497,12 @@ bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs)
     for (size_t i = 0; i < inputs.size(); ++i) {
         if (directories[i].initialized())
             copy_channels(out, first, directories[i]);
-        else if (!read_pixels_into(out, first, layouts[i], error)) {
+        else if (!read_pixels_into(out, first, layouts[i], keep[i], error)) {
             dst.errorfmt("{}", error);
             return false;
         }
         directories[i].reset();
-        first += int(layouts[i].names.size());
+        first += int(std::count(keep[i].begin(), keep[i].end(), true));
     }
     dst = std::move(out);
     return true;

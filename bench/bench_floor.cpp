@@ -1,0 +1,67 @@
+// The compute floor of a chain on one frame size: the FLOPs of its networks (KPCN's two
+// branches; the best chain runs KPCN twice, for the denoised image and SURE's probe, plus
+// the mixing network) at the rate a plain oneDNN 3x3 48->48 conv + ReLU reaches on a frame
+// of that size, timed in this run. bench/production divides whole-process times by it.
+//
+//   bench_floor WIDTH HEIGHT      prints one JSON object
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+
+#include "cnn/cnn_steps.h"
+#include "mcdn/cnn.h"
+#include "mcdn/mix.h"
+#include "mix/mix_steps.h"
+
+#include "plain_conv.h"
+
+using namespace mcdn;
+
+namespace {
+
+/// Multiply-adds x 2 of a network per output pixel, from its ops (convs at their scale).
+double flops_per_pixel(const nn::Net& net)
+{
+    double flops = 0;
+    for (const auto& node : net.nodes()) {
+        const double area = double(node.scale) * node.scale;
+        if (node.op == nn::Net::Op::conv) {
+            const int in = net.nodes()[node.inputs[0]].channels;
+            flops += 2.0 * in * node.channels * node.kernel * node.kernel / area;
+        } else if (node.op == nn::Net::Op::apply_kernel) {
+            flops += 2.0 * node.kernel * node.kernel * node.channels / area;
+        }
+    }
+    return flops;
+}
+
+}  // namespace
+
+int main(int argc, char** argv)
+{
+    if (argc != 3) {
+        std::fprintf(stderr, "usage: bench_floor WIDTH HEIGHT\n");
+        return 2;
+    }
+    const int w = std::atoi(argv[1]), h = std::atoi(argv[2]);
+    std::string error;
+    kpcn::Model kpcn;
+    nn::Net mix;
+    if (!kpcn::load_model(kpcn, default_cnn_weights(), error)
+        || !load_mix_net(mix, default_mix_weights("cnn"), error)) {
+        std::fprintf(stderr, "bench_floor: %s\n", error.c_str());
+        return 1;
+    }
+    const double pixels = double(w) * h;
+    const double cnn = (flops_per_pixel(kpcn.diffuse) + flops_per_pixel(kpcn.specular)) * pixels;
+    const double mixing = flops_per_pixel(mix) * pixels;
+    double conv_flops = 0;
+    const mcdn_bench::Timing t = mcdn_bench::plain_onednn_conv(h, w, 48, 48, 3, 2, &conv_flops);
+    const double rate = conv_flops / t.wall;  // FLOP per wall second
+    std::printf("{\"width\": %d, \"height\": %d, \"cnn_gflop\": %.1f, \"mix_gflop\": %.1f, "
+                "\"conv_gflop_per_s\": %.1f, \"conv_cpu_s\": %.3f, \"conv_wall_s\": %.3f, "
+                "\"floor_cnn_s\": %.3f, \"floor_best_s\": %.3f}\n",
+                w, h, cnn / 1e9, mixing / 1e9, rate / 1e9, t.cpu, t.wall, cnn / rate,
+                (2 * cnn + mixing) / rate);
+    return 0;
+}
