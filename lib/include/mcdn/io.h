@@ -43,8 +43,8 @@ bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs);
 /// are always read whole (they are what -o writes), and by default so are the others. With
 /// `only_roles`, a variance or half file's channel is read only when it is a face of a role
 /// (or extra AOV) that `aovs` resolves to, or of one of `extra_features`; with `halves`
-/// false, of the half buffers only the colour's (a chain without NFOR and with a colour
-/// variance reads no other).
+/// false, no half-buffer channel (a chain without NFOR and with a colour variance): the half
+/// files are then only checked, from their headers, to hold the colour's half.
 struct InputSelection {
     bool only_roles = false;
     bool halves = true;

@@ -89,6 +89,8 @@ struct FileLayout {
 // the same parts: a line per part, its name then pairs of merged and original channel names,
 // tab-separated.
 constexpr const char* kPartsAttribute = "mcdn:parts";
+// Set when read_inputs read no half-buffer channel (InputSelection::halves false).
+constexpr const char* kHalvesUnread = "mcdn:halves_unread";
 
 std::string parts_text(const FileLayout& layout)
 {
@@ -348,12 +350,13 @@ namespace {
 
 // The variance and half-buffer channels `selection` keeps of a merged buffer's full list of
 // names (`spec`, before any pixel is read).
-std::set<std::string> selected_faces(const ImageSpec& spec, const InputSelection& selection)
+std::set<std::string> selected_faces(const ImageSpec& spec, const InputSelection& selection,
+                                     std::string& error)
 {
     std::set<std::string> wanted;
     AovSet aovs;
-    std::string error;
-    if (!resolve_aovs(aovs, selection.aovs, spec, error)) {
+    std::string unresolved;
+    if (!resolve_aovs(aovs, selection.aovs, spec, unresolved)) {
         for (const auto& name : spec.channelnames)  // the ops will say what is wrong
             wanted.insert(name);
         return wanted;
@@ -374,17 +377,24 @@ std::set<std::string> selected_faces(const ImageSpec& spec, const InputSelection
     for (const std::string& name : means)
         for (InputKind k : { InputKind::Variance, InputKind::HalfA, InputKind::HalfB })
             wanted.insert(input_kind_prefix(k) + name);
-    // Without halves, the colour's own stay (a half file is checked to supply them, and
-    // they are six planes): the features' and extras' halves go.
+    // Without halves none is read (the half files are not even decoded); that each half
+    // file supplies the colour's half is checked here, from the headers, instead of by
+    // validate_inputs.
     if (!selection.halves) {
-        std::set<std::string> color_halves;
-        for (Role r : { Role::ColorA, Role::ColorB })
-            for (int c : aovs.channels(r))
-                color_halves.insert(spec.channelnames[c]);
+        for (const InputFile& file : merged_input_files(spec)) {
+            if (file.kind != InputKind::HalfA && file.kind != InputKind::HalfB)
+                continue;
+            std::string why;
+            if (!aovs.require({ file.kind == InputKind::HalfA ? Role::ColorA : Role::ColorB },
+                              spec, why)) {
+                error = format("{}: given with -i:as={} but has no half buffer of the colour: "
+                               "{}", file.path, input_kind_name(file.kind), why);
+                return {};
+            }
+        }
         for (auto it = wanted.begin(); it != wanted.end();)
-            it = (Strutil::starts_with(*it, input_kind_prefix(InputKind::HalfA))
-                  || Strutil::starts_with(*it, input_kind_prefix(InputKind::HalfB)))
-                         && !color_halves.count(*it)
+            it = Strutil::starts_with(*it, input_kind_prefix(InputKind::HalfA))
+                         || Strutil::starts_with(*it, input_kind_prefix(InputKind::HalfB))
                      ? wanted.erase(it)
                      : std::next(it);
     }
@@ -458,7 +468,11 @@ bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs,
         all.channelnames = names;
         all.nchannels = int(names.size());
         all.attribute("mcdn:inputs", Strutil::join(provenance, "\n"));
-        const std::set<std::string> wanted = selected_faces(all, selection);
+        const std::set<std::string> wanted = selected_faces(all, selection, error);
+        if (!error.empty()) {
+            dst.errorfmt("{}", error);
+            return false;
+        }
         names.clear();
         for (size_t i = 0; i < inputs.size(); ++i)
             for (size_t c = 0; c < layouts[i].names.size(); ++c) {
@@ -484,6 +498,8 @@ bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs,
     spec.channelnames = names;
     spec.alpha_channel = spec.z_channel = -1;
     spec.attribute("mcdn:inputs", Strutil::join(provenance, "\n"));
+    if (selection.only_roles && !selection.halves)
+        spec.attribute(kHalvesUnread, 1);
     // A multi-part render is written back with the same parts (write_image).
     if (layouts[meta_from].parts.size() > 1)
         spec.attribute(kPartsAttribute, parts_text(layouts[meta_from]));
@@ -533,9 +549,11 @@ bool validate_inputs(const ImageBuf& merged, const AovSet& aovs, std::string& er
     // A file given as the variance or a half must supply that face of the colour: one that
     // does not (a PNG renamed var.exr, a layer without Combined.B) would be ignored and the
     // stages would run without it.
+    const bool halves_unread = spec.get_int_attribute(kHalvesUnread) == 1;
     for (const InputFile& file : merged_input_files(spec)) {
-        if (file.kind == InputKind::Mean)
-            continue;
+        if (file.kind == InputKind::Mean
+            || (halves_unread && file.kind != InputKind::Variance))
+            continue;  // read_inputs checked the half files' headers
         const Role role = file.kind == InputKind::Variance ? Role::ColorVariance
                           : file.kind == InputKind::HalfA  ? Role::ColorA
                                                            : Role::ColorB;
@@ -853,7 +871,8 @@ bool write_image(const ImageBuf& src, const std::string& path, const WriteOption
     if (warnings)
         warnings->insert(warnings->end(), found.begin(), found.end());
     ImageSpec spec = out.spec();
-    for (const auto& name : { "mcdn:inputs", "mcdn:output_channels", kPartsAttribute })
+    for (const auto& name : { "mcdn:inputs", "mcdn:output_channels", kPartsAttribute,
+                              kHalvesUnread })
         spec.erase_attribute(name);
     spec.set_format(options.datatype);
     spec.channelformats.clear();
