@@ -57,7 +57,7 @@ ImageBuf copy_rows(const ImageBuf& src, const ROI& cut)
 }
 
 bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& denoiser,
-                           const SureOptions& options, ROI roi)
+                           const SureOptions& options, ROI roi, int nthreads)
 {
     AovSet aovs;
     std::string error;
@@ -96,6 +96,7 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
                                      extra.names.end());
         }
     frame.eps = probe_step(src, frame, options.epsilon_relative);
+    frame.nthreads = nthreads;
     StageTrace trace("sure");
 
     // Bands only when the denoiser says how far it reaches (SureOptions::denoiser_radius).
@@ -134,7 +135,7 @@ bool sure(ImageBuf& dst, const ImageBuf& src, const Denoiser& denoiser,
     if (!check_op_threads(dst, nthreads, "sure"))
         return false;
     return run_in_working_space(dst, src, options.aovs, "sure", [&](ImageBuf& d, const ImageBuf& s) {
-        return sure_in_working_space(d, s, denoiser, options, roi);
+        return sure_in_working_space(d, s, denoiser, options, roi, nthreads);
     });
 }
 

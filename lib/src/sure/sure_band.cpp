@@ -8,6 +8,7 @@
 #include "core/op_prepare.h"
 #include "core/random.h"
 #include "skip/converged_tiles.h"
+#include "core/trace.h"
 #include "sure/sure_steps.h"
 
 namespace mcdn {
@@ -97,28 +98,37 @@ void add_probe(ImageBuf& buf, const std::vector<int>& channels, const Plane prob
 // A denoiser (a Python or C++ callable) must not make NaN or Inf: a value that is not
 // finite where its input's same channel was is an error (a pass-through channel's own NaN
 // is the input's, which -o reports).
-bool check_finite(const ImageBuf& denoised, const ImageBuf& noisy, std::string& error)
+bool check_finite(const ImageBuf& denoised, const ImageBuf& noisy, int nthreads,
+                  std::string& error)
 {
     const ImageSpec& spec = denoised.spec();
     const int nch = spec.nchannels;
     std::vector<int> source(nch);
     for (int c = 0; c < nch; ++c)
         source[c] = noisy.spec().channelindex(spec.channelnames[c]);
-    std::vector<size_t> bad(nch, 0);
-    std::vector<float> row(size_t(spec.width) * nch), in(size_t(spec.width) * noisy.nchannels());
-    for (int y = spec.y; y < spec.y + spec.height; ++y) {
-        ROI r(spec.x, spec.x + spec.width, y, y + 1, 0, 1, 0, nch);
-        denoised.get_pixels(r, OIIO::TypeDesc::FLOAT, row.data());
-        r.chend = noisy.nchannels();
-        noisy.get_pixels(r, OIIO::TypeDesc::FLOAT, in.data());
+    // Rows in parallel, each counting into its own slot (the sums do not depend on the order).
+    std::vector<std::vector<uint32_t>> row_bad(spec.height);
+    parallel_for_index(spec.height, nthreads, [&](int r) {
+        const int y = spec.y + r;
+        std::vector<float> row(size_t(spec.width) * nch), in(size_t(spec.width) * noisy.nchannels());
+        ROI roi(spec.x, spec.x + spec.width, y, y + 1, 0, 1, 0, nch);
+        denoised.get_pixels(roi, OIIO::TypeDesc::FLOAT, row.data());
+        roi.chend = noisy.nchannels();
+        noisy.get_pixels(roi, OIIO::TypeDesc::FLOAT, in.data());
         for (int x = 0; x < spec.width; ++x)
             for (int c = 0; c < nch; ++c) {
                 float v = row[size_t(x) * nch + c];
                 if (!std::isfinite(v)
-                    && (source[c] < 0 || std::isfinite(in[size_t(x) * noisy.nchannels() + source[c]])))
-                    ++bad[c];
+                    && (source[c] < 0 || std::isfinite(in[size_t(x) * noisy.nchannels() + source[c]]))) {
+                    row_bad[r].resize(nch, 0);
+                    ++row_bad[r][c];
+                }
             }
-    }
+    });
+    std::vector<size_t> bad(nch, 0);
+    for (const auto& counts : row_bad)
+        for (size_t c = 0; c < counts.size(); ++c)
+            bad[c] += counts[c];
     for (int c = 0; c < spec.nchannels; ++c)
         if (bad[c]) {
             error = format("sure: the denoiser returned {} NaN or Inf values in channel {} "
@@ -134,6 +144,7 @@ bool check_finite(const ImageBuf& denoised, const ImageBuf& noisy, std::string& 
 bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser& denoiser,
                const SureOptions& options, const SureFrame& frame, std::string& error)
 {
+    StageTrace trace("sure");
     Plane x[3], variance[3];
     for (int c = 0; c < 3; ++c) {
         x[c] = read_plane(noisy, frame.color[c]);
@@ -150,17 +161,21 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
     Plane y[3];
     {
         ImageBuf denoised;
+        trace.mark("read x, converged tiles");
         if (!denoiser(denoised, noisy)) {
             error = format("sure: the denoiser failed: {}", denoised.geterror());
             return false;
         }
+        trace.mark("y = F(x)");
         // Its channels become the output's: a NaN there would leave the op.
-        if (!check_finite(denoised, noisy, error))
+        if (!check_finite(denoised, noisy, frame.nthreads, error))
             return false;
+        trace.mark("y is finite");
         if (!write_denoised_rows(dst, denoised, band, frame, error))
             return false;
         for (int c = 0; c < 3; ++c)
             y[c] = read_plane(denoised, frame.color[c]);
+        trace.mark("y into the output");
     }
     // Of those, the tiles the denoiser did pass through (a callable may not skip): no probes.
     const ConvergedTiles passed = tiles_where_equal(y, x, &converged);
@@ -187,20 +202,26 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
         }
     for (int k = 0; eps > 0 && k < options.probes; ++k) {
         Plane b[3];
-        for (int c = 0; c < 3; ++c) {
+        for (int c = 0; c < 3; ++c)
             b[c] = Plane(w, h);
-            for (size_t i = 0; i < b[c].size(); ++i)
-                b[c].px[i] = std::sqrt(variance[c].px[i])
-                             * standard_normal(options.seed, uint64_t(k), (first_index + i) * 3 + c);
+        parallel_for_index(h, frame.nthreads, [&](int row) {
+            for (int c = 0; c < 3; ++c)
+                for (size_t i = size_t(row) * w; i < size_t(row + 1) * w; ++i)
+                    b[c].px[i] = std::sqrt(variance[c].px[i])
+                                 * standard_normal(options.seed, uint64_t(k),
+                                                   (first_index + i) * 3 + c);
+        });
+        for (int c = 0; c < 3; ++c)
             pass_through_converged(b[c], no_probe, passed);
-        }
         // Probed in place and restored after (a copy of every channel per probe would cost
         // as much as the denoiser's own work on half-converged frames).
         noisy.specmod().attribute(kProbeAttribute, 1);
         for (size_t g = 0; g < frame.moved.size(); g += 3)
             add_probe(noisy, { frame.moved[g], frame.moved[g + 1], frame.moved[g + 2] }, b, eps);
+        trace.mark("probe b");
         ImageBuf response;
         const bool probe_ok = denoiser(response, noisy);
+        trace.mark("F(x + eps b)");
         for (size_t m = 0; m < frame.moved.size(); ++m)
             noisy.set_pixels(channel_roi(frame.moved[m]), OIIO::TypeDesc::FLOAT, unprobed[m].data());
         noisy.specmod().erase_attribute(kProbeAttribute);
@@ -231,17 +252,20 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
         write_rows(dst, out[12 + e], read_plane(noisy, frame.extras[e]), band_y, where);
     for (int c = 0; c < 3; ++c) {
         Plane residual(w, h), estimate(w, h);
-        for (size_t i = 0; i < residual.size(); ++i) {
-            double d = double(y[c].px[i]) - x[c].px[i];
-            residual.px[i] = sanitize(float(d * d));
-            divergence[c].px[i] = sanitize(divergence[c].px[i]);
-            estimate.px[i] = sanitize(residual.px[i] + 2 * divergence[c].px[i] - variance[c].px[i]);
-        }
+        parallel_for_index(h, frame.nthreads, [&](int row) {
+            for (size_t i = size_t(row) * w; i < size_t(row + 1) * w; ++i) {
+                double d = double(y[c].px[i]) - x[c].px[i];
+                residual.px[i] = sanitize(float(d * d));
+                divergence[c].px[i] = sanitize(divergence[c].px[i]);
+                estimate.px[i] = sanitize(residual.px[i] + 2 * divergence[c].px[i] - variance[c].px[i]);
+            }
+        });
         write_rows(dst, out[c], x[c], band_y, where);
         write_rows(dst, out[3 + c], estimate, band_y, where);
         write_rows(dst, out[6 + c], divergence[c], band_y, where);
         write_rows(dst, out[9 + c], residual, band_y, where);
     }
+    trace.mark("eq. 1, sure.* channels");
     return true;
 }
 

@@ -26,6 +26,7 @@ struct SureFrame {
     std::vector<int> extras;     // x of the RGB extra AOVs, recorded as noisy.<name>
     std::vector<std::string> extra_names;
     double eps = 0;              // the probe step (probe_step)
+    int nthreads = 0;            // for SURE's own per-pixel work (the op's nthreads)
 };
 
 /// eps such that RMS(eps * b) = epsilon_relative * mean|x| over the whole frame (see
