@@ -1,6 +1,8 @@
 // Stage options from text settings (mcdn/settings.h).
 #include "mcdn/settings.h"
 
+#include "core/attributes.h"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -276,15 +278,37 @@ Settings stage_settings(const std::map<std::string, std::string>& all, const std
 Denoiser compose(std::vector<std::pair<std::string, Denoiser>> stages)
 {
     return [stages = std::move(stages)](ImageBuf& dst, const ImageBuf& src) {
-        ImageBuf current = src;
-        for (const auto& [name, stage] : stages) {
+        // Each stage reads the one before's result; the first reads src itself (a copy of
+        // the frame per call would be SURE's largest cost after the denoiser's own).
+        const ImageBuf* input = &src;
+        ImageBuf current;
+        const bool colour_only = src.spec().get_int_attribute(kColourOnlyAttribute, 0) == 1;
+        for (size_t i = 0; i < stages.size(); ++i) {
+            const auto& [name, stage] = stages[i];
+            const bool last = i + 1 == stages.size();
             ImageBuf next;
-            if (!stage(next, current)) {
+            bool ok = stage(next, *input);
+            if (ok && !last && next.nchannels() < input->nchannels()) {
+                // A colour-only result (kColourOnlyAttribute) where the next stage needs the
+                // frame: run again without the mark.
+                ImageBuf unmarked = *input;
+                unmarked.specmod().erase_attribute(kColourOnlyAttribute);
+                next = ImageBuf();
+                ok = stage(next, unmarked);
+            }
+            if (!ok) {
                 dst.errorfmt("{}: {}", name, next.geterror());
                 return false;
             }
             current = std::move(next);
+            if (colour_only && i + 2 == stages.size())
+                current.specmod().attribute(kColourOnlyAttribute, 1);
+            else
+                current.specmod().erase_attribute(kColourOnlyAttribute);
+            input = &current;
         }
+        if (stages.empty())
+            current = src;
         dst = std::move(current);
         return true;
     };

@@ -12,6 +12,8 @@
 
 #include <tbb/task_arena.h>
 
+#include <OpenImageIO/imagebufalgo.h>
+
 #include "cnn/cnn_steps.h"
 #include "cnn/extras_kernels.h"
 #include "cnn/worker_pool.h"
@@ -56,7 +58,7 @@ bool with_threads(int nthreads, Body&& body)
 /// (a tile the network ran on for its neighbours keeps the render); with extras, their
 /// shares of the two components too (pass_through_extras restores converged tiles).
 void recombine(kpcn::OutputFrame& frame, Rect rect, const Rect& window, const kpcn::Worker& worker,
-               bool split, const ImageBuf& src, const AovSet& aovs,
+               bool split, const ImageBuf& src, const AovSet& aovs, const std::vector<int>& color,
                const std::vector<ExtraPlanes>& extras, const ConvergedTiles& converged)
 {
     Plane demod[3];
@@ -71,7 +73,6 @@ void recombine(kpcn::OutputFrame& frame, Rect rect, const Rect& window, const kp
     }
     const nn::Tensor& log_spec = worker.log_specular[0];
     const nn::Tensor* irradiance = split ? &worker.irradiance[0] : nullptr;
-    const auto& color = aovs.channels(Role::Color);
     for (int y = rect.y0; y < rect.y1; ++y)
         for (int x = rect.x0; x < rect.x1; ++x) {
             const float* ls = log_spec.pixel(y - window.y0, x - window.x0);
@@ -112,13 +113,12 @@ Rect output_rect(const Rect& core, const ImageBuf& dst, ROI where)
 
 /// The colour of the converged tiles inside `where` is the render's, sanitized (the frame
 /// holds the render there: it is sanitized in place).
-void pass_through_color(kpcn::OutputFrame& frame, const ImageBuf& dst, const AovSet& aovs, ROI where,
-                         const ConvergedTiles& converged)
+void pass_through_color(kpcn::OutputFrame& frame, const ImageBuf& dst,
+                        const std::vector<int>& color, ROI where, const ConvergedTiles& converged)
 {
     if (!converged.any())
         return;
     const ImageSpec& spec = dst.spec();
-    const auto& color = aovs.channels(Role::Color);
     for (int y = where.ybegin - spec.y; y < where.yend - spec.y; ++y)
         for (int x = where.xbegin - spec.x; x < where.xend - spec.x; ++x)
             if (converged.pixel(x, y))
@@ -135,16 +135,37 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
     }
     StageTrace trace("cnn");
     AovSet aovs;
-    if (!prepare_op(dst, src, options.aovs, aovs, "cnn", nthreads))
-        return false;
-    trace.mark("copy src to dst");
     std::string error;
+    // A SURE probe's result is read for its colour alone (core/attributes.h): then dst is
+    // the colour channels, not a copy of every channel of the frame.
+    const bool colour_only = src.spec().get_int_attribute(kColourOnlyAttribute, 0) == 1;
+    if (colour_only) {
+        if (!check_op_input(src, options.aovs, aovs, "cnn", error)
+            || !aovs.require({ Role::Color }, src.spec(), error)) {
+            dst.errorfmt("{}", error);
+            return false;
+        }
+        const std::vector<int>& c = aovs.channels(Role::Color);
+        dst = OIIO::ImageBufAlgo::channels(src, 3, c, {}, { src.spec().channel_name(c[0]),
+                                                             src.spec().channel_name(c[1]),
+                                                             src.spec().channel_name(c[2]) });
+        if (dst.has_error() || !dst.localpixels()) {
+            dst.errorfmt("cnn: could not make the probe's colour frame");
+            return false;
+        }
+    } else if (!prepare_op(dst, src, options.aovs, aovs, "cnn", nthreads)) {
+        return false;
+    }
+    trace.mark("copy src to dst");
     if (!aovs.require({ Role::Color }, src.spec(), error)) {
         dst.errorfmt("cnn: {}", error);
         return false;
     }
+    const std::vector<int> out_color = colour_only ? std::vector<int> { 0, 1, 2 }
+                                                   : aovs.channels(Role::Color);
     std::vector<ExtraPlanes> extras;
-    if (denoises_extras(options.denoise_extras, src) && !read_extras(extras, dst, aovs, false, error)) {
+    if (!colour_only && denoises_extras(options.denoise_extras, src)
+        && !read_extras(extras, dst, aovs, false, error)) {
         dst.errorfmt("cnn: {}", error);
         return false;
     }
@@ -226,7 +247,7 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
                 return false;
             }
             recombine(frame, output_rect(tile.core, dst, where), tile.window, k, split, src, aovs,
-                      extras, converged);
+                      out_color, extras, converged);
             progress.advance();
             return true;
         };
@@ -238,7 +259,7 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
     }
     trace.mark("network tiles (4.2, eq. 4)");
     // Converged tiles keep the render (sanitized), the extras' too.
-    pass_through_color(frame, dst, aovs, where, converged);
+    pass_through_color(frame, dst, out_color, where, converged);
     pass_through_extras(dst, where, extras, converged);
     return true;
 }

@@ -13,4 +13,9 @@ constexpr const char* kDenoiserAttribute = "mcdn:denoiser";
 /// work only y needs (the extra AOVs).
 constexpr const char* kProbeAttribute = "mcdn:sure_probe";
 
+/// Set by sure, with kProbeAttribute, on the input of a probe: of the result it reads the
+/// colour alone (by name), so an op may return just the colour channels (the cnn op does;
+/// a frame-sized copy less per probe). compose keeps it for a chain's last stage only.
+constexpr const char* kColourOnlyAttribute = "mcdn:colour_only";
+
 }  // namespace mcdn

@@ -216,6 +216,7 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
         // Probed in place and restored after (a copy of every channel per probe would cost
         // as much as the denoiser's own work on half-converged frames).
         noisy.specmod().attribute(kProbeAttribute, 1);
+        noisy.specmod().attribute(kColourOnlyAttribute, 1);
         for (size_t g = 0; g < frame.moved.size(); g += 3)
             add_probe(noisy, { frame.moved[g], frame.moved[g + 1], frame.moved[g + 2] }, b, eps);
         trace.mark("probe b");
@@ -225,12 +226,20 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
         for (size_t m = 0; m < frame.moved.size(); ++m)
             noisy.set_pixels(channel_roi(frame.moved[m]), OIIO::TypeDesc::FLOAT, unprobed[m].data());
         noisy.specmod().erase_attribute(kProbeAttribute);
+        noisy.specmod().erase_attribute(kColourOnlyAttribute);
         if (!probe_ok) {
             error = format("sure: the denoiser failed on probe {}: {}", k, response.geterror());
             return false;
         }
         for (int c = 0; c < 3; ++c) {
-            Plane f = read_plane(response, frame.color[c]);
+            const std::string& name = noisy.spec().channel_name(frame.color[c]);
+            const int index = response.spec().channelindex(name);
+            if (index < 0) {
+                error = format("sure: the denoiser's result on probe {} has no channel '{}'", k,
+                               name);
+                return false;
+            }
+            Plane f = read_plane(response, index);
             for (size_t i = 0; i < f.size(); ++i)
                 divergence[c].px[i] += float(b[c].px[i] * (double(f.px[i]) - y[c].px[i])
                                              / (eps * options.probes));
