@@ -3,11 +3,11 @@
 // its AOVs, runs the chain, and hands oiiotool the denoised image:
 //
 //   OIIO_LIBRARY_PATH=build/lib/mcdenoise oiiotool
-//     "shot.mcdn?in=beauty.exr&variance=beauty_var.exr&halfA=a.exr&halfB=b.exr&preset=cycles&chain=prefilter,nfor"
-//     --colorconvert lin_rec709 sRGB -o out.png
+//     "shot.mcdn?in=beauty.exr&variance=beauty_var.exr" --colorconvert linear sRGB -o out.png
 //
-// Keys: in (the render, required), variance, halfA, halfB, preset, layer, colorspace,
-// chain (prefilter,nfor,sure,mix), channels (output channels, default the render's own),
+// Keys: in (the render, required), variance, halfA, halfB, preset (default: detected), layer,
+// colorspace, chain (default denoise: the best chain the inputs allow; or stages such as
+// prefilter,nfor,sure,mix), channels (output channels, default the render's own),
 // threads, and per-stage settings like nfor.window=19, sure.probes=4, mix.model=net.
 // Relative paths in a recipe file are relative to the recipe's folder.
 #include <condition_variable>

@@ -1,4 +1,4 @@
-// The recipe of the mcdn format plugin: `shot.mcdn?in=beauty.exr&chain=prefilter,nfor` or a
+// The recipe of the mcdn format plugin: `shot.mcdn?in=beauty.exr&chain=denoise` or a
 // recipe file with the same keys, parsed into what to read and which chain to run. Nothing
 // here reads an image or runs a stage (the fuzz target in tests/fuzz drives it).
 #pragma once
