@@ -24,9 +24,11 @@
 #include "mcdn/nfor.h"
 
 #include "bench_data.h"
+#include "net_flops.h"
 #include "plain_conv.h"
 
 using namespace mcdn;
+using mcdn_bench::flops_per_pixel;
 using Clock = std::chrono::steady_clock;
 namespace fs = std::filesystem;
 
@@ -37,21 +39,6 @@ double seconds_since(Clock::time_point t0)
     return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
-/// Multiply-adds x 2 of a network per output pixel, from its ops (convs at their scale).
-double flops_per_pixel(const nn::Net& net)
-{
-    double flops = 0;
-    for (const auto& node : net.nodes()) {
-        const double area = double(node.scale) * node.scale;
-        if (node.op == nn::Net::Op::conv) {
-            const int in = net.nodes()[node.inputs[0]].channels;
-            flops += 2.0 * in * node.channels * node.kernel * node.kernel / area;
-        } else if (node.op == nn::Net::Op::apply_kernel) {
-            flops += 2.0 * node.kernel * node.kernel * node.channels / area;
-        }
-    }
-    return flops;
-}
 
 /// Random raw planes of a frame: smooth-ish radiance with noise, features in range.
 kpcn::RawPlanes random_frame(int w, int h)

@@ -13,29 +13,11 @@
 #include "mcdn/mix.h"
 #include "mix/mix_steps.h"
 
+#include "net_flops.h"
 #include "plain_conv.h"
 
 using namespace mcdn;
-
-namespace {
-
-/// Multiply-adds x 2 of a network per output pixel, from its ops (convs at their scale).
-double flops_per_pixel(const nn::Net& net)
-{
-    double flops = 0;
-    for (const auto& node : net.nodes()) {
-        const double area = double(node.scale) * node.scale;
-        if (node.op == nn::Net::Op::conv) {
-            const int in = net.nodes()[node.inputs[0]].channels;
-            flops += 2.0 * in * node.channels * node.kernel * node.kernel / area;
-        } else if (node.op == nn::Net::Op::apply_kernel) {
-            flops += 2.0 * node.kernel * node.kernel * node.channels / area;
-        }
-    }
-    return flops;
-}
-
-}  // namespace
+using mcdn_bench::flops_per_pixel;
 
 int main(int argc, char** argv)
 {

@@ -67,7 +67,7 @@ const std::vector<CommandInfo>& command_table()
               "A multi-part EXR is read as one set of channels (the first part's as they "
               "are, the others' behind their part's name) and written back with the same "
               "parts; part=NAME reads one part alone. A bare FILE is the same as -i FILE.",
-              run_input, false, check_input },
+              run_input, false, check_input, {} },
             { "--aov", "", { "preset", "layer", "colorspace" },
               "Say which channels are what: preset=cycles|arnold|renderman|tungsten|oidn|"
               "generic (default: detected from the channel names, printed with -v), "
@@ -75,52 +75,52 @@ const std::vector<CommandInfo>& command_table()
               "oiio:ColorSpace, else scene_linear); "
               "role=ch1,ch2,ch3 words after it override one role (color, color_variance, "
               "color_a, albedo, normal, depth, ..., extra.NAME=...).",
-              run_aov, false, check_aov },
+              run_aov, false, check_aov, {} },
             { "--info", "", { "verbose" },
-              "Print the image size, channels and the resolved AOV roles.", run_info, false, {} },
+              "Print the image size, channels and the resolved AOV roles.", run_info, false, {}, {} },
             { "--metrics", "REF", { "format", "trim", "channels" },
               "Print MSE, RMSE, relMSE, SMAPE, PSNR and SSIM of the colour against a reference "
               "image (format=text|json, trim=1 drops the 0.01% best and worst pixels, "
               "channels=a,b,c compares other channels).",
-              run_metrics, false, check_metrics },
+              run_metrics, false, check_metrics, {} },
             { "--heatmap", "FILE", { "ref", "metric", "min", "max" },
               "Write a false-colour per-pixel error PNG against the last --metrics reference "
               "(or ref=FILE): metric=relmse|se|ae|smape, log10 range min=-4 max=0.",
-              run_heatmap, false, check_heatmap },
+              run_heatmap, false, check_heatmap, {} },
             { "--ch", "CHANNELS", {},
               "Channels -o writes, comma-separated, each a name or a wildcard (mix.alpha.*, "
               "*.R); default: the render's own channels.",
-              run_channels, false, {} },
+              run_channels, false, {}, {} },
             { "-o", "FILE", { "datatype", "compression" },
               "Write the current image (datatype=half|float, default float; compression=zip). "
               "Written to a temporary name and renamed: never a partial file.",
-              run_output, false, check_output },
+              run_output, false, check_output, {} },
             { "--fixnan", "STRATEGY", {},
               "Repair NaN and Inf in the current image, as oiiotool does: none, black (0), "
               "box3 (the 3x3 neighbours' mean) or error (fail if there are any). No stage "
               "makes them; they come with channels no stage reads, which -o warns about.",
-              run_fixnan, false, check_fixnan },
+              run_fixnan, false, check_fixnan, {} },
             { "--threads", "N", {}, "Worker threads (0 = all cores, the default).", nullptr,
-              true, check_thread_count },
+              true, check_thread_count, {} },
             { "-v", "", {}, "Print a line per stage with its run time (the default when "
-              "stderr is a terminal).", nullptr, true, {} },
+              "stderr is a terminal).", nullptr, true, {}, {} },
             { "--frames", "SPEC", {},
               "Frames for # / @ / %04d patterns, e.g. 1-10 or 1-100x5 (default: every frame "
               "of the first input pattern that exists on disk).",
-              nullptr, true, check_frames },
+              nullptr, true, check_frames, {} },
             { "--parallel-frames", "N", {},
               "Denoise N frames of a sequence at once, sharing the threads (default 1).",
-              nullptr, true, whole_number_at_least(1) },
+              nullptr, true, whole_number_at_least(1), {} },
             { "--skip-existing", "", {},
               "Frames whose every output (-o, --heatmap) exists already are skipped, with a "
               "line each: a farm job that died half-way is run again as it was.",
-              nullptr, true, {} },
+              nullptr, true, {}, {} },
             { "--skip-bad-frames", "", {},
               "A frame that fails does not stop the sequence: the others are denoised, the "
               "failed ones listed at the end, and the exit status is 1 (as oiiotool's "
               "--skip-bad-frames; alias --continue).",
-              nullptr, true, {} },
-            { "--continue", "", {}, "Alias of --skip-bad-frames.", nullptr, true, {} },
+              nullptr, true, {}, {} },
+            { "--continue", "", {}, "Alias of --skip-bad-frames.", nullptr, true, {}, {} },
         };
         for (auto& stage : stage_commands())
             t.push_back(stage);

@@ -52,12 +52,7 @@ bool find_frames(const std::vector<Command>& commands, const std::string& frames
                 first_input_pattern = normalized;
         }
     // A sequence written to one file would overwrite it every frame.
-    bool input_sequence = false;
-    for (const auto& c : commands) {
-        std::string normalized, framespec;
-        if (c.name == "-i" && is_sequence(c.args[0], normalized, framespec))
-            input_sequence = true;
-    }
+    const bool input_sequence = !first_input_pattern.empty();
     for (const auto& c : commands) {
         std::string normalized, framespec;
         if (input_sequence && (c.name == "-o" || c.name == "--heatmap")

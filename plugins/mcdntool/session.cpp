@@ -2,6 +2,7 @@
 
 #include "session.h"
 
+#include <algorithm>
 #include <iostream>
 
 #include <fnmatch.h>
@@ -30,9 +31,7 @@ bool Session::load(std::string& error)
         return false;
     std::vector<Queued> queue;
     std::swap(queue, m_queue);
-    for (const auto& stage : queue)
-        if (stage.name == "prefilter" && !m_input_features.initialized())
-            capture_input_features();
+    capture_input_features(queue);
     for (const auto& stage : queue) {
         // The first denoiser's input is kept for a later --sure, which reruns the chain: moved
         // there, not copied (an 8K frame of 40 channels is 5.3 GB).
@@ -59,8 +58,14 @@ mcdn::ProgressCallback Session::progress() const
     };
 }
 
-void Session::capture_input_features()
+void Session::capture_input_features(const std::vector<Queued>& stages)
 {
+    // Once, from the current image: the first prefilter has not run on it yet.
+    const bool queued = std::any_of(stages.begin(), stages.end(), [](const Queued& q) {
+        return q.name == "prefilter";
+    });
+    if (!queued || m_input_features.initialized())
+        return;
     m_feature_names = mcdn::feature_channel_names(m_aovs, m_image.spec());
     std::vector<int> order;
     for (const std::string& name : m_feature_names)
@@ -92,10 +97,8 @@ bool Session::take_denoiser_chain(mcdn::Denoiser& chain, int& chain_radius,
         error = "--sure needs a denoiser before it to estimate the error of (e.g. --nfor --sure)";
         return false;
     }
-    if (!m_input_features.initialized() && m_applied.empty())
-        for (const auto& stage : stages)
-            if (stage.name == "prefilter" && !m_input_features.initialized())
-                capture_input_features();
+    if (m_applied.empty())
+        capture_input_features(stages);
     // Moved out, not copied: the caller's result replaces the current image, which SURE
     // recomputes anyway (y = F(x)).
     chain_input = std::move(m_applied.empty() ? m_image : m_chain_input);
@@ -162,9 +165,8 @@ bool Session::load_inputs(std::string& error)
     }
     if (verbose)
         std::cerr << format("mcdntool: colour space '{}' ({}); the stages run in '{}'\n",
-                            colorspace, colorspace_why, mcdn::working_colorspace());
-    if (verbose)
-        std::cerr << format("mcdntool: AOV preset '{}'{}\n", m_aovs.preset(),
+                            colorspace, colorspace_why, mcdn::working_colorspace())
+                  << format("mcdntool: AOV preset '{}'{}\n", m_aovs.preset(),
                             m_aovs.detected_because().empty()
                                 ? std::string()
                                 : " (detected: " + m_aovs.detected_because() + ")");

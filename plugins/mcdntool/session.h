@@ -78,7 +78,8 @@ private:
         mcdn::StageReach reach;
     };
     bool load_inputs(std::string& error);
-    void capture_input_features();
+    /// Keeps the feature channels of the chain's input when `stages` hold a prefilter.
+    void capture_input_features(const std::vector<Queued>& stages);
     bool m_loaded = false;
     std::vector<Queued> m_queue;    // denoisers waiting for the next load()
     std::vector<Queued> m_applied;  // denoisers that made the current image from m_chain_input

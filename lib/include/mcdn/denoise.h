@@ -29,7 +29,6 @@ struct DenoisePlan {
     std::vector<std::string> stages;       // "cnn", "sure", "mix"
     std::string why;                       // "the input has a colour variance (variance.R,...)"
     std::vector<std::string> zero_filled;  // features the CNN reads as zero: "albedo", ...
-    std::string preset, preset_why;        // the AOV preset, and why it was detected
 
     /// One line: "cnn -> sure -> mix (net): <why>; zero-filled: albedo".
     std::string describe() const;

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <OpenImageIO/imagebuf.h>
@@ -20,6 +21,12 @@ struct InputFile {
     InputKind kind = InputKind::Mean;
     /// A multi-part EXR's part to read alone (-i:part=NAME); empty: every part.
     std::string part;
+
+    InputFile() = default;
+    InputFile(std::string path_, InputKind kind_ = InputKind::Mean, std::string part_ = {})
+        : path(std::move(path_)), kind(kind_), part(std::move(part_))
+    {
+    }
 };
 
 /// Reads every channel of every subimage (multi-part EXR) of `path` into a float buffer.

@@ -28,8 +28,6 @@ bool plan_denoise(DenoisePlan& plan, const ImageSpec& merged, const AovSpec& spe
     if (!resolve_aovs(aovs, spec, merged, error) || !aovs.require({ Role::Color }, merged, error))
         return false;
     plan = DenoisePlan();
-    plan.preset = aovs.preset();
-    plan.preset_why = aovs.detected_because();
     if (aovs.has(Role::ColorVariance)) {
         plan.stages = { "cnn", "sure", "mix" };
         plan.why = format("the input has a colour variance ({})",

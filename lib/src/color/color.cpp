@@ -161,7 +161,8 @@ bool input_colorspace(std::string& name, std::string& why, const AovSpec& aovs,
         return true;
     }
     const OIIO::ParamValue* chroma = image.find_attribute("chromaticities");
-    if (chroma && chroma->type().basetype == OIIO::TypeDesc::FLOAT && chroma->nvalues() * chroma->type().numelements() * chroma->type().aggregate >= 8) {
+    if (chroma && chroma->type().basetype == OIIO::TypeDesc::FLOAT
+        && chroma->nvalues() * chroma->type().basevalues() >= 8) {
         const float* xy = static_cast<const float*>(chroma->data());
         for (const Primaries& p : kPrimaries) {
             bool same = true;

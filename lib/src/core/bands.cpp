@@ -52,11 +52,19 @@ void write_rows(ImageBuf& frame, int channel, const Plane& band_plane, int band_
                      OIIO::stride_t(band_plane.width * sizeof(float)));
 }
 
+namespace {
+
+// run_in_bands runs the op on the whole frame at once.
+bool runs_whole(const ROI& whole, int64_t band_pixels)
+{
+    return band_pixels <= 0 || int64_t(whole.npixels()) <= band_pixels;
+}
+
+}  // namespace
+
 int band_count(const ROI& whole, int halo, int64_t band_pixels)
 {
-    if (band_pixels <= 0 || int64_t(whole.npixels()) <= band_pixels)
-        return 1;
-    return int(plan_bands(whole, halo, band_pixels).size());
+    return runs_whole(whole, band_pixels) ? 1 : int(plan_bands(whole, halo, band_pixels).size());
 }
 
 bool run_in_bands(ImageBuf& dst, const ImageBuf& src, int halo, int64_t band_pixels,
@@ -65,7 +73,7 @@ bool run_in_bands(ImageBuf& dst, const ImageBuf& src, int halo, int64_t band_pix
     const ROI whole = src.roi();
     const int64_t width = std::max<int64_t>(1, whole.width());
     const int height = whole.height();
-    if (band_pixels <= 0 || int64_t(whole.npixels()) <= band_pixels)
+    if (runs_whole(whole, band_pixels))
         return op(dst, src);
     ImageBuf out;
     for (const Band& planned : plan_bands(whole, halo, band_pixels)) {

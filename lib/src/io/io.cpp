@@ -55,8 +55,6 @@ std::string roi_text(const ROI& roi)
     return format("{}x{} at ({},{})", roi.width(), roi.height(), roi.xbegin, roi.ybegin);
 }
 
-// A file's channels as read_image names them, from its header alone: each part's float spec
-// and, in order, every part's channels (behind the part's name when there are several).
 // A part's channel as the merged buffer names it: behind the part's name unless it is the
 // first part, has no name, or the channel carries the name already.
 std::string part_qualified(const ImageSpec& part, bool first, const std::string& channel)
@@ -67,6 +65,8 @@ std::string part_qualified(const ImageSpec& part, bool first, const std::string&
     return name + "." + channel;
 }
 
+// A file's channels as read_image names them, from its header alone: each part's float spec
+// and, in order, every part's channels (part_qualified).
 struct FileLayout {
     std::string path;
     std::vector<ImageSpec> parts;
@@ -194,12 +194,11 @@ bool allocated(const ImageBuf& buf, const std::string& path, std::string& error)
     return false;
 }
 
-// Reads every part of the file straight into dst's channels [first, first + its channels),
-// with strides: no buffer per file, so merging costs the merged frame only.
 // Reads the file's channels into dst from channel `first` on: every channel, or those `keep`
-// marks (in the layout's order). A selection is read in bands of rows, all of a part's
-// channels at once (an EXR block holds every channel: one decode per block), and the kept
-// ones copied out, so the whole file never sits in memory beside the merged buffer.
+// marks (in the layout's order). Every channel goes straight into dst with strides (no buffer
+// per file, so merging costs the merged frame only); a selection is read in bands of rows,
+// all of a part's channels at once (an EXR block holds every channel: one decode per block),
+// and the kept ones copied out.
 bool read_pixels_into(ImageBuf& dst, int first, const FileLayout& layout,
                       const std::vector<bool>& keep, std::string& error)
 {
@@ -348,6 +347,30 @@ bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs)
 
 namespace {
 
+// A file given as the variance or a half must supply that face of the colour: one that does
+// not (a PNG renamed var.exr, a layer without Combined.B) would be ignored and the stages
+// would run without it. Only the channel names are looked at; `halves` false skips the half
+// files.
+bool check_colour_faces(const ImageSpec& spec, const AovSet& aovs, bool halves,
+                        std::string& error)
+{
+    for (const InputFile& file : merged_input_files(spec)) {
+        if (file.kind == InputKind::Mean || (!halves && file.kind != InputKind::Variance))
+            continue;
+        const Role role = file.kind == InputKind::Variance ? Role::ColorVariance
+                          : file.kind == InputKind::HalfA  ? Role::ColorA
+                                                           : Role::ColorB;
+        std::string why;
+        if (!aovs.require({ role }, spec, why)) {
+            error = format("{}: given with -i:as={} but has no {} of the colour: {}", file.path,
+                           input_kind_name(file.kind),
+                           file.kind == InputKind::Variance ? "variance" : "half buffer", why);
+            return false;
+        }
+    }
+    return true;
+}
+
 // The variance and half-buffer channels `selection` keeps of a merged buffer's full list of
 // names (`spec`, before any pixel is read).
 std::set<std::string> selected_faces(const ImageSpec& spec, const InputSelection& selection,
@@ -377,21 +400,11 @@ std::set<std::string> selected_faces(const ImageSpec& spec, const InputSelection
     for (const std::string& name : means)
         for (InputKind k : { InputKind::Variance, InputKind::HalfA, InputKind::HalfB })
             wanted.insert(input_kind_prefix(k) + name);
-    // Without halves none is read (the half files are not even decoded); that each half
-    // file supplies the colour's half is checked here, from the headers, instead of by
-    // validate_inputs.
+    // Without halves none is read (the half files are not even decoded): that each half file
+    // supplies the colour's half is checked here, from the headers, not by validate_inputs.
     if (!selection.halves) {
-        for (const InputFile& file : merged_input_files(spec)) {
-            if (file.kind != InputKind::HalfA && file.kind != InputKind::HalfB)
-                continue;
-            std::string why;
-            if (!aovs.require({ file.kind == InputKind::HalfA ? Role::ColorA : Role::ColorB },
-                              spec, why)) {
-                error = format("{}: given with -i:as={} but has no half buffer of the colour: "
-                               "{}", file.path, input_kind_name(file.kind), why);
-                return {};
-            }
-        }
+        if (!check_colour_faces(spec, aovs, true, error))
+            return {};
         for (auto it = wanted.begin(); it != wanted.end();)
             it = Strutil::starts_with(*it, input_kind_prefix(InputKind::HalfA))
                          || Strutil::starts_with(*it, input_kind_prefix(InputKind::HalfB))
@@ -546,25 +559,9 @@ bool validate_inputs(const ImageBuf& merged, const AovSet& aovs, std::string& er
         error = "validate_inputs: expects a local float buffer (use read_inputs)";
         return false;
     }
-    // A file given as the variance or a half must supply that face of the colour: one that
-    // does not (a PNG renamed var.exr, a layer without Combined.B) would be ignored and the
-    // stages would run without it.
-    const bool halves_unread = spec.get_int_attribute(kHalvesUnread) == 1;
-    for (const InputFile& file : merged_input_files(spec)) {
-        if (file.kind == InputKind::Mean
-            || (halves_unread && file.kind != InputKind::Variance))
-            continue;  // read_inputs checked the half files' headers
-        const Role role = file.kind == InputKind::Variance ? Role::ColorVariance
-                          : file.kind == InputKind::HalfA  ? Role::ColorA
-                                                           : Role::ColorB;
-        std::string why;
-        if (!aovs.require({ role }, spec, why)) {
-            error = format("{}: given with -i:as={} but has no {} of the colour: {}", file.path,
-                           input_kind_name(file.kind),
-                           file.kind == InputKind::Variance ? "variance" : "half buffer", why);
-            return false;
-        }
-    }
+    // Half files whose channels read_inputs did not read it checked from their headers.
+    if (!check_colour_faces(spec, aovs, spec.get_int_attribute(kHalvesUnread) != 1, error))
+        return false;
     auto is_variance = [](Role r) {
         return r == Role::ColorVariance || r == Role::AlbedoVariance
                || r == Role::NormalVariance || r == Role::DepthVariance

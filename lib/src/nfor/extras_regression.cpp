@@ -31,6 +31,12 @@ void ExtraAovs::first_pass(const RegressionInputs& first_a, const RegressionInpu
     }
 }
 
+void ExtraAovs::first_pass_one_buffer(const RegressionInputs& first, int nthreads)
+{
+    for (Extra& e : m_extras)
+        e.fits_a = fit(first, e.planes.mean, nthreads);
+}
+
 void ExtraAovs::blend(const std::vector<Plane>& selection)
 {
     for (Extra& e : m_extras) {
@@ -38,8 +44,9 @@ void ExtraAovs::blend(const std::vector<Plane>& selection)
             e.combined[c] = Plane(e.planes.mean[c].width, e.planes.mean[c].height);
             for (size_t i = 0; i < e.combined[c].size(); ++i) {
                 const float s = selection[c].px[i];
-                e.combined[c].px[i] = 0.5f * (blend_candidates(e.fits_a.data(), c, i, s)
-                                              + blend_candidates(e.fits_b.data(), c, i, s));
+                const float a = blend_candidates(e.fits_a.data(), c, i, s);
+                const float b = e.fits_b.empty() ? a : blend_candidates(e.fits_b.data(), c, i, s);
+                e.combined[c].px[i] = 0.5f * (a + b);
             }
         }
         e.fits_a.clear();

@@ -26,8 +26,11 @@ public:
     /// guides, variances, features and bandwidths; only the image differs).
     void first_pass(const RegressionInputs& first_a, const RegressionInputs& first_b,
                     int nthreads);
+    /// §5.2 without half buffers: each extra itself fitted by the beauty's regression of the
+    /// render (nfor's one-buffer path).
+    void first_pass_one_buffer(const RegressionInputs& first, int nthreads);
     /// §5.3: the candidates blended with the beauty's filtered selection map; the halves'
-    /// average is what the second pass filters.
+    /// average is what the second pass filters (the one fit, on the one-buffer path).
     void blend(const std::vector<Plane>& selection);
     /// §5.4: the beauty's second-pass regression (guided by its combined halves).
     void second_pass(const RegressionInputs& second, int nthreads);

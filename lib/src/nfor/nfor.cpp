@@ -128,10 +128,6 @@ bool read_inputs(NforInputs& in, ImageBuf& dst, const ImageBuf& src, const NforO
         dst.errorfmt("{}: {}", op, error);
         return false;
     }
-    if (!in.halves)  // the one-buffer path fits each extra itself, as it fits the render
-        for (ExtraPlanes& e : in.extras)
-            for (int c = 0; c < 3; ++c)
-                e.half_a[c] = e.half_b[c] = e.mean[c];
     return true;
 }
 
@@ -151,19 +147,42 @@ struct FirstPass {
     std::vector<Plane> fit_a[2], fit_b[2];
 };
 
+/// The first pass's regression settings (§5.2, both candidate bandwidths); the caller says
+/// what is fitted and guided by what.
+RegressionInputs first_pass_settings(const NforOptions& options, const ConvergedTiles& converged)
+{
+    RegressionInputs in;
+    in.window_radius = options.window_radius;
+    in.patch_radius = options.patch_radius;
+    in.bandwidths = { options.candidate_k[0], options.candidate_k[1] };
+    in.variance_scale = options.variance_scale;
+    in.skip_tiles = &converged;
+    return in;
+}
+
+/// The candidates of one regression into `fits` (one per bandwidth).
+void take_candidates(std::vector<Plane> fits[2], std::vector<std::vector<Plane>> result)
+{
+    fits[0] = std::move(result[0]);
+    fits[1] = std::move(result[1]);
+}
+
+/// The features' halves after §5.2, their last use.
+void free_feature_halves(std::vector<FeaturePlanes>& features)
+{
+    for (FeaturePlanes& f : features) {
+        f.half_a = Plane();
+        f.half_b = Plane();
+    }
+}
+
 /// §5.2: half A fitted with the features and colour weights of half B, and vice versa, for
 /// each candidate bandwidth. The features' halves are not needed after it.
 FirstPass first_pass(const ColorPlanes& color, std::vector<FeaturePlanes>& features,
                      ExtraAovs& extras, const NforOptions& options,
                      const ConvergedTiles& converged, int nthreads)
 {
-    RegressionInputs first_a, first_b;
-    first_a.window_radius = options.window_radius;
-    first_a.patch_radius = options.patch_radius;
-    first_a.bandwidths = { options.candidate_k[0], options.candidate_k[1] };
-    first_a.variance_scale = options.variance_scale;
-    first_a.skip_tiles = &converged;
-    first_b = first_a;
+    RegressionInputs first_a = first_pass_settings(options, converged), first_b = first_a;
     for (int c = 0; c < 3; ++c) {
         first_a.image[c] = &color.half_a[c];
         first_a.guide[c] = &color.half_b[c];
@@ -176,17 +195,10 @@ FirstPass first_pass(const ColorPlanes& color, std::vector<FeaturePlanes>& featu
         first_b.features.push_back(&f.half_a);
     }
     FirstPass pass;
-    std::vector<std::vector<Plane>> fits = collaborative_regression(first_a, nthreads);
-    pass.fit_a[0] = std::move(fits[0]);
-    pass.fit_a[1] = std::move(fits[1]);
-    fits = collaborative_regression(first_b, nthreads);
-    pass.fit_b[0] = std::move(fits[0]);
-    pass.fit_b[1] = std::move(fits[1]);
+    take_candidates(pass.fit_a, collaborative_regression(first_a, nthreads));
+    take_candidates(pass.fit_b, collaborative_regression(first_b, nthreads));
     extras.first_pass(first_a, first_b, nthreads);
-    for (FeaturePlanes& f : features) {
-        f.half_a = Plane();
-        f.half_b = Plane();
-    }
+    free_feature_halves(features);
     return pass;
 }
 
@@ -232,12 +244,7 @@ FirstPass first_pass_one_buffer(const ColorPlanes& color, std::vector<FeaturePla
                                 const ConvergedTiles& converged, int nthreads,
                                 std::vector<Plane> mse[2])
 {
-    RegressionInputs first;
-    first.window_radius = options.window_radius;
-    first.patch_radius = options.patch_radius;
-    first.bandwidths = { options.candidate_k[0], options.candidate_k[1] };
-    first.variance_scale = options.variance_scale;
-    first.skip_tiles = &converged;
+    RegressionInputs first = first_pass_settings(options, converged);
     for (const FeaturePlanes& f : features)
         first.features.push_back(&f.mean);
     const double eps = probe_step(color);
@@ -257,19 +264,14 @@ FirstPass first_pass_one_buffer(const ColorPlanes& color, std::vector<FeaturePla
     for (int c = 0; c < 3; ++c)
         probed_inputs.image[c] = probed_inputs.guide[c] = &probed[c];
     FirstPass pass;
-    std::vector<std::vector<Plane>> fits = collaborative_regression(first, nthreads);
-    pass.fit_a[0] = std::move(fits[0]);
-    pass.fit_a[1] = std::move(fits[1]);
-    fits = collaborative_regression(probed_inputs, nthreads);
+    take_candidates(pass.fit_a, collaborative_regression(first, nthreads));
+    const std::vector<std::vector<Plane>> fits = collaborative_regression(probed_inputs, nthreads);
     const Plane* render[3] = { &color.mean[0], &color.mean[1], &color.mean[2] };
     const Plane* variance[3] = { &color.variance[0], &color.variance[1], &color.variance[2] };
     for (int j = 0; j < 2; ++j)
         mse[j] = sure_mse(render, variance, probe, eps, pass.fit_a[j], fits[j]);
-    extras.first_pass(first, first, nthreads);
-    for (FeaturePlanes& f : features) {
-        f.half_a = Plane();
-        f.half_b = Plane();
-    }
+    extras.first_pass_one_buffer(first, nthreads);
+    free_feature_halves(features);
     return pass;
 }
 
