@@ -3,6 +3,7 @@
 // before "sure" form the denoiser SURE estimates the error of; "mix" needs "sure" first.
 #pragma once
 
+#include <functional>
 #include <map>
 #include <string>
 #include <vector>
@@ -24,7 +25,18 @@ struct ChainOptions {
     std::map<std::string, std::string> settings;
     /// Given to every stage (mcdn/progress.h).
     ProgressCallback progress;
+    /// Pixels of one band of rows, halos not counted. A larger frame runs through the whole
+    /// chain one band at a time, each with chain_reach() rows of halo: the frame's statistics
+    /// (SURE's probe step, the t-test's sigma_s, the CNN's depth range, constant features)
+    /// are fixed by a light pass over it first, so the result is the whole frame's (the
+    /// mixing network's to float round-off: its tiles fall differently), and memory follows
+    /// the band, not the frame. 0: the whole frame at once.
+    int64_t band_pixels = int64_t(1) << 21;
 };
+
+/// The rows [own.ybegin, own.yend) of a chain's result, every channel, in `band` (which may
+/// hold more rows: its halo); false with `error` to stop the chain.
+using BandSink = std::function<bool(const ImageBuf& band, const ROI& own, std::string& error)>;
 
 /// Parses "prefilter,nfor,sure,mix" (or "denoise") and checks the order; false with `error`
 /// on an unknown stage or a mix without a sure before it.
@@ -44,5 +56,15 @@ bool copy_channels_by_name(ImageBuf& dst, const ImageBuf& input,
 /// nfor.features-out is set.
 bool run_chain(ImageBuf& dst, const ImageBuf& src, const ChainOptions& options, ROI roi = {},
                int nthreads = 0);
+
+/// The same, in bands (ChainOptions::band_pixels), each band's own rows handed to `sink` top
+/// to bottom as soon as they are made (a writer can stream them to a file): nothing
+/// frame-sized is allocated but src. false with `error` (or sink's).
+bool run_chain(const ImageBuf& src, const ChainOptions& options, const BandSink& sink,
+               std::string& error, int nthreads = 0);
+
+/// How far a pixel of the chain's result reaches into its input: the sum of its stages'
+/// receptive radii (the halo of its bands); -1 when one is unknown.
+int chain_reach(const ImageSpec& spec, const ChainOptions& options);
 
 }  // namespace mcdn

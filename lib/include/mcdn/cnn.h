@@ -49,6 +49,10 @@ struct CnnOptions {
 /// the library (share/mcdenoise/models: nn::model_file).
 std::string default_cnn_weights();
 
+/// How far a pixel of cnn()'s result reaches into its input: the networks' receptive field,
+/// their kernels included (-1 when the weights cannot be read).
+int receptive_radius(const CnnOptions& options);
+
 /// dst = src with the colour role replaced by the KPCN estimate (written inside `roi`; every
 /// other channel of src kept, so ops chain and sure() can wrap it). Needs the colour;
 /// uses the diffuse/specular split, albedo, normal, depth and their variances where present

@@ -89,6 +89,11 @@ struct MixOptions {
 /// nfor and cnn ops set and sure keeps; a Python or C++ callable denoiser may set it too.
 std::string default_mix_weights(const std::string& denoiser = "nfor");
 
+/// How far alpha' at a pixel reaches into mix()'s input: the model's neighbourhood (the
+/// network of `denoiser` unless MixOptions::weights names one) and the t-test's; -1 when the
+/// network cannot be read.
+int receptive_radius(const MixOptions& options, const std::string& denoiser = "nfor");
+
 /// dst = src with the colour role replaced by z (and mix.alpha.* if asked for). Pixels
 /// outside `roi` keep src's colour. Finite, identical for any thread count.
 bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options = {}, ROI roi = {},

@@ -5,6 +5,8 @@
 
 #include <OpenImageIO/strutil.h>
 
+#include "core/frame_facts.h"
+#include "core/op_prepare.h"
 #include "mcdn/cnn.h"
 #include "mcdn/denoise.h"
 #include "mcdn/mix.h"
@@ -172,10 +174,51 @@ bool keeps_prefiltered_features(const ChainOptions& o)
 bool run_stages(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, ROI roi,
                 int nthreads);
 
+// The chain in bands (chain_bands.cpp), its rows gathered into dst: the frame-sized result
+// and one band are all that is allocated besides src.
+bool run_chain_into(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, int nthreads)
+{
+    ImageBuf out;
+    auto gather = [&](const ImageBuf& band, const ROI& own, std::string& error) {
+        const ImageSpec& spec = band.spec();
+        if (!out.initialized()) {
+            ImageSpec frame = spec;
+            frame.y = src.spec().y;
+            frame.height = src.spec().height;
+            allocate_frame(out, frame, false);
+        }
+        if (spec.nchannels != out.nchannels() || spec.channelnames != out.spec().channelnames) {
+            error = "chain: a band's result has other channels than the band above";
+            return false;
+        }
+        ROI rows = own;
+        rows.chbegin = 0;
+        rows.chend = spec.nchannels;
+        if (!band.get_pixels(rows, OIIO::TypeDesc::FLOAT, out.pixeladdr(rows.xbegin, rows.ybegin),
+                             out.pixel_stride(), out.scanline_stride())) {
+            error = "chain: " + band.geterror();
+            return false;
+        }
+        return true;
+    };
+    std::string error;
+    if (!run_chain(src, o, gather, error, nthreads)) {
+        dst.errorfmt("{}", error);
+        return false;
+    }
+    dst = std::move(out);
+    return true;
+}
+
 }  // namespace
 
 bool run_chain(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, ROI roi, int nthreads)
 {
+    // A band of a larger frame (it carries the frame's facts) is never cut again.
+    const bool whole_frame = (!roi.defined() || roi == src.roi())
+                             && !src.spec().find_attribute(kFrameFactsAttribute);
+    if (o.band_pixels > 0 && whole_frame && int64_t(src.roi().npixels()) > o.band_pixels)
+        return run_chain_into(dst, src, o, nthreads);
     if (!run_stages(dst, src, o, roi, nthreads))
         return false;
     if (keeps_prefiltered_features(o))
@@ -203,11 +246,20 @@ bool run_stages(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, ROI r
         return false;
     }
     if (o.stages.size() == 1 && o.stages[0] == "denoise") {
-        DenoiseOptions d;
-        d.aovs = o.aovs;
-        d.settings = o.settings;
-        d.progress = o.progress;
-        return denoise(dst, src, d, roi, nthreads);
+        // What mcdn::denoise runs, with this chain's bands.
+        DenoisePlan plan;
+        if (!plan_denoise(plan, src.spec(), o.aovs, error)) {
+            dst.errorfmt("denoise: {}", error);
+            return false;
+        }
+        ChainOptions planned = o;
+        planned.stages = plan.stages;
+        if (!planned.settings.count("mix.model"))
+            planned.settings["mix.model"] = "net";
+        if (!run_chain(dst, src, planned, roi, nthreads))
+            return false;
+        dst.specmod().attribute("mcdn:denoise_plan", plan.describe());
+        return true;
     }
     ImageBuf current = src;
     std::vector<std::pair<std::string, Denoiser>> pending;  // denoisers since the last sure/mix

@@ -18,6 +18,7 @@
 #include "cnn/extras_kernels.h"
 #include "cnn/worker_pool.h"
 #include "core/attributes.h"
+#include "core/frame_facts.h"
 #include "core/op_prepare.h"
 #include "core/progress.h"
 #include "core/trace.h"
@@ -199,7 +200,11 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
 
     // §5.1: the depth range is the one input statistic of the whole frame; everything else
     // (§4.3's split, the 34 input channels, eq. 4) is made per network tile from its window.
-    const kpcn::DepthRange depth = kpcn::depth_range(src, aovs);
+    // A band of a larger frame carries the frame's (core/frame_facts.h).
+    FrameFacts facts;
+    const kpcn::DepthRange depth = frame_facts(facts, src.spec())
+                                       ? kpcn::DepthRange{ facts.depth_lo, facts.depth_span }
+                                       : kpcn::depth_range(src, aovs);
     const bool split = kpcn::has_split(aovs);
     const ROI where = output_roi(src, roi);
     nn::TileOptions tile_options;
@@ -269,6 +274,19 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
 std::string default_cnn_weights()
 {
     return nn::model_file("kpcn.mcdnw");
+}
+
+int receptive_radius(const CnnOptions& options)
+{
+    std::string error;
+    const std::string path = options.weights.empty() ? default_cnn_weights() : options.weights;
+    std::unique_ptr<kpcn::Worker> worker = kpcn::take_worker(path, 3, error);
+    if (!worker)
+        return -1;
+    const int radius = std::max(worker->model.diffuse.receptive_radius(),
+                                worker->model.specular.receptive_radius());
+    kpcn::return_worker(std::move(worker));
+    return radius;
 }
 
 bool cnn(ImageBuf& dst, const ImageBuf& src, const CnnOptions& options, ROI roi, int nthreads)

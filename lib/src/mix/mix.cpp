@@ -165,6 +165,17 @@ bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options, ROI roi,
     return true;
 }
 
+int receptive_radius(const MixOptions& options, const std::string& denoiser)
+{
+    if (options.model != MixOptions::Model::Net)
+        return mix_radius(options, nullptr);
+    nn::Net net;
+    std::string error;
+    const std::string path = options.weights.empty() ? default_mix_weights(denoiser)
+                                                     : options.weights;
+    return load_mix_net(net, path, error) ? mix_radius(options, &net) : -1;
+}
+
 ImageBuf mix(const ImageBuf& src, const MixOptions& options, ROI roi, int nthreads)
 {
     ImageBuf dst;

@@ -44,7 +44,8 @@ void outlier_floor(Plane& alpha, const Plane& variance, const Plane& y, const Pl
                    const Plane& residual, float relative_variance, float drop_relative_variance);
 
 /// sigma_s of eq. 15: min(sqrt(spatial variance of x), 1) * scale, x the channels
-/// `x_channels` of the whole of src (read a few rows at a time).
+/// `x_channels` of the whole of src (read a few rows at a time; src's frame facts when it is
+/// a band of a larger frame, core/frame_facts.h).
 float t_test_sigma(const OIIO::ImageBuf& src, const int x_channels[3], float scale);
 
 /// alpha' of one band: the model's alpha (`net` for Model::Net, loaded by load_mix_net),

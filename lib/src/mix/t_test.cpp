@@ -16,6 +16,7 @@
 #include <tbb/parallel_for.h>
 
 #include "core/bands.h"
+#include "core/frame_facts.h"
 #include "mix/mix_steps.h"
 
 namespace mcdn {
@@ -90,27 +91,10 @@ std::vector<size_t> highest_variance_neighbour(const Plane& variance, int radius
 
 float t_test_sigma(const OIIO::ImageBuf& src, const int x_channels[3], float scale)
 {
-    // "Var[x-bar], x-bar the image mean": the spatial variance of the render's values over
-    // all pixels and channels (capped at 1 before the square root, as in the paper). Summed
-    // channel by channel in row order, as over the whole frame's planes: the same for any
-    // band size.
-    const ROI whole = src.roi();
-    const int rows_per_read = std::max(1, int((int64_t(1) << 20) / std::max(1, whole.width())));
-    double sum = 0, sum2 = 0;
-    size_t n = 0;
-    for (int c = 0; c < 3; ++c)
-        for (int y = whole.ybegin; y < whole.yend; y += rows_per_read) {
-            ROI rows = whole;
-            rows.ybegin = y;
-            rows.yend = std::min(y + rows_per_read, whole.yend);
-            for (float v : read_rows(src, x_channels[c], rows).px) {
-                sum += v;
-                sum2 += double(v) * v;
-                ++n;
-            }
-        }
-    double mean = n ? sum / n : 0, variance = n ? std::max(0.0, sum2 / n - mean * mean) : 0;
-    return float(std::min(std::sqrt(variance), 1.0) * scale);
+    FrameFacts facts;  // a band of a larger frame: the frame's sigma_s
+    return t_test_sigma(frame_facts(facts, src.spec()) ? facts.colour
+                                                       : colour_sums(src, x_channels, nullptr),
+                        scale);
 }
 
 void t_test_bound(Plane& alpha, const Plane& x, const Plane& y, const Plane& variance,

@@ -19,6 +19,7 @@
 #include "core/attributes.h"
 #include "core/extra_aovs.h"
 #include "core/feature_channels.h"
+#include "core/frame_facts.h"
 #include "nl_means/nl_means.h"
 #include "core/bands.h"
 #include "core/op_prepare.h"
@@ -220,18 +221,22 @@ void two_buffer_mse(std::vector<Plane> mse[2], ColorPlanes& color, const FirstPa
 
 /// The probe step of the one-buffer SURE, relative to the render's scale as in the sure op
 /// (SureOptions::epsilon_relative): eps sqrt(Var) moves a pixel by ~1e-3 of the mean |x|.
-double probe_step(const ColorPlanes& color)
+/// Where the probes' index space starts: one-buffer NFOR draws b of a pixel by its index in
+/// the frame (of a band's frame, core/frame_facts.h), and takes the frame's probe step.
+struct ProbeIndex {
+    const FrameFacts* facts = nullptr;
+    uint64_t first = 0;
+};
+
+ColourSums colour_sums(const ColorPlanes& color)
 {
-    double sum_abs = 0, sum_var = 0;
-    size_t n = 0;
+    ColourSums sums;
     for (int c = 0; c < 3; ++c)
-        for (size_t i = 0; i < color.mean[c].size(); ++i, ++n) {
-            sum_abs += std::fabs(color.mean[c].px[i]);
-            sum_var += color.variance[c].px[i];
+        for (size_t i = 0; i < color.mean[c].size(); ++i, ++sums.n) {
+            sums.sum_abs += std::fabs(color.mean[c].px[i]);
+            sums.sum_var += color.variance[c].px[i];
         }
-    if (n == 0 || sum_var <= 0 || sum_abs <= 0)
-        return 0;  // no noise, or a black image: nothing to probe
-    return 1e-3 * (sum_abs / n) / std::sqrt(sum_var / n);
+    return sums;
 }
 
 /// Without half buffers (a renderer's colour and its variance, as Arnold and RenderMan
@@ -242,12 +247,13 @@ double probe_step(const ColorPlanes& color)
 FirstPass first_pass_one_buffer(const ColorPlanes& color, std::vector<FeaturePlanes>& features,
                                 ExtraAovs& extras, const NforOptions& options,
                                 const ConvergedTiles& converged, int nthreads,
-                                std::vector<Plane> mse[2])
+                                std::vector<Plane> mse[2], const ProbeIndex& probe_index)
 {
     RegressionInputs first = first_pass_settings(options, converged);
     for (const FeaturePlanes& f : features)
         first.features.push_back(&f.mean);
-    const double eps = probe_step(color);
+    const double eps = relative_probe_step(
+        probe_index.facts ? probe_index.facts->colour : colour_sums(color), 1e-3);
     Plane probe[3], probed[3];
     for (int c = 0; c < 3; ++c) {
         first.image[c] = first.guide[c] = &color.mean[c];
@@ -256,7 +262,7 @@ FirstPass first_pass_one_buffer(const ColorPlanes& color, std::vector<FeaturePla
         probed[c] = probe[c];
         for (size_t i = 0; i < probe[c].size(); ++i) {
             probe[c].px[i] = std::sqrt(color.variance[c].px[i])
-                             * standard_normal(kNforProbeSeed, uint64_t(c), uint64_t(i));
+                             * standard_normal(kNforProbeSeed, uint64_t(c), probe_index.first + i);
             probed[c].px[i] = float(color.mean[c].px[i] + eps * probe[c].px[i]);
         }
     }
@@ -421,9 +427,15 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     const ConvergedTiles converged = converged_tiles_of(src, color.mean, color.variance,
                                                         options.skip);
     if (options.skip.enabled)
-        drop_constant_features(in.features, &in.feature_channels);
+        drop_constant_features(in.features, in.feature_channels, src.spec());
     trace.mark("read planes");
 
+    FrameFacts facts;
+    ProbeIndex probe_index;
+    if (frame_facts(facts, src.spec())) {
+        probe_index.facts = &facts;
+        probe_index.first = uint64_t(src.spec().y - facts.ybegin) * uint64_t(src.spec().width);
+    }
     const bool prefiltered = src.spec().get_int_attribute("mcdn:prefiltered", 0) == 1;
     prefilter_features(in.features, options, prefiltered, converged, nthreads);
     trace.mark("prefilter (5.1)");
@@ -432,7 +444,7 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     FirstPass pass = in.halves ? first_pass(color, in.features, extras, options, converged,
                                             nthreads)
                                : first_pass_one_buffer(color, in.features, extras, options,
-                                                       converged, nthreads, mse);
+                                                       converged, nthreads, mse, probe_index);
     if (in.halves)
         two_buffer_mse(mse, color, pass);
     trace.mark("first pass regressions (5.2)");

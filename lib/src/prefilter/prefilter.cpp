@@ -47,7 +47,7 @@ bool prefilter_in_working_space(ImageBuf& dst, const ImageBuf& src,
         planes.push_back(read_feature(src, f));
     const ConvergedTiles converged = converged_tiles_of(src, aovs, options.skip);
     if (options.skip.enabled)
-        drop_constant_features(planes, &channels);  // their channels are copied unchanged
+        drop_constant_features(planes, channels, src.spec());  // copied unchanged
     trace.mark("read planes");
     if (!prepare_op(dst, src, options.aovs, aovs, op))
         return false;

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "core/frame_facts.h"
+
 namespace mcdn {
 
 bool is_constant_feature(const FeaturePlanes& f)
@@ -15,12 +17,15 @@ bool is_constant_feature(const FeaturePlanes& f)
     return all_equal(f.mean) && all_equal(f.half_a) && all_equal(f.half_b);
 }
 
-int drop_constant_features(std::vector<FeaturePlanes>& features,
-                           std::vector<FeatureChannel>* channels)
+namespace {
+
+template <class Constant>
+int drop_features(std::vector<FeaturePlanes>& features, std::vector<FeatureChannel>* channels,
+                  const Constant& is_constant)
 {
     size_t kept = 0;
     for (size_t i = 0; i < features.size(); ++i) {
-        if (is_constant_feature(features[i]))
+        if (is_constant(i))
             continue;
         if (kept != i) {
             features[kept] = std::move(features[i]);
@@ -34,6 +39,38 @@ int drop_constant_features(std::vector<FeaturePlanes>& features,
     if (channels)
         channels->resize(kept);
     return removed;
+}
+
+}  // namespace
+
+int drop_constant_features(std::vector<FeaturePlanes>& features,
+                           std::vector<FeatureChannel>* channels)
+{
+    return drop_features(features, channels,
+                         [&](size_t i) { return is_constant_feature(features[i]); });
+}
+
+int drop_constant_features(std::vector<FeaturePlanes>& features,
+                           std::vector<FeatureChannel>& channels, const OIIO::ImageSpec& spec)
+{
+    FrameFacts facts;
+    if (!frame_facts(facts, spec))
+        return drop_constant_features(features, &channels);
+    // The faces read_feature fills in from the mean (a missing half) are the mean's.
+    return drop_features(features, &channels, [&](size_t i) {
+        const FeatureChannel& f = channels[i];
+        auto mean = facts.constant.find(spec.channel_name(f.mean));
+        if (mean == facts.constant.end())
+            return false;
+        if (f.half_a < 0 || f.half_b < 0)
+            return true;
+        for (int half : { f.half_a, f.half_b }) {
+            auto h = facts.constant.find(spec.channel_name(half));
+            if (h == facts.constant.end() || !(h->second == mean->second))
+                return false;
+        }
+        return true;
+    });
 }
 
 }  // namespace mcdn

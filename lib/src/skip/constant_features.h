@@ -17,5 +17,9 @@ bool is_constant_feature(const FeaturePlanes& feature);
 /// `channels` (same order). Returns how many were removed.
 int drop_constant_features(std::vector<FeaturePlanes>& features,
                            std::vector<FeatureChannel>* channels = nullptr);
+/// The same on src's spec: constant over the frame when src is a band of one (its frame
+/// facts, core/frame_facts.h), else over src's planes.
+int drop_constant_features(std::vector<FeaturePlanes>& features,
+                           std::vector<FeatureChannel>& channels, const OIIO::ImageSpec& spec);
 
 }  // namespace mcdn

@@ -5,6 +5,7 @@
 
 #include <cmath>
 
+#include "core/frame_facts.h"
 #include "core/op_prepare.h"
 #include "core/progress.h"
 #include "core/trace.h"
@@ -15,27 +16,11 @@ namespace mcdn {
 
 double probe_step(const ImageBuf& src, const SureFrame& frame, float epsilon_relative)
 {
-    // Summed in double in the order of the whole frame's planes (channel by channel, rows
-    // in order), however many rows are read at once: the same eps for any band size.
-    const int rows_per_read = std::max(1, int((int64_t(1) << 20) / std::max(1, frame.whole.width())));
-    double sum_abs = 0, sum_var = 0;
-    size_t n = 0;
-    for (int c = 0; c < 3; ++c)
-        for (int y = frame.whole.ybegin; y < frame.whole.yend; y += rows_per_read) {
-            ROI rows = frame.whole;
-            rows.ybegin = y;
-            rows.yend = std::min(y + rows_per_read, frame.whole.yend);
-            const Plane x = read_rows(src, frame.color[c], rows);
-            const Plane variance = read_rows(src, frame.variance[c], rows, true);
-            for (size_t i = 0; i < x.size(); ++i) {
-                sum_abs += std::fabs(x.px[i]);
-                sum_var += variance.px[i];
-                ++n;
-            }
-        }
-    if (n == 0 || sum_var <= 0 || sum_abs <= 0)
-        return 0;  // nothing to probe: no noise, or a black image
-    return epsilon_relative * (sum_abs / n) / std::sqrt(sum_var / n);
+    FrameFacts facts;  // a band of a larger frame: the frame's step
+    const ColourSums sums = frame_facts(facts, src.spec())
+                                ? facts.colour
+                                : colour_sums(src, frame.color.data(), frame.variance.data());
+    return relative_probe_step(sums, epsilon_relative);
 }
 
 namespace {
@@ -82,6 +67,8 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
     SureFrame frame;
     frame.whole = src.roi();
     frame.where = output_roi(src, roi);
+    FrameFacts facts;
+    frame.index_origin = frame_facts(facts, src.spec()) ? facts.ybegin : frame.whole.ybegin;
     frame.color = aovs.channels(Role::Color);
     frame.variance = aovs.channels(Role::ColorVariance);
     frame.moved = frame.color;

@@ -184,7 +184,7 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
 
     // Eq. 2: probe with b ~ N(0, Sigma); the render and both halves move together. b of a
     // pixel is drawn by its index in the frame, so every band sees the same probe there.
-    const uint64_t first_index = uint64_t(noisy.spec().y - frame.whole.ybegin) * uint64_t(w);
+    const uint64_t first_index = uint64_t(noisy.spec().y - frame.index_origin) * uint64_t(w);
     const double eps = frame.eps;
     Plane divergence[3] = { Plane(w, h), Plane(w, h), Plane(w, h) };
     // The moved channels' exact bits (read_plane would sanitize), restored after each probe.

@@ -19,7 +19,8 @@ namespace mcdn {
 
 /// What every band of one frame shares.
 struct SureFrame {
-    ROI whole;                   // the frame's data window (the probes' index space)
+    ROI whole;                   // the frame's data window
+    int index_origin = 0;        // the first row of the probes' index space (a band's frame)
     ROI where;                   // where the SURE channels are written (zero outside)
     std::vector<int> color, variance;
     std::vector<int> moved;      // colour and half buffers: what a probe moves
@@ -30,7 +31,8 @@ struct SureFrame {
 };
 
 /// eps such that RMS(eps * b) = epsilon_relative * mean|x| over the whole frame (see
-/// SureOptions), read a few rows at a time; 0 when there is nothing to probe.
+/// SureOptions; src's frame facts when it is a band of one, core/frame_facts.h); 0 when
+/// there is nothing to probe.
 double probe_step(const ImageBuf& src, const SureFrame& frame, float epsilon_relative);
 
 /// Runs the denoiser on `noisy` (one band of the frame, its own float copy: probed in place)

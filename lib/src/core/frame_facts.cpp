@@ -1,0 +1,108 @@
+#include "core/frame_facts.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+
+#include <OpenImageIO/strutil.h>
+
+#include "core/planar.h"
+
+namespace mcdn {
+
+namespace Strutil = OIIO::Strutil;
+
+ColourSums colour_sums(const OIIO::ImageBuf& src, const int colour[3], const int variance[3])
+{
+    const OIIO::ROI whole = src.roi();
+    const int rows_per_read = std::max(1, int((int64_t(1) << 20) / std::max(1, whole.width())));
+    ColourSums s;
+    for (int c = 0; c < 3; ++c)
+        for (int y = whole.ybegin; y < whole.yend; y += rows_per_read) {
+            OIIO::ROI rows = whole;
+            rows.ybegin = y;
+            rows.yend = std::min(y + rows_per_read, whole.yend);
+            const Plane x = read_rows(src, colour[c], rows);
+            for (float v : x.px) {
+                s.sum_abs += std::fabs(v);
+                s.sum += v;
+                s.sum2 += double(v) * v;
+            }
+            if (variance)
+                for (float v : read_rows(src, variance[c], rows, true).px)
+                    s.sum_var += v;
+            s.n += x.size();
+        }
+    return s;
+}
+
+double relative_probe_step(const ColourSums& s, double relative)
+{
+    if (s.n == 0 || s.sum_var <= 0 || s.sum_abs <= 0)
+        return 0;  // no noise, or a black image: nothing to probe
+    return relative * (s.sum_abs / s.n) / std::sqrt(s.sum_var / s.n);
+}
+
+float t_test_sigma(const ColourSums& s, float scale)
+{
+    // "Var[x-bar], x-bar the image mean": the spatial variance of the render's values over
+    // all pixels and channels (capped at 1 before the square root, as in the paper).
+    const double mean = s.n ? s.sum / s.n : 0;
+    const double variance = s.n ? std::max(0.0, s.sum2 / s.n - mean * mean) : 0;
+    return float(std::min(std::sqrt(variance), 1.0) * scale);
+}
+
+namespace {
+
+// Doubles and floats as C99 hex floats: read back bit for bit.
+std::string hex(double v)
+{
+    char text[64];
+    std::snprintf(text, sizeof text, "%a", v);
+    return text;
+}
+
+}  // namespace
+
+void set_frame_facts(OIIO::ImageSpec& spec, const FrameFacts& f)
+{
+    // One line per value; channel names (which may hold spaces) last on their line.
+    std::string text = Strutil::fmt::format(
+        "rows {} {}\ncolour {} {} {} {} {}\ndepth {} {}\n", f.ybegin, f.yend,
+        hex(f.colour.sum_abs), hex(f.colour.sum_var), hex(f.colour.sum), hex(f.colour.sum2),
+        f.colour.n, hex(f.depth_lo), hex(f.depth_span));
+    for (const auto& [name, value] : f.constant)
+        text += "constant " + hex(value) + " " + name + "\n";
+    spec.attribute(kFrameFactsAttribute, text);
+}
+
+bool frame_facts(FrameFacts& f, const OIIO::ImageSpec& spec)
+{
+    const std::string text = spec.get_string_attribute(kFrameFactsAttribute);
+    if (text.empty())
+        return false;
+    f = FrameFacts();
+    for (const std::string& line : Strutil::splits(text, "\n")) {
+        const std::vector<std::string> w = Strutil::splits(line, " ");
+        if (w.empty())
+            continue;
+        auto number = [&](size_t i) { return i < w.size() ? std::strtod(w[i].c_str(), nullptr) : 0.0; };
+        if (w[0] == "rows") {
+            f.ybegin = int(number(1));
+            f.yend = int(number(2));
+        } else if (w[0] == "colour") {
+            f.colour = { number(1), number(2), number(3), number(4),
+                         w.size() > 5 ? std::strtoull(w[5].c_str(), nullptr, 10) : 0 };
+        } else if (w[0] == "depth") {
+            f.depth_lo = float(number(1));
+            f.depth_span = float(number(2));
+        } else if (w[0] == "constant" && w.size() > 2) {
+            const size_t at = line.find(' ', line.find(' ') + 1) + 1;
+            f.constant[line.substr(at)] = float(number(1));
+        }
+    }
+    return true;
+}
+
+}  // namespace mcdn

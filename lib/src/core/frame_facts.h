@@ -1,0 +1,49 @@
+// What the whole frame decides when a chain runs it in bands of rows (chain/chain_bands.cpp):
+// each band's spec carries the frame's statistics, so that every stage run on the band
+// computes what it would on the whole frame. Without them (a stage run on a whole frame) the
+// stages compute the same numbers from their own input, with the same formulas below.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <string>
+
+#include <OpenImageIO/imagebuf.h>
+
+namespace mcdn {
+
+/// The attribute a band's spec carries them in (removed from every stage's output).
+constexpr const char* kFrameFactsAttribute = "mcdn:frame";
+
+/// Sums over the colour's three channels and every pixel, each summed channel by channel in
+/// row order (the order the whole-frame computations use, so the doubles are the same).
+struct ColourSums {
+    double sum_abs = 0, sum_var = 0;  // |x| and the variance of the mean (sanitized)
+    double sum = 0, sum2 = 0;         // x and x² (the t-test's image variance)
+    uint64_t n = 0;
+};
+
+/// The sums of src's colour channels (and, when given, their variance channels), read a few
+/// rows at a time: the same doubles for any band size.
+ColourSums colour_sums(const OIIO::ImageBuf& src, const int colour[3], const int variance[3]);
+
+/// eps such that RMS(eps * b) = relative * mean|x| (b = sqrt(Var) n): SURE's probe step
+/// (PD §3.2) and one-buffer NFOR's; 0 when there is nothing to probe.
+double relative_probe_step(const ColourSums& sums, double relative);
+/// The t-test's sigma_s (PD §4.3): min(sqrt(Var[x]), 1) * scale, Var[x] over the frame.
+float t_test_sigma(const ColourSums& sums, float scale);
+
+struct FrameFacts {
+    int ybegin = 0, yend = 0;  // the frame's rows (a band's own are its spec's)
+    ColourSums colour;
+    float depth_lo = 0, depth_span = 0;  // the CNN's depth range (0, 0: no depth)
+    /// Channels holding one value over the frame (after sanitizing), with that value: the
+    /// constant features nfor and prefilter leave out (skip/constant_features.h).
+    std::map<std::string, float> constant;
+};
+
+/// The facts a band carries; false when the spec has none (a whole frame).
+bool frame_facts(FrameFacts& facts, const OIIO::ImageSpec& spec);
+void set_frame_facts(OIIO::ImageSpec& spec, const FrameFacts& facts);
+
+}  // namespace mcdn
