@@ -162,7 +162,17 @@ bool run_frame(const std::vector<Command>& commands, const std::string& history,
     session.verbose = verbose;
     session.history = history;
     session.selection = input_selection(commands);
-    for (const Command& c : commands) {
+    size_t next = 0;  // the first command not yet run
+    if (const size_t first_stage = streamed_chain_start(commands)) {
+        bool streamed = false;
+        if (!run_streamed_chain(session, commands, first_stage, streamed, error))
+            return false;
+        if (streamed)
+            return true;
+        next = first_stage;
+    }
+    for (; next < commands.size(); ++next) {
+        const Command& c = commands[next];
         const CommandInfo* info = find_command(c.name);
         if (info->run && !info->run(session, c, error))
             return false;

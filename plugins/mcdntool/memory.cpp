@@ -1,5 +1,7 @@
 #include "memory.h"
 
+#include "session.h"
+
 #include <algorithm>
 #include <cstdlib>
 #include <fstream>
@@ -28,6 +30,8 @@ double stage_frames(const std::string& stage)
         return 1.5;  // the noisy copy and the denoiser's responses
     if (stage == "--mix")
         return 0.8;  // the result
+    if (stage == "--denoise")
+        return 3.5;  // --cnn --sure --mix
     return 0.0;
 }
 
@@ -46,12 +50,15 @@ double cnn_thread_bytes(const std::vector<Command>& commands)
 }  // namespace
 
 double estimated_peak_bytes(const std::vector<Command>& commands, double pixels, int channels,
-                            int threads)
+                            int threads, double band_pixels)
 {
-    double frames = 1.0;  // the merged input
+    double frames = 0;
     for (const auto& c : commands)
         frames += stage_frames(c.name);
-    return frames * pixels * channels * sizeof(float) + threads * cnn_thread_bytes(commands);
+    const double stage_pixels = band_pixels > 0 ? std::min(pixels, band_pixels) : pixels;
+    // The merged input, then the stages' buffers of a band (or of the frame).
+    return (pixels + frames * stage_pixels) * channels * sizeof(float)
+           + threads * cnn_thread_bytes(commands);
 }
 
 bool available_bytes(double& bytes, std::string& error)
@@ -99,7 +106,7 @@ bool check_memory(const std::vector<Command>& commands, int threads, int paralle
                   std::string& error)
 {
     // The frame the inputs describe, from their headers alone.
-    double pixels = 0;
+    double pixels = 0, width = 0;
     int channels = 0;
     for (const auto& c : commands) {
         if (c.name != "-i")
@@ -110,6 +117,7 @@ bool check_memory(const std::vector<Command>& commands, int threads, int paralle
         for (int s = 0; in->seek_subimage(s, 0); ++s) {
             const OIIO::ImageSpec& spec = in->spec();
             pixels = std::max(pixels, double(spec.width) * spec.height);
+            width = std::max(width, double(spec.width));
             channels += spec.nchannels;
         }
     }
@@ -122,12 +130,15 @@ bool check_memory(const std::vector<Command>& commands, int threads, int paralle
         threads = int(std::max(1u, std::thread::hardware_concurrency()));
     const int frames_at_once = std::max(1, parallel_frames);
     const int per_frame_threads = std::max(1, threads / frames_at_once);
-    const double need =
-        frames_at_once * estimated_peak_bytes(commands, pixels, channels, per_frame_threads);
+    // A streamed chain's band: band_pixels and a halo of up to 128 rows each side.
+    const double band = streamed_chain_start(commands) ? double(band_pixels()) + 256 * width : 0;
+    const double need = frames_at_once
+                        * estimated_peak_bytes(commands, pixels, channels, per_frame_threads, band);
     if (need <= available)
         return true;
     const double gb = 1e9;
-    const double one_thread = frames_at_once * estimated_peak_bytes(commands, pixels, channels, 1);
+    const double one_thread
+        = frames_at_once * estimated_peak_bytes(commands, pixels, channels, 1, band);
     std::string advice = one_thread <= available
                              ? format("--threads {} needs about {:.1f} GB", frames_at_once,
                                       one_thread / gb)

@@ -13,8 +13,10 @@ namespace mcdntool {
 /// buffers (the merged input, each result, SURE's noisy copy and probe responses) and the
 /// CNN per-thread network buffers; the factors are those of whole mcdntool runs on Blender
 /// files (bench/), rounded down so that a run which fits is never refused.
+/// A command line that streams (streamed_chain_start) keeps the merged input whole but each
+/// stage's buffers only for one band of `band_pixels` (halos included).
 double estimated_peak_bytes(const std::vector<Command>& commands, double pixels, int channels,
-                            int threads);
+                            int threads, double band_pixels = 0);
 
 /// Memory this process may still use: $MCDN_MEMORY_LIMIT when set (bytes, or with a G or M
 /// suffix: a farm slot's limit), else MemAvailable + SwapFree of /proc/meminfo, at most what

@@ -241,6 +241,8 @@ bool heatmap_settings_of(const Command& c, HeatmapSettings& settings, std::strin
     return c.number("min", settings.log10_min, error) && c.number("max", settings.log10_max, error);
 }
 
+}  // namespace
+
 bool write_options_of(const Command& c, mcdn::WriteOptions& options, std::string& error)
 {
     std::string datatype = c.modifier("datatype", "float");
@@ -257,8 +259,6 @@ bool write_options_of(const Command& c, mcdn::WriteOptions& options, std::string
     }
     return true;
 }
-
-}  // namespace
 
 bool check_input(const Command& c, std::string& error)
 {

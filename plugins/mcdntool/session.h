@@ -108,6 +108,22 @@ bool check_heatmap(const Command&, std::string& error);
 bool check_output(const Command&, std::string& error);
 bool check_fixnan(const Command&, std::string& error);
 
+/// -o's modifiers as WriteOptions (session.cpp).
+bool write_options_of(const Command& c, mcdn::WriteOptions& options, std::string& error);
+
+/// A command line of inputs (-i, --aov), stages and one -o, last, streams: the index of its
+/// first stage, else 0 (streamed.cpp).
+size_t streamed_chain_start(const std::vector<Command>& commands);
+/// Pixels of a streamed chain's band: $MCDN_BAND_PIXELS when set (0: the whole frame at
+/// once), else mcdn::ChainOptions' default.
+int64_t band_pixels();
+/// Runs such a command line: the inputs, then the stages as one chain in bands, each band's
+/// rows written as they are made (mcdn::run_chain's BandSink, mcdn::RowWriter). `streamed`
+/// false: only the inputs were run (a multi-part output is written whole); the caller runs
+/// the commands from first_stage on.
+bool run_streamed_chain(Session& s, const std::vector<Command>& commands, size_t first_stage,
+                        bool& streamed, std::string& error);
+
 /// Commands of the denoising stages, with their checks (stages.cpp).
 std::vector<CommandInfo> stage_commands();
 

@@ -72,13 +72,15 @@ mcdn::Denoiser named_denoiser(const std::string& chain, const mcdn::AovSpec& spe
                               const mcdn::SkipOptions& skip, int nthreads, int& radius)
 {
     radius = -1;
-    if (chain == "cnn")
+    if (chain == "cnn") {
+        radius = mcdn::receptive_radius(mcdn::CnnOptions());
         return [spec, skip, nthreads](ImageBuf& dst, const ImageBuf& src) {
             mcdn::CnnOptions o;
             o.aovs = spec;
             o.skip = skip;
             return mcdn::cnn(dst, src, o, {}, nthreads);
         };
+    }
     if (chain == "nfor" || chain == "prefilter,nfor") {
         radius = mcdn::chain_radius({ mcdn::stage_reach(mcdn::NforOptions()) });
         return [spec, skip, nthreads](ImageBuf& dst, const ImageBuf& src) {

@@ -241,3 +241,35 @@ TEST(Pipeline, HistoryRecordsTheCommandLine)
     EXPECT_NE(history.find("--cnn -o"), std::string::npos) << history;
     EXPECT_NE(out.spec().get_string_attribute("Software").find("mcdenoise"), std::string::npos);
 }
+
+// Inputs, stages and one -o stream: the chain runs in bands of rows, each written as it is
+// made, with the same file as command by command (a --fixnan none between makes it so).
+TEST(Pipeline, StagesAndOneOutputStreamInBands)
+{
+    std::string dir = mcdn_test::temp_dir("pipeline_streamed");
+    const std::string in = "-i " + box("box_0016spp.exr") + " -i:as=variance "
+                           + box("box_0016spp_var.exr");
+    int k = 0;
+    for (const char* chain : { "--denoise", "--cnn", "--nfor --sure --mix:model=analytic" }) {
+        const std::string streamed = dir + "/s" + std::to_string(k) + ".exr";
+        const std::string by_command = dir + "/c" + std::to_string(k++) + ".exr";
+        auto run = run_mcdntool("-v " + in + " " + chain + " -o " + quote(streamed),
+                                "MCDN_BAND_PIXELS=1024");
+        ASSERT_EQ(run.exit_code, 0) << run.output;
+        EXPECT_NE(run.output.find("in 2 band(s) of rows"), std::string::npos) << run.output;
+        run = run_mcdntool(in + " --fixnan none " + chain + " -o " + quote(by_command));
+        ASSERT_EQ(run.exit_code, 0) << run.output;
+        OIIO::ImageBuf a(streamed), b(by_command);
+        ASSERT_EQ(a.spec().channelnames, b.spec().channelnames) << chain;
+        EXPECT_EQ(a.spec().get_string_attribute("Software"), b.spec().get_string_attribute("Software"));
+        const auto d = OIIO::ImageBufAlgo::compare(a, b, 0, 0);
+        EXPECT_LE(d.maxerror, std::string(chain) == "--denoise" ? 1e-4 : 0.0) << chain;
+    }
+    // A chain that fails leaves neither the output nor a temporary.
+    auto run = run_mcdntool("-i " + box("box_0016spp.exr") + " --nfor -o " + quote(dir + "/f.exr"));
+    EXPECT_EQ(run.exit_code, 1);
+    std::vector<std::string> files;
+    OIIO::Filesystem::get_directory_entries(dir, files);
+    for (const auto& f : files)
+        EXPECT_EQ(f.find("f.exr"), std::string::npos) << f;
+}

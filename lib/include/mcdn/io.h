@@ -3,6 +3,7 @@
 // Ops never open files: front ends call these, then hand ImageBufs to the ops.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
@@ -109,6 +110,29 @@ bool check_output_path(const std::string& path, const std::vector<std::string>& 
 /// for a half output (half would turn them into Inf).
 bool write_image(const ImageBuf& src, const std::string& path, const WriteOptions& options,
                  std::string& error, std::vector<std::string>* warnings = nullptr);
+
+/// write_image in rows, as a chain makes them (run_chain's BandSink): open() with the spec
+/// of the image to come (every channel; the same checks, channel choice and metadata as
+/// write_image), write_rows() top to bottom, close() renames the file into place and adds
+/// write_image's warnings. A writer destroyed before close() removes its temporary. A
+/// multi-part image is refused (write_image writes it whole).
+class RowWriter {
+public:
+    RowWriter();
+    ~RowWriter();
+    RowWriter(const RowWriter&) = delete;
+    RowWriter& operator=(const RowWriter&) = delete;
+    bool open(const ImageSpec& image, const std::string& path, const WriteOptions& options,
+              std::string& error);
+    /// Rows [own.ybegin, own.yend) of `band` (which may hold more rows), all of the image's
+    /// width, the next rows of the file.
+    bool write_rows(const ImageBuf& band, const ROI& own, std::string& error);
+    bool close(std::string& error, std::vector<std::string>* warnings = nullptr);
+
+private:
+    struct State;
+    std::unique_ptr<State> m;
+};
 
 /// Removes every temporary file a write_image in progress has open, for a signal handler
 /// (async-signal-safe: unlink() of paths stored beforehand). The interrupted write then

@@ -47,13 +47,13 @@ struct SureOptions {
     SkipOptions skip;
 
     /// How far the denoiser's output at a pixel reaches into its input, in pixels: the sum
-    /// of its stages' receptive radii (receptive_radius() of prefilter.h and nfor.h: 13 and
-    /// 75 at the defaults, nfor 62 after a prefilter; mcdn::chain_radius; mcdntool,
-    /// run_chain and the Python module set it). When known (>= 0), frames above band_pixels run in horizontal bands,
-    /// each with this many rows of halo (rounded up to whole converged tiles): the probe
-    /// step and the probes' random numbers are the whole frame's, so the result is the
-    /// whole-frame run's, and memory follows the band (core/bands.h). -1 (not known: the
-    /// cnn, a Python callable): the whole frame at once.
+    /// of its stages' receptive radii (receptive_radius() of prefilter.h, nfor.h and cnn.h:
+    /// 13, 75 and 30 at the defaults, nfor 62 after a prefilter; mcdn::chain_radius;
+    /// mcdntool, run_chain and the Python module set it). When known (>= 0), frames above
+    /// band_pixels run in horizontal bands, each with this many rows of halo (rounded up to
+    /// whole converged tiles): the probe step and the probes' random numbers are the whole
+    /// frame's, so the result is the whole-frame run's, and memory follows the band
+    /// (core/bands.h). -1 (not known: a Python callable): the whole frame at once.
     int denoiser_radius = -1;
     /// Pixels of one band, halos not counted: half of prefilter's and nfor's band_pixels, so
     /// that a band with its halos (up to 136 rows each side at 7680 wide) stays within theirs

@@ -77,6 +77,8 @@ std::pair<std::string, Denoiser> denoiser_stage(const std::string& name, const C
     if (name == "cnn") {
         CnnOptions c;
         stage_options(c, o, name, unused);
+        const int r = receptive_radius(c);
+        reach = { r, r, false };
         return { name, [c, nthreads](ImageBuf& dst, const ImageBuf& src) {
                     return cnn(dst, src, c, {}, nthreads);
                 } };
@@ -216,7 +218,7 @@ bool run_chain(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, ROI ro
 {
     // A band of a larger frame (it carries the frame's facts) is never cut again.
     const bool whole_frame = (!roi.defined() || roi == src.roi())
-                             && !src.spec().find_attribute(kFrameFactsAttribute);
+                             && !is_frame_band(src.spec());
     if (o.band_pixels > 0 && whole_frame && int64_t(src.roi().npixels()) > o.band_pixels)
         return run_chain_into(dst, src, o, nthreads);
     if (!run_stages(dst, src, o, roi, nthreads))
@@ -261,7 +263,10 @@ bool run_stages(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, ROI r
         dst.specmod().attribute("mcdn:denoise_plan", plan.describe());
         return true;
     }
-    ImageBuf current = src;
+    // The image the next stage reads: src itself until a stage has made another (an
+    // ImageBuf copy would copy its pixels).
+    ImageBuf made;
+    const ImageBuf* current = &src;
     std::vector<std::pair<std::string, Denoiser>> pending;  // denoisers since the last sure/mix
     std::vector<StageReach> pending_reach;
     for (const std::string& name : o.stages) {
@@ -278,25 +283,26 @@ bool run_stages(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, ROI r
             SureOptions s;
             stage_options(s, o, name, error);
             s.denoiser_radius = chain_radius(pending_reach);
-            ok = sure(next, current, compose(std::move(pending)), s, roi, nthreads);
+            ok = sure(next, *current, compose(std::move(pending)), s, roi, nthreads);
             pending.clear();
             pending_reach.clear();
         } else {  // mix
             MixOptions m;
             stage_options(m, o, name, error);
-            ok = mix(next, current, m, roi, nthreads);
+            ok = mix(next, *current, m, roi, nthreads);
         }
         if (!ok) {
             dst.errorfmt("{}: {}", name, next.geterror());
             return false;
         }
-        current = std::move(next);
+        made = std::move(next);
+        current = &made;
     }
     if (pending.empty()) {
-        dst = std::move(current);
+        dst = current == &src ? src : std::move(made);
         return true;
     }
-    return compose(std::move(pending))(dst, current);
+    return compose(std::move(pending))(dst, *current);
 }
 
 }  // namespace

@@ -16,6 +16,7 @@
 #include "core/frame_facts.h"
 #include "core/op_prepare.h"
 #include "core/planar.h"
+#include "core/trace.h"
 #include "mcdn/cnn.h"
 #include "mcdn/color.h"
 #include "mcdn/denoise.h"
@@ -44,17 +45,32 @@ bool resolved_stages(std::vector<std::string>& stages, const ImageSpec& spec,
     return true;
 }
 
-// Channels holding one (sanitized) value over the frame, in one pass over its pixels.
-std::map<std::string, float> constant_channels(const ImageBuf& src)
+// Which feature channels (every face of albedo, normal, depth, visibility, and any channel a
+// stage's features= names) hold one sanitized value over the frame: one pass over the
+// frame's rows, every channel at once (a channel at a time would stride through all of
+// them once per channel).
+std::map<std::string, float> constant_features(const ImageBuf& src, const AovSet& aovs,
+                                               const ChainOptions& o)
 {
     const ImageSpec& spec = src.spec();
+    std::vector<std::string> names = feature_channel_names(aovs, spec);
+    for (const char* key : { "prefilter.features", "nfor.features" })
+        if (auto it = o.settings.find(key); it != o.settings.end())
+            for (const std::string& name : OIIO::Strutil::splits(it->second, ","))
+                for (const std::string& face : { name, "variance." + name, "A." + name, "B." + name })
+                    if (spec.channelindex(face) >= 0)
+                        names.push_back(face);
+    std::vector<int> channels;
+    for (const std::string& name : names)
+        channels.push_back(spec.channelindex(name));
     const ROI whole = src.roi();
-    const int nch = spec.nchannels;
-    std::vector<float> first(nch), rows;
-    std::vector<bool> constant(nch, true);
-    const int rows_per_read = std::max(1, int((int64_t(1) << 20) / std::max<int64_t>(1, int64_t(whole.width()) * nch)));
-    bool any = false;
-    for (int y = whole.ybegin; y < whole.yend; y += rows_per_read) {
+    const int nch = spec.nchannels, nf = int(channels.size());
+    std::vector<float> first(nf);
+    std::vector<char> constant(nf, 1);
+    std::vector<float> rows;
+    const int rows_per_read
+        = std::max(1, int((int64_t(1) << 22) / std::max<int64_t>(1, int64_t(whole.width()) * nch)));
+    for (int y = whole.ybegin; y < whole.yend && nf > 0; y += rows_per_read) {
         ROI r = whole;
         r.ybegin = y;
         r.yend = std::min(y + rows_per_read, whole.yend);
@@ -62,25 +78,28 @@ std::map<std::string, float> constant_channels(const ImageBuf& src)
         r.chend = nch;
         rows.resize(size_t(r.npixels()) * nch);
         src.get_pixels(r, OIIO::TypeDesc::FLOAT, rows.data());
-        for (size_t p = 0; p < size_t(r.npixels()); ++p)
-            for (int c = 0; c < nch; ++c) {
-                const float v = sanitize(rows[p * nch + c]);
-                if (!any)
-                    first[c] = v;
-                else if (!(v == first[c]))
-                    constant[c] = false;
-                if (c == nch - 1)
-                    any = true;
-            }
+        if (y == whole.ybegin)
+            for (int f = 0; f < nf; ++f)
+                first[f] = sanitize(rows[size_t(channels[f])]);
+        for (int f = 0; f < nf; ++f) {
+            if (!constant[f])
+                continue;
+            const float* v = rows.data() + channels[f];
+            const float value = first[f];
+            bool same = true;
+            for (size_t p = 0; p < size_t(r.npixels()) && same; ++p)
+                same = sanitize(v[p * nch]) == value;
+            constant[f] = same;
+        }
     }
     std::map<std::string, float> out;
-    for (int c = 0; c < nch && any; ++c)
-        if (constant[c])
-            out[spec.channel_name(c)] = first[c];
+    for (int f = 0; f < nf; ++f)
+        if (constant[f])
+            out[names[f]] = first[f];
     return out;
 }
 
-FrameFacts light_pass(const ImageBuf& src, const AovSet& aovs)
+FrameFacts light_pass(const ImageBuf& src, const AovSet& aovs, const ChainOptions& o)
 {
     FrameFacts facts;
     facts.ybegin = src.roi().ybegin;
@@ -91,9 +110,11 @@ FrameFacts light_pass(const ImageBuf& src, const AovSet& aovs)
         facts.colour = colour_sums(src, colour.data(), variance.size() == 3 ? variance.data()
                                                                             : nullptr);
     const kpcn::DepthRange depth = kpcn::depth_range(src, aovs);
+    facts.has_depth = true;
     facts.depth_lo = depth.lo;
     facts.depth_span = depth.span;
-    facts.constant = constant_channels(src);
+    facts.has_constant = true;
+    facts.constant = constant_features(src, aovs, o);
     return facts;
 }
 
@@ -155,7 +176,7 @@ bool run_chain(const ImageBuf& input, const ChainOptions& o, const BandSink& sin
     const ROI whole = input.roi();
     const int reach = chain_reach(input.spec(), o);
     // A band of a larger frame (it carries the frame's facts) is never cut again.
-    const bool is_band = input.spec().find_attribute(kFrameFactsAttribute) != nullptr;
+    const bool is_band = is_frame_band(input.spec());
     const std::vector<Band> bands = reach >= 0 && !is_band
                                         ? plan_bands(whole, reach, o.band_pixels)
                                         : plan_bands(whole, 0, 0);
@@ -188,7 +209,10 @@ bool run_chain(const ImageBuf& input, const ChainOptions& o, const BandSink& sin
         converted.specmod().attribute("mcdn:in_working_space", 1);
     }
     const ImageBuf& src = convert ? converted : input;
-    const FrameFacts facts = light_pass(src, aovs);
+    StageTrace trace("chain");
+    trace.mark("(before the chain)");
+    const FrameFacts facts = light_pass(src, aovs, o);
+    trace.mark("light pass (frame facts)");
     ChainOptions band_options = o;
     band_options.band_pixels = 0;
     for (size_t b = 0; b < bands.size(); ++b) {
@@ -219,6 +243,7 @@ bool run_chain(const ImageBuf& input, const ChainOptions& o, const BandSink& sin
         own.yend = bands[b].own_end;
         if (!sink(result, own, error))
             return false;
+        trace.mark("band: stages and its rows out");
     }
     return true;
 }

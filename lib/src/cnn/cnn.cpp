@@ -202,7 +202,7 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
     // (§4.3's split, the 34 input channels, eq. 4) is made per network tile from its window.
     // A band of a larger frame carries the frame's (core/frame_facts.h).
     FrameFacts facts;
-    const kpcn::DepthRange depth = frame_facts(facts, src.spec())
+    const kpcn::DepthRange depth = frame_facts(facts, src.spec()) && facts.has_depth
                                        ? kpcn::DepthRange{ facts.depth_lo, facts.depth_span }
                                        : kpcn::depth_range(src, aovs);
     const bool split = kpcn::has_split(aovs);

@@ -68,12 +68,16 @@ std::string hex(double v)
 void set_frame_facts(OIIO::ImageSpec& spec, const FrameFacts& f)
 {
     // One line per value; channel names (which may hold spaces) last on their line.
-    std::string text = Strutil::fmt::format(
-        "rows {} {}\ncolour {} {} {} {} {}\ndepth {} {}\n", f.ybegin, f.yend,
-        hex(f.colour.sum_abs), hex(f.colour.sum_var), hex(f.colour.sum), hex(f.colour.sum2),
-        f.colour.n, hex(f.depth_lo), hex(f.depth_span));
-    for (const auto& [name, value] : f.constant)
-        text += "constant " + hex(value) + " " + name + "\n";
+    std::string text = Strutil::fmt::format("rows {} {}\ncolour {} {} {} {} {}\n", f.ybegin,
+                                            f.yend, hex(f.colour.sum_abs), hex(f.colour.sum_var),
+                                            hex(f.colour.sum), hex(f.colour.sum2), f.colour.n);
+    if (f.has_depth)
+        text += Strutil::fmt::format("depth {} {}\n", hex(f.depth_lo), hex(f.depth_span));
+    if (f.has_constant) {
+        text += "constants known\n";
+        for (const auto& [name, value] : f.constant)
+            text += "constant " + hex(value) + " " + name + "\n";
+    }
     spec.attribute(kFrameFactsAttribute, text);
 }
 
@@ -95,14 +99,23 @@ bool frame_facts(FrameFacts& f, const OIIO::ImageSpec& spec)
             f.colour = { number(1), number(2), number(3), number(4),
                          w.size() > 5 ? std::strtoull(w[5].c_str(), nullptr, 10) : 0 };
         } else if (w[0] == "depth") {
+            f.has_depth = true;
             f.depth_lo = float(number(1));
             f.depth_span = float(number(2));
+        } else if (w[0] == "constants") {
+            f.has_constant = true;
         } else if (w[0] == "constant" && w.size() > 2) {
             const size_t at = line.find(' ', line.find(' ') + 1) + 1;
             f.constant[line.substr(at)] = float(number(1));
         }
     }
     return true;
+}
+
+bool is_frame_band(const OIIO::ImageSpec& spec)
+{
+    FrameFacts f;
+    return frame_facts(f, spec) && (f.ybegin != spec.y || f.yend != spec.y + spec.height);
 }
 
 }  // namespace mcdn

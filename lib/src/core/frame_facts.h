@@ -36,14 +36,24 @@ float t_test_sigma(const ColourSums& sums, float scale);
 struct FrameFacts {
     int ybegin = 0, yend = 0;  // the frame's rows (a band's own are its spec's)
     ColourSums colour;
-    float depth_lo = 0, depth_span = 0;  // the CNN's depth range (0, 0: no depth)
+    /// The CNN's depth range (0, 0: no depth), when known.
+    bool has_depth = false;
+    float depth_lo = 0, depth_span = 0;
     /// Channels holding one value over the frame (after sanitizing), with that value: the
-    /// constant features nfor and prefilter leave out (skip/constant_features.h).
+    /// constant features nfor and prefilter leave out (skip/constant_features.h), when known.
+    bool has_constant = false;
     std::map<std::string, float> constant;
 };
 
-/// The facts a band carries; false when the spec has none (a whole frame).
+/// The facts a spec carries; false when it has none. A chain's bands carry all of them;
+/// the inputs sure hands its denoiser carry at least the unprobed frame's colour sums, so
+/// that the denoiser is the same function of its input for every probe (one-buffer NFOR's
+/// probe step).
 bool frame_facts(FrameFacts& facts, const OIIO::ImageSpec& spec);
 void set_frame_facts(OIIO::ImageSpec& spec, const FrameFacts& facts);
+
+/// A band of a larger frame (its facts' rows are not its own), which a chain or sure cut
+/// already: the ops' own bands would only add halos (each runs it whole).
+bool is_frame_band(const OIIO::ImageSpec& spec);
 
 }  // namespace mcdn

@@ -805,10 +805,20 @@ void inspect_values(ImageBuf& out, const std::string& path, bool to_half,
 
 }  // namespace
 
-bool write_image(const ImageBuf& src, const std::string& path, const WriteOptions& options,
-                 std::string& error, std::vector<std::string>* warnings)
+namespace {
+
+// What write_image and RowWriter write: the file's spec (its channels in `order` of the
+// image's), and for a multi-part render (an EXR only) its parts.
+struct OutputLayout {
+    ImageSpec spec;
+    std::vector<int> order;
+    std::vector<Part> parts;
+    std::vector<std::vector<std::string>> part_channels;  // original names, per part
+};
+
+bool output_layout(OutputLayout& layout, const ImageSpec& in_spec, const std::string& path,
+                   const WriteOptions& options, std::string& error)
 {
-    const ImageSpec& in_spec = src.spec();
     if (!check_compression(options.compression, error)) {
         error = format("{}: {}", path, error);
         return false;
@@ -831,11 +841,11 @@ bool write_image(const ImageBuf& src, const std::string& path, const WriteOption
         }
     // A multi-part render goes back into its parts (an EXR only): each channel into the part
     // it came from, channels the stages added into the first; parts left empty are dropped.
-    std::vector<Part> parts = parse_parts(in_spec.get_string_attribute(kPartsAttribute));
-    std::vector<std::vector<std::string>> part_channels;  // original names, per part
+    std::vector<Part>& parts = layout.parts;
+    parts = parse_parts(in_spec.get_string_attribute(kPartsAttribute));
     if (parts.size() > 1 && Strutil::iends_with(path, ".exr")) {
         std::vector<std::vector<std::string>> grouped(parts.size());
-        part_channels.resize(parts.size());
+        layout.part_channels.resize(parts.size());
         for (const auto& name : wanted) {
             size_t p = 0;
             std::string original = name;
@@ -846,7 +856,7 @@ bool write_image(const ImageBuf& src, const std::string& path, const WriteOption
                         original = own;
                     }
             grouped[p].push_back(name);
-            part_channels[p].push_back(original);
+            layout.part_channels[p].push_back(original);
         }
         wanted.clear();
         for (const auto& g : grouped)
@@ -854,20 +864,12 @@ bool write_image(const ImageBuf& src, const std::string& path, const WriteOption
     } else {
         parts.clear();
     }
-    std::vector<int> order;
     for (const auto& name : wanted)
-        order.push_back(in_spec.channelindex(name));
-    ImageBuf out = OIIO::ImageBufAlgo::channels(src, int(order.size()), order);
-    if (out.has_error()) {
-        error = format("{}: {}", path, out.geterror());
-        return false;
-    }
-    std::vector<std::string> found;
-    if (out.spec().format == TypeDesc::FLOAT)
-        inspect_values(out, path, options.datatype == TypeDesc::HALF, found);
-    if (warnings)
-        warnings->insert(warnings->end(), found.begin(), found.end());
-    ImageSpec spec = out.spec();
+        layout.order.push_back(in_spec.channelindex(name));
+    ImageSpec& spec = layout.spec;
+    spec = in_spec;
+    spec.nchannels = int(wanted.size());
+    spec.channelnames = wanted;
     for (const auto& name : { "mcdn:inputs", "mcdn:output_channels", kPartsAttribute,
                               kHalvesUnread })
         spec.erase_attribute(name);
@@ -887,17 +889,59 @@ bool write_image(const ImageBuf& src, const std::string& path, const WriteOption
     }
     spec.alpha_channel = spec.channelindex("A");
     spec.z_channel     = spec.channelindex("Z");
+    return true;
+}
+
+// A temporary beside `path` for it (`.NAME.mcdn-tmp-PID-N`): the temporaries a killed
+// run left for the same path are removed first.
+std::string temporary_for(const std::string& path)
+{
+    static std::atomic<int> counter { 0 };
+    remove_stale_temporaries(path);
+    return format("{}{}-{}", temporary_prefix(path), ::getpid(), counter++);
+}
+
+bool put_in_place(const std::string& tmp, const std::string& path, std::string& error)
+{
+    std::string rename_error;
+    if (!Filesystem::rename(tmp, path, rename_error)) {
+        error = format("{}: cannot rename temporary file into place: {}", path, rename_error);
+        Filesystem::remove(tmp);
+        return false;
+    }
+    return true;
+}
+
+}  // namespace
+
+bool write_image(const ImageBuf& src, const std::string& path, const WriteOptions& options,
+                 std::string& error, std::vector<std::string>* warnings)
+{
+    OutputLayout layout;
+    if (!output_layout(layout, src.spec(), path, options, error))
+        return false;
+    const std::vector<int>& order = layout.order;
+    ImageBuf out = OIIO::ImageBufAlgo::channels(src, int(order.size()), order);
+    if (out.has_error()) {
+        error = format("{}: {}", path, out.geterror());
+        return false;
+    }
+    std::vector<std::string> found;
+    if (out.spec().format == TypeDesc::FLOAT)
+        inspect_values(out, path, options.datatype == TypeDesc::HALF, found);
+    if (warnings)
+        warnings->insert(warnings->end(), found.begin(), found.end());
+    const ImageSpec& spec = layout.spec;
+    const std::vector<Part>& parts = layout.parts;
 
     // Write beside the target, then rename: readers never see a half-written file. The
     // temporary's name says which output and which process it belongs to.
-    static std::atomic<int> counter { 0 };
     auto output = ImageOutput::create(path);
     if (!output) {
         error = format("{}: cannot write this format: {}", path, OIIO::geterror());
         return false;
     }
-    remove_stale_temporaries(path);
-    std::string tmp = format("{}{}-{}", temporary_prefix(path), ::getpid(), counter++);
+    const std::string tmp = temporary_for(path);
     TemporaryRegistration registration(tmp);
     bool ok;
     if (parts.empty()) {
@@ -907,12 +951,12 @@ bool write_image(const ImageBuf& src, const std::string& path, const WriteOption
         std::vector<int> first_channel;
         int first = 0;
         for (size_t p = 0; p < parts.size(); ++p) {
-            const int n = int(part_channels[p].size());
+            const int n = int(layout.part_channels[p].size());
             if (n == 0)
                 continue;
             ImageSpec part = spec;
             part.nchannels = n;
-            part.channelnames = part_channels[p];
+            part.channelnames = layout.part_channels[p];
             part.attribute("name", parts[p].name);
             part.attribute("oiio:subimagename", parts[p].name);
             part.alpha_channel = part.channelindex("A");
@@ -931,18 +975,142 @@ bool write_image(const ImageBuf& src, const std::string& path, const WriteOption
                                         pixel * spec.width);
     }
     ok = output->close() && ok;
-    std::string rename_error;
-    if (ok && !Filesystem::rename(tmp, path, rename_error)) {
-        error = format("{}: cannot rename temporary file into place: {}", path, rename_error);
-        Filesystem::remove(tmp);
-        return false;
-    }
     if (!ok) {
         error = format("{}: write failed: {}", path, output->geterror());
         Filesystem::remove(tmp);
         return false;
     }
+    return put_in_place(tmp, path, error);
+}
+
+struct RowWriter::State {
+    std::string path, tmp;
+    OutputLayout layout;
+    std::unique_ptr<ImageOutput> output;
+    std::unique_ptr<TemporaryRegistration> registration;
+    bool to_half = false;
+    int next_row = 0;
+    std::vector<size_t> nan, inf, clamped;
+    std::vector<float> rows;
+};
+
+RowWriter::RowWriter() = default;
+
+RowWriter::~RowWriter()
+{
+    if (m && m->output) {
+        m->output->close();
+        Filesystem::remove(m->tmp);
+    }
+}
+
+bool RowWriter::open(const ImageSpec& image, const std::string& path, const WriteOptions& options,
+                     std::string& error)
+{
+    m = std::make_unique<State>();
+    m->path = path;
+    if (!output_layout(m->layout, image, path, options, error))
+        return false;
+    if (!m->layout.parts.empty()) {
+        error = format("{}: a multi-part image is written whole (write_image), not in rows",
+                       path);
+        return false;
+    }
+    m->output = ImageOutput::create(path);
+    if (!m->output) {
+        error = format("{}: cannot write this format: {}", path, OIIO::geterror());
+        return false;
+    }
+    m->tmp = temporary_for(path);
+    m->registration = std::make_unique<TemporaryRegistration>(m->tmp);
+    if (!m->output->open(m->tmp, m->layout.spec)) {
+        error = format("{}: write failed: {}", path, m->output->geterror());
+        m->output.reset();
+        Filesystem::remove(m->tmp);
+        return false;
+    }
+    m->to_half = options.datatype == TypeDesc::HALF;
+    const int nch = m->layout.spec.nchannels;
+    m->nan.assign(nch, 0);
+    m->inf.assign(nch, 0);
+    m->clamped.assign(nch, 0);
+    m->next_row = image.y;
     return true;
+}
+
+bool RowWriter::write_rows(const ImageBuf& band, const ROI& own, std::string& error)
+{
+    const ImageSpec& spec = m->layout.spec;
+    const int nch = spec.nchannels;
+    if (!m->output || own.ybegin != m->next_row || own.xbegin != spec.x
+        || own.width() != spec.width) {
+        error = format("{}: rows {}-{} out of order (next: {})", m->path, own.ybegin, own.yend,
+                       m->next_row);
+        return false;
+    }
+    // The output's channels of these rows, pixel-interleaved, checked as write_image checks.
+    const size_t npixels = size_t(own.width()) * own.height();
+    m->rows.resize(npixels * nch);
+    for (int c = 0; c < nch; ++c) {
+        const int from = band.spec().channelindex(spec.channelnames[c]);
+        ROI one = own;
+        one.chbegin = from;
+        one.chend = from + 1;
+        if (from < 0
+            || !band.get_pixels(one, TypeDesc::FLOAT, m->rows.data() + c,
+                                OIIO::stride_t(nch * sizeof(float)))) {
+            error = format("{}: channel '{}' is not in the result", m->path, spec.channelnames[c]);
+            return false;
+        }
+    }
+    constexpr float kHalfMax = 65504.0f;
+    for (size_t p = 0; p < npixels; ++p)
+        for (int c = 0; c < nch; ++c) {
+            float& v = m->rows[p * nch + c];
+            if (std::isnan(v))
+                ++m->nan[c];
+            else if (std::isinf(v))
+                ++m->inf[c];
+            else if (m->to_half && std::fabs(v) > kHalfMax) {
+                v = std::copysign(kHalfMax, v);
+                ++m->clamped[c];
+            }
+        }
+    if (!m->output->write_scanlines(own.ybegin, own.yend, 0, TypeDesc::FLOAT, m->rows.data())) {
+        error = format("{}: write failed: {}", m->path, m->output->geterror());
+        return false;
+    }
+    m->next_row = own.yend;
+    return true;
+}
+
+bool RowWriter::close(std::string& error, std::vector<std::string>* warnings)
+{
+    const ImageSpec& spec = m->layout.spec;
+    if (!m->output || m->next_row != spec.y + spec.height) {
+        error = format("{}: closed after row {} of {}", m->path, m->next_row,
+                       spec.y + spec.height);
+        return false;
+    }
+    const bool ok = m->output->close();
+    const std::string output_error = ok ? std::string() : m->output->geterror();
+    m->output.reset();
+    if (!ok) {
+        error = format("{}: write failed: {}", m->path, output_error);
+        Filesystem::remove(m->tmp);
+        return false;
+    }
+    for (int c = 0; warnings && c < spec.nchannels; ++c) {
+        if (m->nan[c] || m->inf[c])
+            warnings->push_back(format("{}: channel {} has {} NaN and {} Inf values, written "
+                                       "as they came in (no stage reads it; --fixnan repairs)",
+                                       m->path, spec.channelnames[c], m->nan[c], m->inf[c]));
+        if (m->clamped[c])
+            warnings->push_back(format("{}: channel {}: {} values beyond half's range clamped "
+                                       "to +-65504 (datatype=float keeps them)",
+                                       m->path, spec.channelnames[c], m->clamped[c]));
+    }
+    return put_in_place(m->tmp, m->path, error);
 }
 
 }  // namespace mcdn

@@ -9,6 +9,7 @@
 
 #include "core/bands.h"
 #include "core/channels.h"
+#include "core/frame_facts.h"
 #include "core/attributes.h"
 #include "core/op_prepare.h"
 #include "core/progress.h"
@@ -120,7 +121,7 @@ bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options, ROI roi,
     if (options.output_alpha)
         alpha_channels = add_channels(dst, { "mix.alpha.R", "mix.alpha.G", "mix.alpha.B" });
     const int radius = mix_radius(options, use_net ? &net : nullptr);
-    const std::vector<Band> bands = plan_bands(src.roi(), radius, options.band_pixels);
+    const std::vector<Band> bands = plan_bands(src.roi(), radius, is_frame_band(src.spec()) ? 0 : options.band_pixels);
     ProgressCounter progress(options.progress, "mix", int(bands.size()));
     for (const Band& band : bands) {
         const MixInputs in = read_mix_inputs(src, channels, band.cut);

@@ -522,10 +522,12 @@ bool nfor(ImageBuf& dst, const ImageBuf& src, const NforOptions& options, ROI ro
         return false;
     bool prefiltered = src.spec().get_int_attribute("mcdn:prefiltered", 0) == 1;
     const int radius = receptive_radius(options, prefiltered);
+    // A chain's band (core/frame_facts.h) runs whole.
+    const int64_t band_pixels = is_frame_band(src.spec()) ? 0 : options.band_pixels;
     // Four steps a band: §5.1, §5.2, §5.3, §5.4.
     ProgressCounter progress(options.progress, "nfor",
-                             4 * band_count(src.roi(), radius, options.band_pixels));
-    if (!run_local_op(dst, src, options.aovs, "nfor", radius, options.band_pixels,
+                             4 * band_count(src.roi(), radius, band_pixels));
+    if (!run_local_op(dst, src, options.aovs, "nfor", radius, band_pixels,
                       [&](ImageBuf& d, const ImageBuf& s) {
                           return nfor_in_working_space(d, s, options, roi, nthreads, progress);
                       }))

@@ -1,6 +1,7 @@
 // mcdn::prefilter: the op face of the feature prefilter (feature_prefilter.cpp).
 #include "mcdn/prefilter.h"
 
+#include "core/frame_facts.h"
 #include "skip/constant_features.h"
 #include "skip/converged_tiles.h"
 #include "core/feature_channels.h"
@@ -83,10 +84,12 @@ bool prefilter(ImageBuf& dst, const ImageBuf& src, const PrefilterOptions& optio
 {
     if (!check_op_threads(dst, nthreads, "prefilter"))
         return false;
+    // A chain's band (core/frame_facts.h) runs whole.
+    const int64_t band_pixels = is_frame_band(src.spec()) ? 0 : options.band_pixels;
     ProgressCounter progress(options.progress, "prefilter",
-                             band_count(src.roi(), receptive_radius(options), options.band_pixels));
+                             band_count(src.roi(), receptive_radius(options), band_pixels));
     return run_local_op(dst, src, options.aovs, "prefilter", receptive_radius(options),
-                        options.band_pixels, [&](ImageBuf& d, const ImageBuf& s) {
+                        band_pixels, [&](ImageBuf& d, const ImageBuf& s) {
                             return prefilter_in_working_space(d, s, options, roi, nthreads, progress);
                         });
 }

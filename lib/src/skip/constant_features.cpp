@@ -54,7 +54,7 @@ int drop_constant_features(std::vector<FeaturePlanes>& features,
                            std::vector<FeatureChannel>& channels, const OIIO::ImageSpec& spec)
 {
     FrameFacts facts;
-    if (!frame_facts(facts, spec))
+    if (!frame_facts(facts, spec) || !facts.has_constant)
         return drop_constant_features(features, &channels);
     // The faces read_feature fills in from the mean (a missing half) are the mean's.
     return drop_features(features, &channels, [&](size_t i) {

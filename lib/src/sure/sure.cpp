@@ -14,15 +14,6 @@
 
 namespace mcdn {
 
-double probe_step(const ImageBuf& src, const SureFrame& frame, float epsilon_relative)
-{
-    FrameFacts facts;  // a band of a larger frame: the frame's step
-    const ColourSums sums = frame_facts(facts, src.spec())
-                                ? facts.colour
-                                : colour_sums(src, frame.color.data(), frame.variance.data());
-    return relative_probe_step(sums, epsilon_relative);
-}
-
 namespace {
 
 // rows `cut` of src as a float buffer of their own (the band a denoiser runs on).
@@ -67,8 +58,6 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
     SureFrame frame;
     frame.whole = src.roi();
     frame.where = output_roi(src, roi);
-    FrameFacts facts;
-    frame.index_origin = frame_facts(facts, src.spec()) ? facts.ybegin : frame.whole.ybegin;
     frame.color = aovs.channels(Role::Color);
     frame.variance = aovs.channels(Role::ColorVariance);
     frame.moved = frame.color;
@@ -82,14 +71,27 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
             frame.extra_names.insert(frame.extra_names.end(), extra.names.begin(),
                                      extra.names.end());
         }
-    frame.eps = probe_step(src, frame, options.epsilon_relative);
+    // The frame's facts: a chain band's own, else the frame's colour sums, handed to the
+    // denoiser on each of its inputs (core/frame_facts.h): every run, probed or not, then
+    // takes the same unprobed frame's statistics.
+    FrameFacts facts;
+    const bool band_of_frame = frame_facts(facts, src.spec());
+    if (!band_of_frame) {
+        facts.ybegin = frame.whole.ybegin;
+        facts.yend = frame.whole.yend;
+        facts.colour = colour_sums(src, frame.color.data(), frame.variance.data());
+    }
+    frame.index_origin = facts.ybegin;
+    // eps such that RMS(eps * b) = epsilon_relative * mean|x| over the frame.
+    frame.eps = relative_probe_step(facts.colour, options.epsilon_relative);
     frame.nthreads = nthreads;
     StageTrace trace("sure");
 
     // Bands only when the denoiser says how far it reaches (SureOptions::denoiser_radius).
     const std::vector<Band> bands =
         options.denoiser_radius >= 0
-            ? plan_bands(frame.whole, options.denoiser_radius, options.band_pixels)
+            ? plan_bands(frame.whole, options.denoiser_radius,
+                         is_frame_band(src.spec()) ? 0 : options.band_pixels)
             : plan_bands(frame.whole, 0, 0);
     ImageBuf out;
     ProgressCounter progress(options.progress, "sure", int(bands.size()));
@@ -102,6 +104,8 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
         } else {
             noisy = copy_rows(src, band.cut);
         }
+        if (!band_of_frame)
+            set_frame_facts(noisy.specmod(), facts);
         if (!sure_band(out, noisy, band, denoiser, options, frame, error)) {
             dst.errorfmt("{}", error);
             return false;
@@ -109,6 +113,8 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
         trace.mark("band: denoiser, probe, eq. 7");
         progress.advance();
     }
+    if (!band_of_frame)
+        out.specmod().erase_attribute(kFrameFactsAttribute);
     dst = std::move(out);
     return true;
 }

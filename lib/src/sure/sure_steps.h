@@ -26,14 +26,9 @@ struct SureFrame {
     std::vector<int> moved;      // colour and half buffers: what a probe moves
     std::vector<int> extras;     // x of the RGB extra AOVs, recorded as noisy.<name>
     std::vector<std::string> extra_names;
-    double eps = 0;              // the probe step (probe_step)
+    double eps = 0;              // the probe step (core/frame_facts.h relative_probe_step)
     int nthreads = 0;            // for SURE's own per-pixel work (the op's nthreads)
 };
-
-/// eps such that RMS(eps * b) = epsilon_relative * mean|x| over the whole frame (see
-/// SureOptions; src's frame facts when it is a band of one, core/frame_facts.h); 0 when
-/// there is nothing to probe.
-double probe_step(const ImageBuf& src, const SureFrame& frame, float epsilon_relative);
 
 /// Runs the denoiser on `noisy` (one band of the frame, its own float copy: probed in place)
 /// K + 1 times and writes the band's own rows of dst: the denoised channels, noisy.*, sure.*,

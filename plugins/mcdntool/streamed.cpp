@@ -1,0 +1,139 @@
+// A command line that reads, runs stages and writes one file streams: the stages run as one
+// chain in bands of rows (mcdn/chain.h), each band's rows written as soon as they are made
+// (mcdn::RowWriter), so that besides the input only one band is in memory. Any other
+// command line runs command by command (session.cpp).
+#include <cstdlib>
+#include <iostream>
+
+#include <OpenImageIO/strutil.h>
+#include <OpenImageIO/timer.h>
+
+#include "mcdn/chain.h"
+#include "mcdn/denoise.h"
+
+#include "session.h"
+
+namespace mcdntool {
+
+using OIIO::ImageBuf;
+using OIIO::Strutil::fmt::format;
+namespace Strutil = OIIO::Strutil;
+
+namespace {
+
+bool is_stage(const std::string& name)
+{
+    for (const char* stage : { "--denoise", "--prefilter", "--nfor", "--cnn", "--sure", "--mix" })
+        if (name == stage)
+            return true;
+    return false;
+}
+
+}  // namespace
+
+int64_t band_pixels()
+{
+    const char* text = std::getenv("MCDN_BAND_PIXELS");
+    const int64_t pixels = text && *text ? std::atoll(text) : -1;
+    return pixels >= 0 ? pixels : mcdn::ChainOptions().band_pixels;
+}
+
+size_t streamed_chain_start(const std::vector<Command>& commands)
+{
+    // -i and --aov commands (and those set once for the run: --threads), then stages only,
+    // then one -o, last.
+    auto setup = [](const Command& c) {
+        const CommandInfo* info = find_command(c.name);
+        return c.name == "-i" || c.name == "--aov" || (info && info->global);
+    };
+    size_t first = 0;
+    while (first < commands.size() && setup(commands[first]))
+        ++first;
+    if (first == commands.size() || !is_stage(commands[first].name) || commands.back().name != "-o")
+        return 0;
+    for (size_t i = first; i + 1 < commands.size(); ++i)
+        if (!is_stage(commands[i].name))
+            return 0;
+    // --denoise picks its stages itself: alone or not at all.
+    const size_t stages = commands.size() - 1 - first;
+    for (size_t i = first; i + 1 < commands.size(); ++i)
+        if (commands[i].name == "--denoise" && stages != 1)
+            return 0;
+    std::vector<std::string> names, unused;
+    for (size_t i = first; i + 1 < commands.size(); ++i)
+        names.push_back(commands[i].name.substr(2));
+    std::string error;
+    return mcdn::parse_chain(unused, Strutil::join(names, ","), error) ? first : 0;
+}
+
+bool run_streamed_chain(Session& s, const std::vector<Command>& commands, size_t first,
+                        bool& streamed, std::string& error)
+{
+    streamed = false;
+    for (size_t i = 0; i < first; ++i) {
+        const CommandInfo* info = find_command(commands[i].name);
+        if (info->run && !info->run(s, commands[i], error))
+            return false;
+    }
+    if (!s.load(error))
+        return false;
+    const Command& output = commands.back();
+    // A multi-part render is written back in its parts, each whole (mcdn::write_image).
+    if (!s.image().spec().get_string_attribute("mcdn:parts").empty()
+        && Strutil::iends_with(output.args[0], ".exr")) {
+        if (s.verbose)
+            std::cerr << "mcdntool: a multi-part output is written whole: the stages run "
+                         "command by command\n";
+        return true;
+    }
+    streamed = true;
+    mcdn::WriteOptions write;
+    if (!write_options_of(output, write, error))
+        return false;
+    write.history = s.history;
+
+    mcdn::ChainOptions chain;
+    chain.aovs = s.aov_spec;
+    chain.progress = s.progress();
+    chain.stages.clear();
+    chain.band_pixels = band_pixels();
+    for (size_t i = first; i + 1 < commands.size(); ++i) {
+        const std::string stage = commands[i].name.substr(2);
+        chain.stages.push_back(stage);
+        for (const auto& [key, value] : commands[i].modifiers)
+            chain.settings[stage + "." + key] = value;
+    }
+    const ImageBuf& input = s.image();
+    if (s.verbose && chain.stages == std::vector<std::string> { "denoise" }) {
+        mcdn::DenoisePlan plan;
+        if (mcdn::plan_denoise(plan, input.spec(), s.aov_spec, error))
+            std::cerr << "mcdntool: --denoise runs " << plan.describe() << "\n";
+    }
+    OIIO::Timer timer;
+    mcdn::RowWriter writer;
+    int bands = 0;
+    auto sink = [&](const ImageBuf& band, const OIIO::ROI& own, std::string& sink_error) {
+        if (bands++ == 0) {
+            OIIO::ImageSpec frame = band.spec();
+            frame.y = input.spec().y;
+            frame.height = input.spec().height;
+            if (!writer.open(frame, output.args[0], write, sink_error))
+                return false;
+        }
+        return writer.write_rows(band, own, sink_error);
+    };
+    if (!mcdn::run_chain(input, chain, sink, error, s.nthreads))
+        return false;
+    std::vector<std::string> warnings;
+    if (!writer.close(error, &warnings))
+        return false;
+    for (const auto& w : warnings)
+        std::cerr << "mcdntool: warning: " << w << "\n";
+    if (s.verbose)
+        std::cerr << format("mcdntool: {} {}x{} in {} band(s) of rows, written to {}: {:.2f} s\n",
+                            Strutil::join(chain.stages, " "), input.spec().width,
+                            input.spec().height, bands, output.args[0], timer());
+    return true;
+}
+
+}  // namespace mcdntool
