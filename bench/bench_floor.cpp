@@ -1,9 +1,13 @@
-// The compute floor of a chain on one frame size: the FLOPs of its networks (KPCN's two
-// branches; the best chain runs KPCN twice, for the denoised image and SURE's probe, plus
-// the mixing network) at the rate a plain oneDNN 3x3 48->48 conv + ReLU reaches on a frame
-// of that size, timed in this run. bench/production divides whole-process times by it.
+// The compute floor of a chain on one frame size, two ways: the FLOPs of its networks
+// (KPCN's two branches; the best chain runs KPCN twice, for the denoised image and SURE's
+// probe, plus the mixing network) at the rate a plain oneDNN 3x3 48->48 conv + ReLU reaches
+// on a frame of that size; and each of the networks' convolutions run alone as a plain
+// oneDNN conv on the whole frame at its own shape (channels, kernel, scale), summed: what
+// the convs cost without tiling, halos or anything between them. Both timed in this run;
+// bench/production divides whole-process times by them.
 //
 //   bench_floor WIDTH HEIGHT      prints one JSON object
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <string>
@@ -18,6 +22,23 @@
 
 using namespace mcdn;
 using mcdn_bench::flops_per_pixel;
+
+namespace {
+
+/// Every conv of `net` as a plain oneDNN conv on the frame (at the node's scale), summed.
+double plain_layers_seconds(const nn::Net& net, int height, int width)
+{
+    double total = 0;
+    for (const auto& node : net.nodes())
+        if (node.op == nn::Net::Op::conv) {
+            const int in = net.nodes()[node.inputs[0]].channels;
+            const int h = std::max(1, height / node.scale), w = std::max(1, width / node.scale);
+            total += mcdn_bench::plain_onednn_conv(h, w, in, node.channels, node.kernel, 2).wall;
+        }
+    return total;
+}
+
+}  // namespace
 
 int main(int argc, char** argv)
 {
@@ -40,10 +61,14 @@ int main(int argc, char** argv)
     double conv_flops = 0;
     const mcdn_bench::Timing t = mcdn_bench::plain_onednn_conv(h, w, 48, 48, 3, 2, &conv_flops);
     const double rate = conv_flops / t.wall;  // FLOP per wall second
+    const double layers_cnn = plain_layers_seconds(kpcn.diffuse, h, w)
+                              + plain_layers_seconds(kpcn.specular, h, w);
+    const double layers_mix = plain_layers_seconds(mix, h, w);
     std::printf("{\"width\": %d, \"height\": %d, \"cnn_gflop\": %.1f, \"mix_gflop\": %.1f, "
                 "\"conv_gflop_per_s\": %.1f, \"conv_cpu_s\": %.3f, \"conv_wall_s\": %.3f, "
-                "\"floor_cnn_s\": %.3f, \"floor_best_s\": %.3f}\n",
+                "\"floor_cnn_s\": %.3f, \"floor_best_s\": %.3f, \"layers_cnn_s\": %.3f, "
+                "\"layers_best_s\": %.3f}\n",
                 w, h, cnn / 1e9, mixing / 1e9, rate / 1e9, t.cpu, t.wall, cnn / rate,
-                (2 * cnn + mixing) / rate);
+                (2 * cnn + mixing) / rate, layers_cnn, 2 * layers_cnn + layers_mix);
     return 0;
 }

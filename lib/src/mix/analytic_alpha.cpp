@@ -3,33 +3,14 @@
 #include <algorithm>
 
 #include "mix/mix_steps.h"
+#include "mix/window_sums.h"
 
 namespace mcdn {
 
 Plane box_mean(const Plane& in, int radius)
 {
-    const int w = in.width, h = in.height;
-    Plane rows(w, h), out(w, h);
-    for (int y = 0; y < h; ++y) {
-        const float* src = in.row(y);
-        for (int x = 0; x < w; ++x) {
-            int x0 = std::max(0, x - radius), x1 = std::min(w - 1, x + radius);
-            double s = 0;
-            for (int i = x0; i <= x1; ++i)
-                s += src[i];
-            rows(x, y) = float(s / (x1 - x0 + 1));
-        }
-    }
-    for (int y = 0; y < h; ++y) {
-        int y0 = std::max(0, y - radius), y1 = std::min(h - 1, y + radius);
-        for (int x = 0; x < w; ++x) {
-            double s = 0;
-            for (int j = y0; j <= y1; ++j)
-                s += rows(x, j);
-            out(x, y) = float(s / (y1 - y0 + 1));
-        }
-    }
-    return out;
+    return separable_window_sum(in, std::vector<double>(size_t(2 * radius + 1), 1.0), radius,
+                                true);
 }
 
 void analytic_alpha(Plane alpha[3], const MixInputs& in, int radius)

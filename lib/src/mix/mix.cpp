@@ -6,6 +6,8 @@
 #include "mcdn/mix.h"
 
 #include <OpenImageIO/strutil.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include "core/bands.h"
 #include "core/channels.h"
@@ -60,14 +62,41 @@ bool find_mix_channels(MixChannels& ch, const ImageSpec& spec, const AovSet& aov
 MixInputs read_mix_inputs(const ImageBuf& src, const MixChannels& ch, const ROI& rows)
 {
     MixInputs in;
-    for (int c = 0; c < 3; ++c) {
-        in.y[c] = read_rows(src, ch.y[c], rows);
-        in.variance[c] = read_rows(src, ch.variance[c], rows, true);
-        in.x[c] = read_rows(src, ch.x[c], rows);
-        in.sure[c] = read_rows(src, ch.sure[c], rows);
-        in.divergence[c] = read_rows(src, ch.divergence[c], rows);
-        in.residual[c] = read_rows(src, ch.residual[c], rows);
+    Plane* planes[18];
+    const int* channels[6] = { ch.y, ch.variance, ch.x, ch.sure, ch.divergence, ch.residual };
+    Plane* groups[6] = { in.y, in.variance, in.x, in.sure, in.divergence, in.residual };
+    int index[18];
+    for (int g = 0; g < 6; ++g)
+        for (int c = 0; c < 3; ++c) {
+            planes[g * 3 + c] = &groups[g][c];
+            index[g * 3 + c] = channels[g][c];
+        }
+    const float* pixels = float_frame_pixels(src);
+    if (!pixels) {  // not a float frame in memory: plane by plane
+        for (int p = 0; p < 18; ++p)
+            *planes[p] = read_rows(src, index[p], rows, p / 3 == 1);
+        return in;
     }
+    // A float frame in memory: one pass over the rows' pixels gathers all 18 planes
+    // (sanitized as read_rows does; 18 strided passes would read the frame 18 times).
+    const ImageSpec& spec = src.spec();
+    const int w = rows.width(), h = rows.height(), nch = spec.nchannels;
+    for (Plane* p : planes)
+        *p = Plane(w, h);
+    tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& b) {
+        for (int r = b.begin(); r != b.end(); ++r) {
+            const float* row = pixels + (size_t(rows.ybegin + r - spec.y) * spec.width
+                                         + size_t(rows.xbegin - spec.x)) * nch;
+            for (int x = 0; x < w; ++x) {
+                const float* px = row + size_t(x) * nch;
+                const size_t i = size_t(r) * w + x;
+                for (int p = 0; p < 18; ++p) {
+                    const float v = px[index[p]];
+                    planes[p]->px[i] = p / 3 == 1 ? sanitize_variance(v) : sanitize(v);
+                }
+            }
+        }
+    });
     return in;
 }
 
@@ -86,7 +115,7 @@ bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options, ROI roi,
         return false;
     StageTrace trace("mix");
     AovSet aovs;
-    if (!prepare_op(dst, src, options.aovs, aovs, "mix"))
+    if (!prepare_op(dst, src, options.aovs, aovs, "mix", nthreads))
         return false;
     trace.mark("copy src to dst");
     std::string error;

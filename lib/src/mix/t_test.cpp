@@ -18,6 +18,7 @@
 #include "core/bands.h"
 #include "core/frame_facts.h"
 #include "mix/mix_steps.h"
+#include "mix/window_sums.h"
 
 namespace mcdn {
 
@@ -30,32 +31,6 @@ template <class Row> void for_rows(int height, Row row)
         for (int y = r.begin(); y != r.end(); ++y)
             row(y);
     });
-}
-
-// sum over the clipped (2r+1)^2 window of taps[dx] * taps[dy] * in(q).
-Plane separable_sum(const Plane& in, const std::vector<double>& taps, int radius)
-{
-    const int w = in.width, h = in.height;
-    Plane rows(w, h), out(w, h);
-    for_rows(h, [&](int y) {
-        for (int x = 0; x < w; ++x) {
-            double s = 0;
-            for (int i = -radius; i <= radius; ++i)
-                if (x + i >= 0 && x + i < w)
-                    s += taps[i + radius] * in(x + i, y);
-            rows(x, y) = float(s);
-        }
-    });
-    for_rows(h, [&](int y) {
-        for (int x = 0; x < w; ++x) {
-            double s = 0;
-            for (int j = -radius; j <= radius; ++j)
-                if (y + j >= 0 && y + j < h)
-                    s += taps[j + radius] * rows(x, y + j);
-            out(x, y) = float(s);
-        }
-    });
-    return out;
 }
 
 // Eq. 16: for each pixel, the flat index of its highest-variance neighbour (first in raster
@@ -113,8 +88,8 @@ void t_test_bound(Plane& alpha, const Plane& x, const Plane& y, const Plane& var
     Plane d(x.width, x.height);
     for (size_t i = 0; i < d.size(); ++i)
         d.px[i] = alpha.px[i] * (y.px[i] - x.px[i]);
-    Plane d_sum = separable_sum(d, kappa, r);
-    Plane var_sum = separable_sum(variance, kappa2, r);
+    Plane d_sum = separable_window_sum(d, kappa, r);
+    Plane var_sum = separable_window_sum(variance, kappa2, r);
     std::vector<size_t> m = highest_variance_neighbour(variance, r);
     for_rows(x.height, [&](int row) {
         for (size_t i = size_t(row) * x.width; i < size_t(row + 1) * x.width; ++i) {

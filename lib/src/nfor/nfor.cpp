@@ -476,7 +476,7 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
 
     // dst (a copy of src) is made only now, when the working planes are gone; everything was
     // read from src before (dst may be src).
-    if (!prepare_op(dst, src, options.aovs, in.aovs, "nfor"))
+    if (!prepare_op(dst, src, options.aovs, in.aovs, "nfor", nthreads))
         return false;
     trace.mark("copy src to dst");
     roi = output_roi(dst, roi);

@@ -50,7 +50,7 @@ bool prefilter_in_working_space(ImageBuf& dst, const ImageBuf& src,
     if (options.skip.enabled)
         drop_constant_features(planes, channels, src.spec());  // copied unchanged
     trace.mark("read planes");
-    if (!prepare_op(dst, src, options.aovs, aovs, op))
+    if (!prepare_op(dst, src, options.aovs, aovs, op, nthreads))
         return false;
     trace.mark("copy src to dst");
     prefilter_planes(planes, options, nthreads, &converged);

@@ -99,7 +99,7 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
         ImageBuf noisy;
         if (bands.size() == 1) {
             AovSet unused;
-            if (!prepare_op(noisy, src, options.aovs, unused, "sure"))
+            if (!prepare_op(noisy, src, options.aovs, unused, "sure", nthreads))
                 return dst.errorfmt("{}", noisy.geterror()), false;
         } else {
             noisy = copy_rows(src, band.cut);
