@@ -5,6 +5,8 @@
 #include <cstring>
 
 #include <OpenImageIO/imagebufalgo.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include "mcdn/color.h"
 #include "mcdn/skip.h"
@@ -50,6 +52,36 @@ void write_rows(ImageBuf& frame, int channel, const Plane& band_plane, int band_
     const float* first = band_plane.row(roi.ybegin - band_y) + (roi.xbegin - spec.x);
     frame.set_pixels(roi, OIIO::TypeDesc::FLOAT, first, sizeof(float),
                      OIIO::stride_t(band_plane.width * sizeof(float)));
+}
+
+void write_rows(ImageBuf& frame, const std::vector<int>& channels,
+                const std::vector<const Plane*>& band_planes, int band_y, ROI roi)
+{
+    float* pixels = const_cast<float*>(float_frame_pixels(frame));
+    if (!pixels || band_planes.empty()) {
+        for (size_t p = 0; p < band_planes.size(); ++p)
+            write_rows(frame, channels[p], *band_planes[p], band_y, roi);
+        return;
+    }
+    const ImageSpec& spec = frame.spec();
+    const Plane& first = *band_planes[0];
+    ROI rows(spec.x, spec.x + first.width, band_y, band_y + first.height, spec.z, spec.z + 1);
+    roi = OIIO::roi_intersection(roi.defined() ? roi : rows, rows);
+    if (roi.xend <= roi.xbegin || roi.yend <= roi.ybegin)
+        return;
+    const int nch = spec.nchannels, n = int(band_planes.size());
+    tbb::parallel_for(tbb::blocked_range<int>(roi.ybegin, roi.yend),
+                      [&](const tbb::blocked_range<int>& b) {
+        for (int y = b.begin(); y != b.end(); ++y) {
+            float* out = pixels + (size_t(y - spec.y) * spec.width + size_t(roi.xbegin - spec.x)) * nch;
+            for (int p = 0; p < n; ++p) {
+                const float* in = band_planes[p]->row(y - band_y) + (roi.xbegin - spec.x);
+                const int c = channels[p];
+                for (int x = 0; x < roi.width(); ++x)
+                    out[size_t(x) * nch + c] = in[x];
+            }
+        }
+    });
 }
 
 namespace {

@@ -36,6 +36,11 @@ int band_count(const ROI& whole, int halo, int64_t band_pixels);
 /// Writes the rows of `band_plane` (whose row 0 is frame row band_y) inside `roi` into
 /// channel `channel` of `frame`.
 void write_rows(ImageBuf& frame, int channel, const Plane& band_plane, int band_y, ROI roi);
+/// The same for several planes at once (planes[i] into channels[i]): one pass over the
+/// rows of a float frame in memory (a plane at a time would stride through every channel
+/// of the frame once per plane).
+void write_rows(ImageBuf& frame, const std::vector<int>& channels,
+                const std::vector<const Plane*>& band_planes, int band_y, ROI roi);
 
 /// Runs `op` on src whole when src has at most `band_pixels` pixels (or band_pixels <= 0).
 /// Otherwise cuts src into horizontal bands of at most band_pixels pixels, each with `halo`

@@ -166,15 +166,23 @@ bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options, ROI roi,
         own.ybegin = std::max(where.ybegin, band.own_begin);
         own.yend = std::min(where.yend, band.own_end);
         const int band_y = band.cut.ybegin;
+        Plane z[3];
+        std::vector<int> out_channels;
+        std::vector<const Plane*> out_planes;
         for (int c = 0; c < 3; ++c) {
-            Plane z(in.x[c].width, in.x[c].height);
-            for (size_t i = 0; i < z.size(); ++i)
-                z.px[i] = sanitize(in.x[c].px[i] + alpha[c].px[i] * (in.y[c].px[i] - in.x[c].px[i]));
-            pass_through_converged(z, in.x[c], passed);
-            write_rows(dst, channels.y[c], z, band_y, own);
-            if (options.output_alpha)
-                write_rows(dst, alpha_channels[c], alpha[c], band_y, own);
+            z[c] = Plane(in.x[c].width, in.x[c].height);
+            for (size_t i = 0; i < z[c].size(); ++i)
+                z[c].px[i] = sanitize(in.x[c].px[i]
+                                      + alpha[c].px[i] * (in.y[c].px[i] - in.x[c].px[i]));
+            pass_through_converged(z[c], in.x[c], passed);
+            out_channels.push_back(channels.y[c]);
+            out_planes.push_back(&z[c]);
+            if (options.output_alpha) {
+                out_channels.push_back(alpha_channels[c]);
+                out_planes.push_back(&alpha[c]);
+            }
         }
+        write_rows(dst, out_channels, out_planes, band_y, own);
         // Extra AOVs that sure recorded x for: the same alpha', so they still add up to z.
         for (const AovSet::Extra& extra : aovs.extras()) {
             if (extra.channels.size() != 3)

@@ -257,23 +257,31 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
     where.ybegin = std::max(where.ybegin, band.own_begin);
     where.yend = std::min(where.yend, band.own_end);
     const int band_y = noisy.spec().y;
-    for (size_t e = 0; e < frame.extras.size(); ++e)
-        write_rows(dst, out[12 + e], read_plane(noisy, frame.extras[e]), band_y, where);
+    Plane residual[3], estimate[3];
     for (int c = 0; c < 3; ++c) {
-        Plane residual(w, h), estimate(w, h);
+        residual[c] = Plane(w, h);
+        estimate[c] = Plane(w, h);
         parallel_for_index(h, frame.nthreads, [&](int row) {
             for (size_t i = size_t(row) * w; i < size_t(row + 1) * w; ++i) {
                 double d = double(y[c].px[i]) - x[c].px[i];
-                residual.px[i] = sanitize(float(d * d));
+                residual[c].px[i] = sanitize(float(d * d));
                 divergence[c].px[i] = sanitize(divergence[c].px[i]);
-                estimate.px[i] = sanitize(residual.px[i] + 2 * divergence[c].px[i] - variance[c].px[i]);
+                estimate[c].px[i] = sanitize(residual[c].px[i] + 2 * divergence[c].px[i]
+                                             - variance[c].px[i]);
             }
         });
-        write_rows(dst, out[c], x[c], band_y, where);
-        write_rows(dst, out[3 + c], estimate, band_y, where);
-        write_rows(dst, out[6 + c], divergence[c], band_y, where);
-        write_rows(dst, out[9 + c], residual, band_y, where);
     }
+    // All of sure's channels in one pass over the output's rows.
+    std::vector<const Plane*> planes;
+    for (const Plane* group : { x, estimate, divergence, residual })
+        for (int c = 0; c < 3; ++c)
+            planes.push_back(&group[c]);
+    std::vector<Plane> extras;
+    for (size_t e = 0; e < frame.extras.size(); ++e)
+        extras.push_back(read_plane(noisy, frame.extras[e]));
+    for (const Plane& e : extras)
+        planes.push_back(&e);
+    write_rows(dst, out, planes, band_y, where);
     trace.mark("eq. 1, sure.* channels");
     return true;
 }
