@@ -6,8 +6,6 @@
 #include "mcdn/chain.h"
 
 #include <algorithm>
-#include <cmath>
-#include <cstring>
 
 #include <OpenImageIO/strutil.h>
 
@@ -26,8 +24,6 @@
 #include "mcdn/settings.h"
 
 namespace mcdn {
-
-using OIIO::Strutil::fmt::format;
 
 namespace {
 

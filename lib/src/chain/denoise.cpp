@@ -82,23 +82,13 @@ bool stage_can_run(const std::string& stage, const AovSet& aovs, std::string& ho
 bool denoise(ImageBuf& dst, const ImageBuf& src, const DenoiseOptions& options, ROI roi,
              int nthreads)
 {
-    DenoisePlan plan;
-    std::string error;
-    if (!plan_denoise(plan, src.spec(), options.aovs, error)) {
-        dst.errorfmt("denoise: {}", error);
-        return false;
-    }
+    // run_chain plans it (plan_denoise) and records the plan on dst.
     ChainOptions chain;
     chain.aovs = options.aovs;
-    chain.stages = plan.stages;
+    chain.stages = { "denoise" };
     chain.settings = options.settings;
     chain.progress = options.progress;
-    if (!chain.settings.count("mix.model"))
-        chain.settings["mix.model"] = "net";
-    if (!run_chain(dst, src, chain, roi, nthreads))
-        return false;
-    dst.specmod().attribute("mcdn:denoise_plan", plan.describe());
-    return true;
+    return run_chain(dst, src, chain, roi, nthreads);
 }
 
 ImageBuf denoise(const ImageBuf& src, const DenoiseOptions& options, ROI roi, int nthreads)

@@ -16,10 +16,15 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imagebufalgo.h>
 #include <OpenImageIO/imageio.h>
 #include <OpenImageIO/strutil.h>
+
+#include "core/planar.h"
 
 namespace mcdn {
 
@@ -1051,16 +1056,39 @@ bool RowWriter::write_rows(const ImageBuf& band, const ROI& own, std::string& er
     // The output's channels of these rows, pixel-interleaved, checked as write_image checks.
     const size_t npixels = size_t(own.width()) * own.height();
     m->rows.resize(npixels * nch);
+    std::vector<int> from(nch);
     for (int c = 0; c < nch; ++c) {
-        const int from = band.spec().channelindex(spec.channelnames[c]);
-        ROI one = own;
-        one.chbegin = from;
-        one.chend = from + 1;
-        if (from < 0
-            || !band.get_pixels(one, TypeDesc::FLOAT, m->rows.data() + c,
-                                OIIO::stride_t(nch * sizeof(float)))) {
+        from[c] = band.spec().channelindex(spec.channelnames[c]);
+        if (from[c] < 0) {
             error = format("{}: channel '{}' is not in the result", m->path, spec.channelnames[c]);
             return false;
+        }
+    }
+    const ImageSpec& in = band.spec();
+    if (const float* pixels = float_frame_pixels(band)) {
+        // One pass over the band's rows (a channel at a time would stride through all of
+        // them once per channel).
+        const int bch = in.nchannels;
+        tbb::parallel_for(tbb::blocked_range<int>(own.ybegin, own.yend),
+                          [&](const tbb::blocked_range<int>& b) {
+            for (int y = b.begin(); y != b.end(); ++y) {
+                const float* src = pixels + (size_t(y - in.y) * in.width + size_t(own.xbegin - in.x)) * bch;
+                float* dst = m->rows.data() + size_t(y - own.ybegin) * own.width() * nch;
+                for (int x = 0; x < own.width(); ++x)
+                    for (int c = 0; c < nch; ++c)
+                        dst[size_t(x) * nch + c] = src[size_t(x) * bch + from[c]];
+            }
+        });
+    } else {
+        for (int c = 0; c < nch; ++c) {
+            ROI one = own;
+            one.chbegin = from[c];
+            one.chend = from[c] + 1;
+            if (!band.get_pixels(one, TypeDesc::FLOAT, m->rows.data() + c,
+                                 OIIO::stride_t(nch * sizeof(float)))) {
+                error = format("{}: {}", m->path, band.geterror());
+                return false;
+            }
         }
     }
     constexpr float kHalfMax = 65504.0f;
