@@ -769,44 +769,49 @@ void remove_temporary_outputs()
 
 namespace {
 
-// What write_image tells about the values it writes, channel by channel: NaN and Inf (no op
-// makes them, so they came with the input, in channels no role reads), and, for half
-// output, finite values beyond half's range, which it clamps to +-65504 (half would make
-// them Inf).
-void inspect_values(ImageBuf& out, const std::string& path, bool to_half,
-                    std::vector<std::string>& warnings)
-{
-    const ImageSpec& spec = out.spec();
-    const int nch = spec.nchannels;
-    float* pixels = static_cast<float*>(out.localpixels());
-    if (!pixels)
-        return;
-    constexpr float kHalfMax = 65504.0f;
-    std::vector<size_t> nan(nch, 0), inf(nch, 0), clamped(nch, 0);
-    const size_t n = spec.image_pixels();
-    for (size_t p = 0; p < n; ++p)
-        for (int c = 0; c < nch; ++c) {
-            float& v = pixels[p * nch + c];
-            if (std::isnan(v))
-                ++nan[c];
-            else if (std::isinf(v))
-                ++inf[c];
-            else if (to_half && std::fabs(v) > kHalfMax) {
-                v = std::copysign(kHalfMax, v);
-                ++clamped[c];
+// What write_image and RowWriter tell about the values they write, channel by channel: NaN
+// and Inf (no op makes them, so they came with the input, in channels no role reads), and,
+// for half output, finite values beyond half's range, which are clamped to +-65504 (half
+// would make them Inf).
+struct ValueCounts {
+    std::vector<size_t> nan, inf, clamped;
+
+    /// Counts (and, to half, clamps) `pixels` interleaved pixels of nch channels.
+    void inspect(float* values, size_t pixels, int nch, bool to_half)
+    {
+        nan.resize(nch, 0);
+        inf.resize(nch, 0);
+        clamped.resize(nch, 0);
+        constexpr float kHalfMax = 65504.0f;
+        for (size_t p = 0; p < pixels; ++p)
+            for (int c = 0; c < nch; ++c) {
+                float& v = values[p * nch + c];
+                if (std::isnan(v))
+                    ++nan[c];
+                else if (std::isinf(v))
+                    ++inf[c];
+                else if (to_half && std::fabs(v) > kHalfMax) {
+                    v = std::copysign(kHalfMax, v);
+                    ++clamped[c];
+                }
             }
-        }
-    for (int c = 0; c < nch; ++c) {
-        if (nan[c] || inf[c])
-            warnings.push_back(format("{}: channel {} has {} NaN and {} Inf values, written as "
-                                      "they came in (no stage reads it; --fixnan repairs)",
-                                      path, spec.channelnames[c], nan[c], inf[c]));
-        if (clamped[c])
-            warnings.push_back(format("{}: channel {}: {} values beyond half's range clamped "
-                                      "to +-65504 (datatype=float keeps them)",
-                                      path, spec.channelnames[c], clamped[c]));
     }
-}
+
+    void warn(const std::string& path, const std::vector<std::string>& names,
+              std::vector<std::string>& warnings) const
+    {
+        for (size_t c = 0; c < nan.size(); ++c) {
+            if (nan[c] || inf[c])
+                warnings.push_back(format("{}: channel {} has {} NaN and {} Inf values, written "
+                                          "as they came in (no stage reads it; --fixnan "
+                                          "repairs)", path, names[c], nan[c], inf[c]));
+            if (clamped[c])
+                warnings.push_back(format("{}: channel {}: {} values beyond half's range "
+                                          "clamped to +-65504 (datatype=float keeps them)",
+                                          path, names[c], clamped[c]));
+        }
+    }
+};
 
 }  // namespace
 
@@ -932,8 +937,12 @@ bool write_image(const ImageBuf& src, const std::string& path, const WriteOption
         return false;
     }
     std::vector<std::string> found;
-    if (out.spec().format == TypeDesc::FLOAT)
-        inspect_values(out, path, options.datatype == TypeDesc::HALF, found);
+    if (out.spec().format == TypeDesc::FLOAT && out.localpixels()) {
+        ValueCounts counts;
+        counts.inspect(static_cast<float*>(out.localpixels()), out.spec().image_pixels(),
+                       out.nchannels(), options.datatype == TypeDesc::HALF);
+        counts.warn(path, out.spec().channelnames, found);
+    }
     if (warnings)
         warnings->insert(warnings->end(), found.begin(), found.end());
     const ImageSpec& spec = layout.spec;
@@ -995,7 +1004,7 @@ struct RowWriter::State {
     std::unique_ptr<TemporaryRegistration> registration;
     bool to_half = false;
     int next_row = 0;
-    std::vector<size_t> nan, inf, clamped;
+    ValueCounts counts;
     std::vector<float> rows;
 };
 
@@ -1035,10 +1044,6 @@ bool RowWriter::open(const ImageSpec& image, const std::string& path, const Writ
         return false;
     }
     m->to_half = options.datatype == TypeDesc::HALF;
-    const int nch = m->layout.spec.nchannels;
-    m->nan.assign(nch, 0);
-    m->inf.assign(nch, 0);
-    m->clamped.assign(nch, 0);
     m->next_row = image.y;
     return true;
 }
@@ -1091,19 +1096,7 @@ bool RowWriter::write_rows(const ImageBuf& band, const ROI& own, std::string& er
             }
         }
     }
-    constexpr float kHalfMax = 65504.0f;
-    for (size_t p = 0; p < npixels; ++p)
-        for (int c = 0; c < nch; ++c) {
-            float& v = m->rows[p * nch + c];
-            if (std::isnan(v))
-                ++m->nan[c];
-            else if (std::isinf(v))
-                ++m->inf[c];
-            else if (m->to_half && std::fabs(v) > kHalfMax) {
-                v = std::copysign(kHalfMax, v);
-                ++m->clamped[c];
-            }
-        }
+    m->counts.inspect(m->rows.data(), npixels, nch, m->to_half);
     if (!m->output->write_scanlines(own.ybegin, own.yend, 0, TypeDesc::FLOAT, m->rows.data())) {
         error = format("{}: write failed: {}", m->path, m->output->geterror());
         return false;
@@ -1128,16 +1121,8 @@ bool RowWriter::close(std::string& error, std::vector<std::string>* warnings)
         Filesystem::remove(m->tmp);
         return false;
     }
-    for (int c = 0; warnings && c < spec.nchannels; ++c) {
-        if (m->nan[c] || m->inf[c])
-            warnings->push_back(format("{}: channel {} has {} NaN and {} Inf values, written "
-                                       "as they came in (no stage reads it; --fixnan repairs)",
-                                       m->path, spec.channelnames[c], m->nan[c], m->inf[c]));
-        if (m->clamped[c])
-            warnings->push_back(format("{}: channel {}: {} values beyond half's range clamped "
-                                       "to +-65504 (datatype=float keeps them)",
-                                       m->path, spec.channelnames[c], m->clamped[c]));
-    }
+    if (warnings)
+        m->counts.warn(m->path, spec.channelnames, *warnings);
     return put_in_place(m->tmp, m->path, error);
 }
 
