@@ -78,10 +78,9 @@ bool queue_cnn(Session& s, const Command& c, std::string& error)
         return false;
     o.aovs = s.aov_spec;
     o.progress = s.progress();
-    const int reach = mcdn::receptive_radius(o);
     s.queue("cnn", [o](ImageBuf& dst, const ImageBuf& src, int nthreads) {
         return mcdn::cnn(dst, src, o, {}, nthreads);
-    }, { reach, reach, false });
+    }, mcdn::stage_reach(o));
     return true;
 }
 

@@ -73,7 +73,7 @@ mcdn::Denoiser named_denoiser(const std::string& chain, const mcdn::AovSpec& spe
 {
     radius = -1;
     if (chain == "cnn") {
-        radius = mcdn::receptive_radius(mcdn::CnnOptions());
+        radius = mcdn::chain_radius({ mcdn::stage_reach(mcdn::CnnOptions()) });
         return [spec, skip, nthreads](ImageBuf& dst, const ImageBuf& src) {
             mcdn::CnnOptions o;
             o.aovs = spec;

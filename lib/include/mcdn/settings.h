@@ -51,6 +51,7 @@ struct StageReach {
 };
 StageReach stage_reach(const PrefilterOptions& options);
 StageReach stage_reach(const NforOptions& options);
+StageReach stage_reach(const CnnOptions& options);
 
 /// How far a chain of denoisers reaches, for SureOptions::denoiser_radius: the sum of its
 /// stages' reach, each on the input it gets; -1 when any stage's is not known.

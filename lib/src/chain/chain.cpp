@@ -77,8 +77,7 @@ std::pair<std::string, Denoiser> denoiser_stage(const std::string& name, const C
     if (name == "cnn") {
         CnnOptions c;
         stage_options(c, o, name, unused);
-        const int r = receptive_radius(c);
-        reach = { r, r, false };
+        reach = stage_reach(c);
         return { name, [c, nthreads](ImageBuf& dst, const ImageBuf& src) {
                     return cnn(dst, src, c, {}, nthreads);
                 } };

@@ -137,33 +137,31 @@ int chain_reach(const ImageSpec& spec, const ChainOptions& o)
     std::string error;
     if (!resolved_stages(stages, spec, o, error))
         return -1;
-    int total = 0;
-    bool prefiltered = false;
+    // Each stage's reach; chain_radius knows that nfor reaches less after a prefilter.
+    std::vector<StageReach> reaches;
     std::string denoiser = "nfor";
     for (const std::string& name : stages) {
         const std::map<std::string, std::string> settings = stage_settings(o.settings, name);
-        int r = 0;
+        StageReach reach { 0, 0, false };  // sure reaches no further than its denoiser
         if (name == "prefilter") {
             PrefilterOptions p;
-            r = apply_settings(p, settings, error) ? receptive_radius(p) : -1;
-            prefiltered = true;
+            reach = apply_settings(p, settings, error) ? stage_reach(p) : StageReach();
         } else if (name == "nfor") {
             NforOptions n;
-            r = apply_settings(n, settings, error) ? receptive_radius(n, prefiltered) : -1;
+            reach = apply_settings(n, settings, error) ? stage_reach(n) : StageReach();
             denoiser = "nfor";
         } else if (name == "cnn") {
             CnnOptions c;
-            r = apply_settings(c, settings, error) ? receptive_radius(c) : -1;
+            reach = apply_settings(c, settings, error) ? stage_reach(c) : StageReach();
             denoiser = "cnn";
         } else if (name == "mix") {
             MixOptions m;
-            r = apply_settings(m, settings, error) ? receptive_radius(m, denoiser) : -1;
+            const int r = apply_settings(m, settings, error) ? receptive_radius(m, denoiser) : -1;
+            reach = { r, r, false };
         }
-        if (r < 0)
-            return -1;
-        total += r;
+        reaches.push_back(reach);
     }
-    return total;
+    return chain_radius(reaches);
 }
 
 bool run_chain(const ImageBuf& input, const ChainOptions& o, const BandSink& sink,

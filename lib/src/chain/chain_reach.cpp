@@ -2,6 +2,8 @@
 // with this halo (SureOptions::denoiser_radius), so it must cover the whole chain.
 #include "mcdn/settings.h"
 
+#include "mcdn/cnn.h"
+
 namespace mcdn {
 
 StageReach stage_reach(const PrefilterOptions& options)
@@ -14,6 +16,12 @@ StageReach stage_reach(const NforOptions& options)
 {
     // nfor keeps its input's "mcdn:prefiltered" and prefilters itself only without it.
     return { receptive_radius(options, false), receptive_radius(options, true), false };
+}
+
+StageReach stage_reach(const CnnOptions& options)
+{
+    const int r = receptive_radius(options);  // -1: the weights cannot be read
+    return { r, r, false };
 }
 
 int chain_radius(const std::vector<StageReach>& stages)
