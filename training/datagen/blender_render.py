@@ -87,7 +87,11 @@ def setup_render(scene, spec):
     vl.cycles.denoising_store_passes = True
 
 
-def render(scene, path, spp, seed):
+def render(scene, path, spp, seed, adaptive_threshold=None):
+    scene.cycles.use_adaptive_sampling = adaptive_threshold is not None
+    if adaptive_threshold is not None:
+        scene.cycles.adaptive_threshold = adaptive_threshold
+        scene.cycles.adaptive_min_samples = 0  # Cycles' automatic minimum
     scene.cycles.samples = spp
     scene.cycles.seed = seed
     scene.render.filepath = path
@@ -122,6 +126,9 @@ def main():
     os.makedirs(spec["raw_dir"], exist_ok=True)
     t0 = time.perf_counter()
     info = scenes.build(spec["family"], spec["seed"])
+    if spec.get("sky") is not None:
+        aspect = spec["frame"][1] / spec["frame"][0]
+        info["camera"]["levelled_for_sky"] = scenes.level_camera(spec["sky"], aspect)
     build_s = time.perf_counter() - t0
     scene = bpy.context.scene
     setup_render(scene, spec)
@@ -139,12 +146,17 @@ def main():
         k = min(spec["K"], n)
         for s in range(k):
             jobs.append(("L%04d" % n, n, k, s, n // k, 1 + 100 * li + s))
+    for li, n in enumerate(spec.get("adaptive_levels", [])):
+        k = min(spec["K"], n)
+        for s in range(k):
+            jobs.append(("A%04d" % n, n, k, s, n // k, 50001 + 100 * li + s))
     rk = spec["ref_K"]
     for s in range(rk):
         jobs.append(("ref", spec["ref_spp"], rk, s, spec["ref_spp"] // rk, 100000 + s))
     for tag, n, k, s, spp, seed in jobs:
         path = os.path.join(spec["raw_dir"], f"{tag}_s{s}.exr")
-        cpu, wall = render(scene, path, spp, seed)
+        adaptive = spec.get("adaptive_threshold") if tag.startswith("A") else None
+        cpu, wall = render(scene, path, spp, seed, adaptive)
         log["renders"].append({"tag": tag, "level_spp": n, "K": k, "index": s, "spp": spp,
                                "seed": seed, "file": os.path.basename(path),
                                "cpu_s": round(cpu, 3), "wall_s": round(wall, 3)})

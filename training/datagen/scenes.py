@@ -890,6 +890,20 @@ def setup_camera(rng, st, targets, family):
     return cam, info
 
 
+def level_camera(sky, aspect):
+    """Turn the camera about its own horizontal axis, keeping its heading and dropping the
+    roll, so that the horizon lies `sky` of the frame's height below its top (the sky fills
+    what the content does not hide above it); aspect is height / width."""
+    cam = bpy.context.scene.camera
+    d = cam.rotation_euler.to_matrix() @ Vector((0, 0, -1))
+    heading = math.atan2(d.y, d.x)
+    # Blender fits the sensor to the wider side: the vertical half-angle's tangent
+    half_v = (cam.data.sensor_width / 2 / cam.data.lens) * min(aspect, 1.0)
+    pitch = math.atan((2 * sky - 1) * half_v)  # above the horizontal: horizon moves down
+    cam.rotation_euler = (math.pi / 2 + pitch, 0.0, heading - math.pi / 2)
+    return {"sky": sky, "pitch_deg": round(math.degrees(pitch), 3)}
+
+
 # ----------------------------------------------------------------------------------------
 # entry point
 # ----------------------------------------------------------------------------------------

@@ -1,11 +1,17 @@
 // Skipping what a frame does not need (each stage's Options has a SkipOptions `skip`):
 //
 //   converged tiles  A tile of kConvergedTileSize² pixels is converged where, at every pixel
-//                    and colour channel, the render's relative standard error
-//                        sqrt(Var[mean]) / sqrt(colour² + 0.01)
-//                    is at most max_relative_error (the denominator is relMSE's, so its
-//                    square is the pixel's expected relMSE as rendered). The worst pixel
-//                    decides, so one noisy pixel (a firefly) keeps its tile denoised. Ops
+//                    and colour channel, the render's relative variance
+//                        Var[mean] / (colour² + 0.01)
+//                    (relMSE's denominator: the pixel's expected relMSE as rendered),
+//                    averaged over the pixel's 3×3 neighbourhood within its tile, is at most
+//                    max_relative_error², and the pixel's own at most
+//                    (kOutlierFactor · max_relative_error)². The neighbourhood makes the
+//                    test one of the render's noise, not of its variance estimate's: from K
+//                    seeds that estimate has K − 1 degrees of freedom, so in a tile of 1024
+//                    pixels some exceed any bound set per pixel even where the render is
+//                    converged, and one such pixel would hold its tile back; a 3×3 mean has
+//                    9(K − 1). The cap keeps a firefly's tile denoised. Ops
 //                    pass converged tiles through untouched and spend no work on them:
 //                    nfor (regressions, feature prefilter, MSE/selection maps), prefilter,
 //                    cnn (network tiles whose output lies in converged tiles), sure (no
@@ -26,19 +32,38 @@
 // filters.
 #pragma once
 
+#include <OpenImageIO/imagebuf.h>
+
+#include "mcdn/aov.h"
+
 namespace mcdn {
 
 /// Side of the tiles of the converged map: the NL-means and regression tile (32 px), so a
 /// converged tile is a unit of their work.
 constexpr int kConvergedTileSize = 32;
 
+/// A converged tile's pixel may have a relative standard error up to this multiple of
+/// max_relative_error on its own (its neighbourhood's mean still within it): far beyond
+/// what the variance estimate's own scatter gives a converged pixel, well within a firefly.
+constexpr float kOutlierFactor = 3.0f;
+
 struct SkipOptions {
     /// All skipping of the stage (converged tiles, constant AOVs, zero-α' tiles).
     bool enabled = true;
-    /// Largest relative standard error of a converged tile's worst pixel and channel. 0.08:
-    /// well below the worst pixel of a render still worth denoising, above that of nearly
-    /// every tile of a converged reference, so only tiles of reference quality pass through.
+    /// Largest relative standard error of a converged tile's pixels and channels (over each
+    /// pixel's 3×3 neighbourhood; kOutlierFactor times that for a pixel alone). 0.08: well
+    /// below a render still worth denoising (no tile of box at 256 spp passes), above a
+    /// converged reference (every tile of box's 4096-spp one passes), so only tiles of
+    /// reference quality pass through.
     float max_relative_error = 0.08f;
 };
+
+/// How many of a frame's tiles are converged at `skip`'s threshold (what every stage of a
+/// chain on src passes through): 0 of `tiles` without a colour variance or with skip off.
+struct ConvergedCount {
+    int converged = 0, tiles = 0;
+};
+ConvergedCount count_converged_tiles(const OIIO::ImageBuf& src, const AovSet& aovs,
+                                     const SkipOptions& skip = {});
 
 }  // namespace mcdn

@@ -16,10 +16,12 @@ bool mix_alpha(Plane alpha[3], ConvergedTiles& passed, const MixInputs& in,
     passed = tiles_mixing_to_x(in, options.skip);
     trace.mark("band: tiles mixing to x");
     const Plane zero(in.x[0].width, in.x[0].height);
-    if (passed.all()) {
+    if (passed.all()) {  // nothing to mix on the band: no model, no t-test
         for (int c = 0; c < 3; ++c)
             alpha[c] = zero;
-    } else if (net) {
+        return true;
+    }
+    if (net) {
         if (!net_alpha(alpha, in, *net, error, nullptr, network_regions(passed, *net, 256)))
             return false;
         trace.mark("band: network alpha (4.3)");

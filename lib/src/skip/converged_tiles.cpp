@@ -6,6 +6,8 @@
 #include <utility>
 
 #include <OpenImageIO/strutil.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 namespace mcdn {
 
@@ -43,9 +45,19 @@ float relative_standard_error(float mean, float variance_of_mean)
 
 namespace {
 
-/// The map of a width × height image: a tile is converged when at every pixel and channel
-/// at(c, x, y) = {mean, variance} passes. Compared squared, without a square root per pixel;
-/// NaN never counts as converged.
+/// A pixel's relative variance Var[mean] / (mean² + 0.01): its expected relMSE as rendered.
+/// NaN stays NaN (never converged).
+inline float relative_variance(float mean, float variance)
+{
+    return std::max(variance, 0.0f) / (mean * mean + kRelativeFloor);
+}
+
+/// The map of a width × height image, at(c, x, y) = {mean, variance} (mcdn/skip.h): a tile is
+/// converged when at every pixel and channel the relative variance averaged over the pixel's
+/// 3×3 neighbourhood within the tile is at most max_relative_error², and the pixel's own at
+/// most (kOutlierFactor · max_relative_error)²: a tile is decided by its own pixels alone.
+/// Threaded over rows of tiles, each decided by one thread: the map does not depend on the
+/// thread count.
 template <class At>
 ConvergedTiles scan_converged(int width, int height, float max_relative_error, At at)
 {
@@ -55,16 +67,60 @@ ConvergedTiles scan_converged(int width, int height, float max_relative_error, A
     m.tiles_x = (m.width + T - 1) / T;
     m.tiles_y = (m.height + T - 1) / T;
     const float limit = max_relative_error * max_relative_error;
+    const float cap = kOutlierFactor * kOutlierFactor * limit;
     if (!(limit > 0) || m.width <= 0 || m.height <= 0)
         return m;
     m.converged.assign(size_t(m.tiles_x) * m.tiles_y, 1);
-    for (int y = 0; y < m.height; ++y)
-        for (int x = 0; x < m.width; ++x)
-            for (int c = 0; c < 3; ++c) {
-                const auto [mu, var] = at(c, x, y);
-                if (!(std::max(var, 0.0f) <= limit * (mu * mu + kRelativeFloor)))
-                    m.converged[size_t(y / T) * m.tiles_x + x / T] = 0;
+    const int w = m.width;
+    tbb::parallel_for(tbb::blocked_range<int>(0, m.tiles_y), [&](const tbb::blocked_range<int>& rows) {
+        std::vector<float> r, across;
+        for (int ty = rows.begin(); ty != rows.end(); ++ty) {
+            const int y0 = ty * T, y1 = std::min(y0 + T, m.height);
+            // The tile row's relative variances, pixel-major, and their sums over x-1..x+1
+            // within each tile.
+            r.resize(size_t(y1 - y0) * w * 3);
+            across.resize(r.size());
+            for (int y = y0; y < y1; ++y) {
+                float* row = r.data() + size_t(y - y0) * w * 3;
+                for (int x = 0; x < w; ++x)
+                    for (int c = 0; c < 3; ++c) {
+                        const auto [mu, var] = at(c, x, y);
+                        row[size_t(x) * 3 + c] = relative_variance(mu, var);
+                    }
+                float* sum = across.data() + size_t(y - y0) * w * 3;
+                for (int x = 0; x < w; ++x) {
+                    const int tile_x0 = x / T * T, tile_x1 = std::min(tile_x0 + T, w);
+                    for (int c = 0; c < 3; ++c) {
+                        float s = row[size_t(x) * 3 + c];
+                        if (x > tile_x0)
+                            s += row[size_t(x - 1) * 3 + c];
+                        if (x + 1 < tile_x1)
+                            s += row[size_t(x + 1) * 3 + c];
+                        sum[size_t(x) * 3 + c] = s;
+                    }
+                }
             }
+            for (int y = y0; y < y1; ++y) {
+                const int ya = std::max(y - 1, y0), yb = std::min(y + 1, y1 - 1);
+                for (int x = 0; x < w; ++x) {
+                    uint8_t& tile = m.converged[size_t(ty) * m.tiles_x + x / T];
+                    if (!tile)
+                        continue;
+                    const int tile_x0 = x / T * T, tile_x1 = std::min(tile_x0 + T, w);
+                    const int nx = std::min(x + 1, tile_x1 - 1) - std::max(x - 1, tile_x0) + 1;
+                    const float count = float(nx * (yb - ya + 1));
+                    for (int c = 0; c < 3; ++c) {
+                        float s = 0;
+                        for (int yy = ya; yy <= yb; ++yy)
+                            s += across[(size_t(yy - y0) * w + x) * 3 + c];
+                        const float own = r[(size_t(y - y0) * w + x) * 3 + c];
+                        if (!(own <= cap) || !(s <= limit * count))
+                            tile = 0;
+                    }
+                }
+            }
+        }
+    });
     if (!m.any())
         m.converged.clear();
     return m;
@@ -127,6 +183,16 @@ ConvergedTiles converged_tiles_of(const ImageBuf& src, const AovSet& aovs, const
         variance[c] = read_plane(src, color_variance[c], true);
     }
     return converged_tiles_of(src, mean, variance, skip);
+}
+
+ConvergedCount count_converged_tiles(const ImageBuf& src, const AovSet& aovs,
+                                     const SkipOptions& skip)
+{
+    const ImageSpec& spec = src.spec();
+    ConvergedCount count;
+    count.tiles = ((spec.width + T - 1) / T) * ((spec.height + T - 1) / T);
+    count.converged = converged_tiles_of(src, aovs, skip).count();
+    return count;
 }
 
 ConvergedTiles tiles_where_equal(const Plane a[3], const Plane b[3], const ConvergedTiles* within)

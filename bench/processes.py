@@ -1,0 +1,20 @@
+"""Whole mcdntool processes as a benchmark sees them (bench/production, bench/skip_frames)."""
+import os
+import subprocess
+
+
+def measure(command, memory_gb, log, band_pixels=None):
+    """(wall s, user s, sys s, peak RSS MB, ok) of one child process under /usr/bin/time,
+    capped at memory_gb of address space so that an unbounded run fails instead of taking
+    the machine; its output goes to `log`."""
+    env = dict(os.environ)
+    env.pop("MCDN_BAND_PIXELS", None)
+    if band_pixels is not None:
+        env["MCDN_BAND_PIXELS"] = str(band_pixels)
+    timing = log + ".time"
+    full = ["prlimit", f"--as={int(memory_gb * 2**30)}", "/usr/bin/time", "-f", "%e %U %S %M",
+            "-o", timing] + command
+    with open(log, "w") as out:
+        ok = subprocess.run(full, stdout=out, stderr=subprocess.STDOUT, env=env).returncode == 0
+    wall, user, sys_s, rss_kb = open(timing).read().split()[-4:]
+    return float(wall), float(user), float(sys_s), int(rss_kb) / 1024, ok
