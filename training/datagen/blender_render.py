@@ -2,7 +2,8 @@
 
     blender -b --factory-startup -t 2 -P blender_render.py -- --spec spec.json
 
-spec.json holds: family, seed, crop, frame, levels, K, ref_spp, ref_K, raw_dir, exposure.
+spec.json holds: family, seed, crop, frame, levels, K, ref_spp, ref_K, raw_dir, exposure, and
+optionally adaptive_levels, adaptive_threshold, sky, only_tags (render only those levels).
 Writes raw per-seed multilayer EXRs ``L<NNNN>_s<k>.exr`` / ``ref_s<k>.exr`` into raw_dir and
 ``render_log.json`` (scene description, per-render seeds, spp, CPU and wall seconds).  All
 seeds of all levels render in this one process (a Cycles seed is only reproducible within a
@@ -153,6 +154,8 @@ def main():
     rk = spec["ref_K"]
     for s in range(rk):
         jobs.append(("ref", spec["ref_spp"], rk, s, spec["ref_spp"] // rk, 100000 + s))
+    if spec.get("only_tags"):  # re-render some levels of a crop (the seeds stay theirs)
+        jobs = [j for j in jobs if j[0] in spec["only_tags"]]
     for tag, n, k, s, spp, seed in jobs:
         path = os.path.join(spec["raw_dir"], f"{tag}_s{s}.exr")
         adaptive = spec.get("adaptive_threshold") if tag.startswith("A") else None

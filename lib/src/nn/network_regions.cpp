@@ -23,16 +23,42 @@ std::vector<Rect> network_regions(const ConvergedTiles& m, const nn::Net& net, i
         return double(std::min(x1 + halo, m.width) - std::max(x0 - halo, 0))
                * (std::min(y1 + halo, m.height) - std::max(y0 - halo, 0));
     };
-    double whole = 0, skipping = 0;
+    // Two covers of the non-converged pixels, the cheaper kept: runs of non-converged tiles
+    // (unconverged_rects: tight where they are few), and the whole-image run's own tiles, each
+    // cut to the bounding box of its non-converged tiles and left out when it has none (never
+    // more work than the whole image; fewer, larger windows where a boundary is ragged and
+    // runs fragment into many thin rectangles, each with its halo).
+    double whole = 0, runs = 0, blocks = 0;
+    std::vector<Rect> block_regions;
     const int side = std::max(tile_size / alignment, 1) * alignment;
+    const int T = kConvergedTileSize;
     for (int y = 0; y < m.height; y += side)
-        for (int x = 0; x < m.width; x += side)
-            whole += window_area(x, y, x + side, y + side);
+        for (int x = 0; x < m.width; x += side) {
+            const int bx1 = std::min(x + side, m.width), by1 = std::min(y + side, m.height);
+            whole += window_area(x, y, bx1, by1);
+            int tx0 = m.tiles_x, ty0 = m.tiles_y, tx1 = -1, ty1 = -1;
+            for (int ty = y / T; ty <= (by1 - 1) / T; ++ty)
+                for (int tx = x / T; tx <= (bx1 - 1) / T; ++tx)
+                    if (!m.tile(tx, ty)) {
+                        tx0 = std::min(tx0, tx);
+                        ty0 = std::min(ty0, ty);
+                        tx1 = std::max(tx1, tx);
+                        ty1 = std::max(ty1, ty);
+                    }
+            if (tx1 < 0)
+                continue;
+            const Rect r { std::max(x, tx0 * T), std::max(y, ty0 * T),
+                           std::min(bx1, (tx1 + 1) * T), std::min(by1, (ty1 + 1) * T) };
+            block_regions.push_back(r);
+            blocks += window_area(r.x0, r.y0, r.x1, r.y1);
+        }
     for (const Rect& r : unconverged_rects(m, tile_size, alignment)) {
         regions.push_back({ r.x0, r.y0, r.x1, r.y1 });
-        skipping += window_area(r.x0, r.y0, r.x1, r.y1);
+        runs += window_area(r.x0, r.y0, r.x1, r.y1);
     }
-    if (skipping > kWorthSkipping * whole)
+    if (blocks < runs)
+        regions = std::move(block_regions);
+    if (std::min(blocks, runs) > kWorthSkipping * whole)
         regions.clear();
     return regions;
 }
