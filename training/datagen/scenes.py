@@ -17,6 +17,9 @@ import numpy as np
 from mathutils import Vector
 
 FAMILIES = ["interior", "exterior", "texture", "bump", "metal", "glass", "emissive", "fine", "dof"]
+# Families a dataset has only when asked for (--families): not in the default rotation, so
+# that the default datasets' crops keep their families.
+EXTRA_FAMILIES = ["caustics"]
 
 TEXTURES = ["checker", "noise", "voronoi", "brick", "wave", "magic"]
 
@@ -904,13 +907,86 @@ def level_camera(sky, aspect):
     return {"sky": sky, "pitch_deg": round(math.degrees(pitch), 3)}
 
 
+def build_caustics(rng, seed):
+    """Sun through clear glass and off mirrors onto a diffuse ground and wall, all in view:
+    caustics seen directly and through the glass, whose light arrives on a few paths per
+    pixel (heavy-tailed noise). The camera looks at where the first sphere's caustic lands."""
+    clear_scene()
+    info = {"family": "caustics", "seed": seed, "stage": {"stage": "caustic_court"}}
+    gm, ginfo = make_material(rng, rng.choice(["textured", "textured", "diffuse", "bumped"]), "ground")
+    quad("ground", (0, 0, 0), (200, 200), (0, 0, 0), gm)
+    wm, winfo = make_material(rng, rng.choice(["textured", "bumped", "diffuse"]), "wall")
+    wall_y = rng.uniform(1.5, 3.0)
+    quad("wall", (0, wall_y, 2.0), (10.0, 4.0), (math.pi / 2, 0, 0), wm)
+    # The sun behind the camera's side (-y), low enough that caustics stretch towards the wall.
+    sky = sun_and_sky(rng, elevation=rng.uniform(25, 55))
+    sun = bpy.data.objects["sun"]
+    elev = math.radians(sky["sun_elevation"])
+    azim = math.radians(rng.uniform(-130, -50))
+    sun.location = (math.cos(elev) * math.cos(azim) * 50, math.cos(elev) * math.sin(azim) * 50,
+                    math.sin(elev) * 50)
+    look_at(sun, (0, 0, 0))
+    sun.data.angle = math.radians(rng.uniform(0.3, 1.0))
+    sun.data.energy = rng.uniform(3.0, 8.0)
+    world = bpy.context.scene.world.node_tree.nodes
+    if "Sky Texture" in world and world["Sky Texture"].sky_type == "NISHITA":
+        world["Sky Texture"].sun_rotation = azim
+    info["stage"].update({"ground": ginfo, "wall": winfo, "wall_y": round(wall_y, 3), "sky": sky,
+                          "sun_azimuth": round(math.degrees(azim), 2)})
+    to_ground = -Vector(sun.location).normalized()  # the sunlight's direction
+    objects, targets = [], []
+    for i in range(rng.randint(1, 3)):  # clear glass spheres
+        r = rng.uniform(0.25, 0.6)
+        c = Vector((rng.uniform(-1.5, 1.5), rng.uniform(-1.0, wall_y - 1.2), r))
+        m, nt, p = new_material("glass")
+        ior = rng.uniform(1.4, 1.6)
+        set_p(p, base=(1, 1, 1), transmission=1.0, rough=0.0, ior=ior, spec=0.5)
+        add_prim("sphere", tuple(c), (r, r, r), mat=m)
+        spot = c + to_ground * (c.z / -to_ground.z)  # where its focused light lands
+        targets.append(((c + spot) / 2))
+        objects.append({"prim": "sphere", "material": "clear glass", "ior": round(ior, 3),
+                        "radius": round(r, 3), "loc": [round(v, 3) for v in c]})
+    for i in range(rng.randint(1, 2)):  # mirror-like and rough metal: reflected caustics
+        kind = rng.choice(["torus", "cylinder", "sphere"])
+        s = rng.uniform(0.25, 0.5)
+        rough = rng.choice([rng.uniform(0.0, 0.03), rng.uniform(0.15, 0.35)])
+        m, nt, p = new_material("metal")
+        set_p(p, base=rand_color(rng, sat=(0.0, 0.3), val=(0.8, 1.0)), metallic=1.0, rough=rough)
+        loc = (rng.uniform(-2.0, 2.0), rng.uniform(-1.0, wall_y - 1.0), s)
+        rot = (rng.uniform(0.3, 1.3), 0, rng.uniform(0, 6.3)) if kind == "torus" else (0, 0, 0)
+        add_prim(kind, loc, (s, s, s), rot, m)
+        objects.append({"prim": kind, "material": "metal", "roughness": round(rough, 3),
+                        "size": round(s, 3), "loc": [round(v, 3) for v in loc]})
+    info["objects"] = objects
+    # Camera on the sun's side, looking at the first sphere's light on the ground.
+    cam_data = bpy.data.cameras.new("cam")
+    cam = bpy.data.objects.new("cam", cam_data)
+    bpy.context.scene.collection.objects.link(cam)
+    bpy.context.scene.camera = cam
+    tgt = targets[0]
+    cam.location = (tgt.x + rng.uniform(-2.0, 2.0), tgt.y - rng.uniform(3.0, 5.5), rng.uniform(0.6, 2.2))
+    look_at(cam, tgt)
+    cam_data.lens = rng.uniform(30, 60)
+    cam_data.clip_start, cam_data.clip_end = 0.01, 1000
+    info["camera"] = {"location": [round(v, 3) for v in cam.location],
+                      "target": [round(v, 3) for v in tgt], "lens_mm": round(cam_data.lens, 2)}
+    if rng.random() < 0.5:
+        cam_data.dof.use_dof = True
+        cam_data.dof.focus_distance = (Vector(cam.location) - tgt).length
+        cam_data.dof.aperture_fstop = rng.uniform(2.0, 8.0)
+        info["camera"]["dof_fstop"] = round(cam_data.dof.aperture_fstop, 2)
+    return info
+
+
 # ----------------------------------------------------------------------------------------
 # entry point
 # ----------------------------------------------------------------------------------------
 def build(family, seed):
-    if family not in FAMILIES:
-        raise ValueError(f"unknown family {family}; known: {FAMILIES}")
+    if family not in FAMILIES + EXTRA_FAMILIES:
+        raise ValueError(f"unknown family {family}; known: {FAMILIES + EXTRA_FAMILIES}")
     rng = random.Random(f"{family}:{seed}")
+    if family == "caustics":
+        return build_caustics(rng, seed)
     clear_scene()
     stage_name = rng.choice(FAMILY_STAGES[family])
     st = STAGES[stage_name](rng, family)
