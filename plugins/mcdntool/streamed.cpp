@@ -10,6 +10,7 @@
 
 #include "mcdn/chain.h"
 #include "mcdn/denoise.h"
+#include "mcdn/skip.h"
 
 #include "session.h"
 
@@ -108,6 +109,12 @@ bool run_streamed_chain(Session& s, const std::vector<Command>& commands, size_t
         mcdn::DenoisePlan plan;
         if (mcdn::plan_denoise(plan, input.spec(), s.aov_spec, error))
             std::cerr << "mcdntool: --denoise runs " << plan.describe() << "\n";
+    }
+    if (s.verbose && s.aovs().has(mcdn::Role::ColorVariance)) {
+        const mcdn::ConvergedCount converged = mcdn::count_converged_tiles(input, s.aovs());
+        std::cerr << format("mcdntool: {} of {} tiles converged (docs/skipping.md), passed through "
+                            "unless a stage has :skip=0\n",
+                            converged.converged, converged.tiles);
     }
     OIIO::Timer timer;
     mcdn::RowWriter writer;
