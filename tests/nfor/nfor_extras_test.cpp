@@ -3,6 +3,8 @@
 #include <OpenImageIO/imagebufalgo.h>
 
 #include "fixtures.h"
+#include "core/extra_aovs.h"
+#include "mcdn/chain.h"
 #include "mcdn/metrics.h"
 #include "mcdn/mix.h"
 #include "mcdn/nfor.h"
@@ -109,4 +111,60 @@ TEST(NforExtras, ThroughSureAndMixTheyStillAddUp)
     ASSERT_FALSE(out.has_error()) << out.geterror();
     EXPECT_LT(partition_error(out, p), 1e-4);
     EXPECT_GT(channel_relmse(out, p.key, sured, p.key), 1e-6);  // mixed, not the NFOR result
+}
+
+// An empty light group (0 in its mean, halves and variance over the frame) is left out of the
+// filters (read_extras does not hand it to them; one non-zero pixel and it is filtered): it
+// stays 0 through nfor and cnn, run whole or in a chain's bands, and the other groups still
+// add up to the denoised beauty.
+TEST(NforExtras, AnEmptyLightGroupIsLeftAsRendered)
+{
+    Partition p = add_light_groups(box16(), "cycles", true);
+    std::vector<std::string> names;
+    for (const char* face : { "", "A.", "B.", "variance." })
+        for (const char* c : { "R", "G", "B" })
+            names.push_back(std::string(face) + "ViewLayer.Combined_empty." + c);
+    OIIO::ImageSpec zero_spec(p.image.spec().width, p.image.spec().height, int(names.size()),
+                              OIIO::TypeDesc::FLOAT);
+    zero_spec.channelnames = names;
+    ImageBuf zeros(zero_spec);
+    OIIO::ImageBufAlgo::zero(zeros);
+    ImageBuf with_empty = OIIO::ImageBufAlgo::channel_append(p.image, zeros);
+    ASSERT_FALSE(with_empty.has_error()) << with_empty.geterror();
+    std::vector<int> empty;
+    for (int c = 0; c < 3; ++c)
+        empty.push_back(with_empty.spec().channelindex(names[c]));
+    AovSet aovs;
+    std::string error;
+    ASSERT_TRUE(resolve_aovs(aovs, p.spec, with_empty.spec(), error)) << error;
+    ASSERT_EQ(aovs.extras().size(), 3u);
+    std::vector<ExtraPlanes> extras;
+    ASSERT_TRUE(read_extras(extras, with_empty, aovs, true, error)) << error;
+    EXPECT_EQ(extras.size(), 2u);  // key and fill
+    ImageBuf lit;
+    lit.copy(with_empty);
+    std::vector<float> pixel(lit.nchannels());
+    lit.getpixel(5, 7, pixel.data());
+    pixel[empty[1]] = 0.5f;
+    lit.setpixel(5, 7, pixel.data());
+    ASSERT_TRUE(read_extras(extras, lit, aovs, true, error)) << error;
+    EXPECT_EQ(extras.size(), 3u);
+    for (const std::vector<std::string>& stages :
+         { std::vector<std::string> { "nfor" }, { "cnn" }, { "prefilter", "nfor", "sure", "mix" } })
+        for (size_t band_pixels : { size_t(0), size_t(128 * 32) }) {
+            ChainOptions chain;
+            chain.aovs = p.spec;
+            chain.stages = stages;
+            chain.band_pixels = band_pixels;
+            ImageBuf out;
+            ASSERT_TRUE(run_chain(out, with_empty, chain, {}, 2)) << out.geterror();
+            float largest = 0;
+            for (int y = 0; y < out.spec().height; ++y)
+                for (int x = 0; x < out.spec().width; ++x)
+                    for (int ch : empty)
+                        largest = std::max(largest, std::fabs(out.getchannel(x, y, 0, ch)));
+            EXPECT_EQ(largest, 0.0f) << stages[0] << ", bands of " << band_pixels;
+            if (stages[0] != "cnn")
+                EXPECT_LT(partition_error(out, p), 1e-4) << stages[0];
+        }
 }

@@ -21,7 +21,10 @@
 //   constant AOVs    nfor and prefilter drop a feature channel whose mean and halves hold
 //                    one value over the whole frame (a flat albedo, the depth of a
 //                    backdrop): nothing to filter, and a zero column of the regression.
-//   zero α'          mix gives α' = 0 and runs no network where y = x on a whole tile.
+//   zero α'          mix gives α' = 0 and runs no network where y = x on a whole tile,
+//                    nor its model and t-test on a band where that holds on every tile.
+//   empty extras     an extra AOV that is 0 over the frame in its mean and halves (an empty
+//                    light group) is not filtered: it stays 0, what a filter gives it.
 //
 // The pass-through keeps the render's own error (per pixel at most max_relative_error² of
 // relMSE), where a denoiser might still reduce it: lower the threshold for more accuracy, raise it for more speed.

@@ -42,14 +42,19 @@ bool resolved_stages(std::vector<std::string>& stages, const ImageSpec& spec,
 }
 
 // Which feature channels (every face of albedo, normal, depth, visibility, and any channel a
-// stage's features= names) hold one sanitized value over the frame: one pass over the
-// frame's rows, every channel at once (a channel at a time would stride through all of
-// them once per channel).
+// stage's features= names) and extra AOV channels hold one sanitized value over the frame:
+// one pass over the frame's rows, every channel at once (a channel at a time would stride
+// through all of them once per channel).
 std::map<std::string, float> constant_features(const ImageBuf& src, const AovSet& aovs,
                                                const ChainOptions& o)
 {
     const ImageSpec& spec = src.spec();
     std::vector<std::string> names = feature_channel_names(aovs, spec);
+    // The extras' means and halves too: an empty one is left out (core/extra_aovs.h).
+    for (const AovSet::Extra& extra : aovs.extras())
+        for (const std::vector<int>* channels : { &extra.channels, &extra.half_a, &extra.half_b })
+            for (int ch : *channels)
+                names.push_back(spec.channel_name(ch));
     for (const char* key : { "prefilter.features", "nfor.features" })
         if (auto it = o.settings.find(key); it != o.settings.end())
             for (const std::string& name : OIIO::Strutil::splits(it->second, ","))

@@ -2,7 +2,10 @@
 
 #include <OpenImageIO/strutil.h>
 
+#include <algorithm>
+
 #include "core/attributes.h"
+#include "core/frame_facts.h"
 
 namespace mcdn {
 
@@ -18,6 +21,42 @@ Plane borrowed_half(const Plane& extra, const Plane& color, const Plane& color_h
             half.px[i] = sanitize(extra.px[i] + (color_half.px[i] - c) * (extra.px[i] / c));
     }
     return half;
+}
+
+bool all_zero(const Plane& p)
+{
+    return std::all_of(p.px.begin(), p.px.end(), [](float v) { return v == 0.0f; });
+}
+
+/// An extra that holds 0 over the frame in its mean and its own halves (an empty light
+/// group): over the frame's facts in a chain band, over src's planes when src is the frame,
+/// and never decided in a band without facts (the decision must not depend on the bands).
+bool empty_extra(const AovSet::Extra& extra, const ImageBuf& src, const ExtraPlanes& planes,
+                 bool halves)
+{
+    const ImageSpec& spec = src.spec();
+    FrameFacts facts;
+    if (frame_facts(facts, spec) && facts.has_constant) {
+        std::vector<int> channels = extra.channels;
+        channels.insert(channels.end(), extra.half_a.begin(), extra.half_a.end());
+        channels.insert(channels.end(), extra.half_b.begin(), extra.half_b.end());
+        return std::all_of(channels.begin(), channels.end(), [&](int ch) {
+            auto it = facts.constant.find(spec.channel_name(ch));
+            return it != facts.constant.end() && it->second == 0.0f;
+        });
+    }
+    if (is_frame_band(spec))
+        return false;
+    for (int c = 0; c < 3; ++c)
+        if (!all_zero(planes.mean[c]))
+            return false;
+    if (!halves)
+        return true;
+    for (const std::vector<int>* half : { &extra.half_a, &extra.half_b })
+        for (int ch : *half)
+            if (!all_zero(read_plane(src, ch)))
+                return false;
+    return true;
 }
 
 }  // namespace
@@ -43,6 +82,8 @@ bool read_extras(std::vector<ExtraPlanes>& extras, const ImageBuf& src, const Ao
         planes.channels = extra.channels;
         for (int c = 0; c < 3; ++c)
             planes.mean[c] = read_plane(src, extra.channels[c]);
+        if (empty_extra(extra, src, planes, halves))
+            continue;  // nothing to denoise: left as rendered, 0, what any filter gives it
         if (halves) {
             const bool own = !extra.half_a.empty() && !extra.half_b.empty();
             for (int c = 0; c < 3; ++c) {

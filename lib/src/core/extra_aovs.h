@@ -26,7 +26,10 @@ bool denoises_extras(bool asked, const ImageBuf& src);
 /// Reads the extras of `aovs` from src; with `halves`, also their half buffers. An extra
 /// without halves of its own takes its share of the beauty's: E_A = E + (C_A − C)·E/C (and
 /// E where C is ~0), so a set of extras that partitions the beauty has halves that partition
-/// the beauty's halves. False (with `error` naming the AOV) for an extra that is not RGB.
+/// the beauty's halves. An extra that holds 0 over the frame in its mean and halves (an
+/// empty light group) is left out: it stays as rendered, which is what denoising it would
+/// give, and the others still add up to the beauty. False (with `error` naming the AOV) for
+/// an extra that is not RGB.
 bool read_extras(std::vector<ExtraPlanes>& extras, const ImageBuf& src, const AovSet& aovs,
                  bool halves, std::string& error);
 
