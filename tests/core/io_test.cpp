@@ -266,3 +266,38 @@ TEST(Io, RowWriterWritesWhatWriteImageWritesAndLeavesNothingUnclosed)
         EXPECT_TRUE(name == "whole.exr" || name == "rows.exr") << f;
     }
 }
+
+// Renderers write tiled EXRs (Arnold's and RenderMan's drivers often do): read whole or for
+// the roles alone (rows of tiles, not scanlines, from a tiled file), every input reads the
+// same as its scanline original. A partial last row and column of tiles included.
+TEST(Io, TiledFilesReadAsTheirScanlineOriginals)
+{
+    const std::string dir = mcdn_test::temp_dir("tiled");
+    std::vector<InputFile> scanline, tiled;
+    for (const auto& [name, kind] : { std::pair<std::string, InputKind> { "box_0016spp.exr", InputKind::Mean },
+                                      { "box_0016spp_var.exr", InputKind::Variance },
+                                      { "box_0016spp_A.exr", InputKind::HalfA },
+                                      { "box_0016spp_B.exr", InputKind::HalfB } }) {
+        ImageBuf in(box(name));
+        ASSERT_TRUE(in.read(0, 0, true, OIIO::TypeDesc::FLOAT)) << in.geterror();
+        in.set_write_tiles(48, 24);  // does not divide the 128² frame
+        const std::string path = dir + "/" + name;
+        ASSERT_TRUE(in.write(path)) << in.geterror();
+        auto check = OIIO::ImageInput::open(path);
+        ASSERT_TRUE(check && check->spec().tile_width == 48) << path;
+        scanline.push_back({ box(name), kind });
+        tiled.push_back({ path, kind });
+    }
+    for (bool only_roles : { false, true }) {
+        InputSelection selection;
+        selection.only_roles = only_roles;
+        selection.aovs.preset = "cycles";
+        ImageBuf a, b;
+        ASSERT_TRUE(read_inputs(a, scanline, selection)) << a.geterror();
+        ASSERT_TRUE(read_inputs(b, tiled, selection)) << b.geterror();
+        ASSERT_EQ(a.nchannels(), b.nchannels());
+        const OIIO::ImageBufAlgo::CompareResults cmp = OIIO::ImageBufAlgo::compare(a, b, 0.0f, 0.0f);
+        EXPECT_EQ(cmp.nfail, 0u) << (only_roles ? "roles only" : "every channel");
+        EXPECT_EQ(cmp.maxerror, 0.0);
+    }
+}

@@ -239,12 +239,22 @@ bool read_pixels_into(ImageBuf& dst, int first, const FileLayout& layout,
                 kept.push_back(c);
         if (kept.empty())
             continue;
-        const int band = std::max(1, int((int64_t(1) << 22) / (int64_t(part.width) * n)));
+        // A tiled file (Arnold's and RenderMan's EXRs often are) is read in rows of whole
+        // tiles: OIIO reads tiles, not scanlines, from it.
+        const bool tiled = part.tile_width > 0 && part.tile_height > 0;
+        int band = std::max(1, int((int64_t(1) << 22) / (int64_t(part.width) * n)));
+        if (tiled)
+            band = std::max(1, band / part.tile_height) * part.tile_height;
         for (int y = part.y; y < part.y + part.height; y += band) {
             const int y1 = std::min(part.y + part.height, y + band);
             rows.resize(size_t(y1 - y) * part.width * n);
-            if (!in->read_scanlines(layout.subimages[s], 0, y, y1, part.z, 0, n, TypeDesc::FLOAT,
-                                    rows.data()))
+            const bool read
+                = tiled ? in->read_tiles(layout.subimages[s], 0, part.x, part.x + part.width, y, y1,
+                                         part.z, part.z + std::max(part.depth, 1), 0, n,
+                                         TypeDesc::FLOAT, rows.data())
+                        : in->read_scanlines(layout.subimages[s], 0, y, y1, part.z, 0, n,
+                                             TypeDesc::FLOAT, rows.data());
+            if (!read)
                 return failed();
             for (size_t p = 0; p < size_t(y1 - y) * part.width; ++p) {
                 float* to = out + (size_t(y - part.y) * part.width + p) * total;
