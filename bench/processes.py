@@ -1,4 +1,6 @@
-"""Whole mcdntool processes as a benchmark sees them (bench/production, bench/skip_frames)."""
+"""Whole mcdntool processes as a benchmark sees them (bench/production, bench/skip_frames,
+bench/caustics), and our metrics of their results."""
+import json
 import os
 import subprocess
 
@@ -18,3 +20,11 @@ def measure(command, memory_gb, log, band_pixels=None):
         ok = subprocess.run(full, stdout=out, stderr=subprocess.STDOUT, env=env).returncode == 0
     wall, user, sys_s, rss_kb = open(timing).read().split()[-4:]
     return float(wall), float(user), float(sys_s), int(rss_kb) / 1024, ok
+
+
+def metrics(tool, path, reference, trim=False):
+    """mcdntool --metrics of path's colour against reference (trim: the 0.01% best and worst
+    pixels dropped), as a dict: relmse, rmse, smape, ssim, ..."""
+    out = subprocess.run([tool, "-i", path, f"--metrics:format=json:trim={int(trim)}", reference],
+                         check=True, capture_output=True, text=True).stdout
+    return json.loads(out.strip().splitlines()[-1])

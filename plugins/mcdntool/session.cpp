@@ -352,14 +352,15 @@ bool run_info(Session& s, const Command& c, std::string& error)
     mcdn::DenoisePlan plan;
     if (mcdn::plan_denoise(plan, spec, s.aov_spec, error))
         std::cout << "    --denoise    runs " << plan.describe() << "\n";
-    const mcdn::SkipOptions skip;
-    const mcdn::ConvergedCount converged = mcdn::count_converged_tiles(s.image(), s.aovs(), skip);
-    if (s.aovs().has(Role::ColorVariance))
+    if (s.aovs().has(Role::ColorVariance)) {
+        const mcdn::SkipOptions skip;
+        const mcdn::ConvergedCount converged = mcdn::count_converged_tiles(s.image(), s.aovs(), skip);
         std::cout << format("  converged tiles: {} of {} ({:.0f}%) at :converged={:g}, passed "
                             "through by every stage\n",
                             converged.converged, converged.tiles,
                             100.0 * converged.converged / std::max(converged.tiles, 1),
                             skip.max_relative_error);
+    }
     if (c.has("verbose"))
         std::cout << "  channels: " << Strutil::join(spec.channelnames, ", ") << "\n";
     return true;

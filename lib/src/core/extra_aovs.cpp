@@ -31,32 +31,25 @@ bool all_zero(const Plane& p)
 /// An extra that holds 0 over the frame in its mean and its own halves (an empty light
 /// group): over the frame's facts in a chain band, over src's planes when src is the frame,
 /// and never decided in a band without facts (the decision must not depend on the bands).
-bool empty_extra(const AovSet::Extra& extra, const ImageBuf& src, const ExtraPlanes& planes,
-                 bool halves)
+bool empty_extra(const AovSet::Extra& extra, const ImageBuf& src, const ExtraPlanes& planes)
 {
     const ImageSpec& spec = src.spec();
+    std::vector<int> halves = extra.half_a;
+    halves.insert(halves.end(), extra.half_b.begin(), extra.half_b.end());
     FrameFacts facts;
     if (frame_facts(facts, spec) && facts.has_constant) {
-        std::vector<int> channels = extra.channels;
-        channels.insert(channels.end(), extra.half_a.begin(), extra.half_a.end());
-        channels.insert(channels.end(), extra.half_b.begin(), extra.half_b.end());
-        return std::all_of(channels.begin(), channels.end(), [&](int ch) {
+        auto zero = [&](int ch) {
             auto it = facts.constant.find(spec.channel_name(ch));
             return it != facts.constant.end() && it->second == 0.0f;
-        });
+        };
+        return std::all_of(extra.channels.begin(), extra.channels.end(), zero)
+               && std::all_of(halves.begin(), halves.end(), zero);
     }
     if (is_frame_band(spec))
         return false;
-    for (int c = 0; c < 3; ++c)
-        if (!all_zero(planes.mean[c]))
-            return false;
-    if (!halves)
-        return true;
-    for (const std::vector<int>* half : { &extra.half_a, &extra.half_b })
-        for (int ch : *half)
-            if (!all_zero(read_plane(src, ch)))
-                return false;
-    return true;
+    return std::all_of(planes.mean, planes.mean + 3, all_zero)
+           && std::all_of(halves.begin(), halves.end(),
+                          [&](int ch) { return all_zero(read_plane(src, ch)); });
 }
 
 }  // namespace
@@ -82,7 +75,7 @@ bool read_extras(std::vector<ExtraPlanes>& extras, const ImageBuf& src, const Ao
         planes.channels = extra.channels;
         for (int c = 0; c < 3; ++c)
             planes.mean[c] = read_plane(src, extra.channels[c]);
-        if (empty_extra(extra, src, planes, halves))
+        if (empty_extra(extra, src, planes))
             continue;  // nothing to denoise: left as rendered, 0, what any filter gives it
         if (halves) {
             const bool own = !extra.half_a.empty() && !extra.half_b.empty();

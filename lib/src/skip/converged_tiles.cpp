@@ -38,11 +38,6 @@ bool ConvergedTiles::covers(Rect r) const
     return true;
 }
 
-float relative_standard_error(float mean, float variance_of_mean)
-{
-    return std::sqrt(std::max(variance_of_mean, 0.0f) / (mean * mean + kRelativeFloor));
-}
-
 namespace {
 
 /// A pixel's relative variance Var[mean] / (mean² + 0.01): its expected relMSE as rendered.
@@ -51,6 +46,15 @@ inline float relative_variance(float mean, float variance)
 {
     return std::max(variance, 0.0f) / (mean * mean + kRelativeFloor);
 }
+
+}  // namespace
+
+float relative_standard_error(float mean, float variance_of_mean)
+{
+    return std::sqrt(relative_variance(mean, variance_of_mean));
+}
+
+namespace {
 
 /// The map of a width × height image, at(c, x, y) = {mean, variance} (mcdn/skip.h): a tile is
 /// converged when at every pixel and channel the relative variance averaged over the pixel's
