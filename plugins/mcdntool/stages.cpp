@@ -164,7 +164,10 @@ std::vector<CommandInfo> stage_commands()
           "bandwidth chosen per pixel. window=19 patch=7 k=0.5,1.0; mse=1 and selection=1 "
           "add nfor.mse.* and nfor.selection.* channels. Prefilters the features itself "
           "unless --prefilter ran. Extra AOVs (light groups, extra.NAME) are denoised with "
-          "the beauty's weights so they still add up (extras=0: keep them as they are).",
+          "the beauty's weights so they still add up (extras=0: keep them as they are). "
+          "A pixel holding one sample worth a hundred of its neighbours (a caustic through "
+          "glass, a firefly) is kept out of the regressions and added back where it was "
+          "(outliers=keep; drop: removed, as a sample clamp would; off).",
           queue_nfor, false, check<mcdn::NforOptions>,
           "the colour and its two half buffers (each the mean of half the samples: "
           "-i:as=halfA, -i:as=halfB; a Tungsten folder has them); the variance of the mean "

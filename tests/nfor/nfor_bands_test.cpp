@@ -37,7 +37,7 @@ TEST(Bands, NforInBandsEqualsTheWholeFrame)
     NforOptions whole;
     whole.band_pixels = 0;
     NforOptions banded;
-    // Four bands of 64 rows, each with a 96-row halo (75 rounded up to whole tiles).
+    // Four bands of 64 rows, each with a 96-row halo (77 rounded up to whole tiles).
     banded.band_pixels = int64_t(src.spec().width) * 64;
     ImageBuf a = nfor(src, whole, {}, 2), b = nfor(src, banded, {}, 2);
     ASSERT_FALSE(a.has_error()) << a.geterror();
@@ -58,9 +58,9 @@ TEST(Bands, PrefilterInBandsEqualsTheWholeFrame)
     EXPECT_EQ(b.spec().get_int_attribute("mcdn:prefiltered", 0), 1);
 }
 
-// The tests above have teeth: a halo well short of NFOR's reach (32 rows against 75 at the default
+// The tests above have teeth: a halo well short of NFOR's reach (32 rows against 77 at the default
 // settings) changes pixels near the band edges. (On this fixture 50 rows already give the
-// whole-frame result: far NL-means weights underflow to exactly 0; 75 is the bound for any
+// whole-frame result: far NL-means weights underflow to exactly 0; 77 is the bound for any
 // image.)
 TEST(Bands, TooSmallAHaloShows)
 {

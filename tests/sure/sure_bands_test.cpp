@@ -50,10 +50,10 @@ TEST(SureBands, NforChainInBandsEqualsTheWholeFrame)
                                 } } });
     SureOptions whole;
     whole.denoiser_radius = chain_radius({ stage_reach(p), stage_reach(n) });
-    EXPECT_EQ(whole.denoiser_radius, 13 + 62);
+    EXPECT_EQ(whole.denoiser_radius, 13 + 64);
     whole.band_pixels = 0;
     SureOptions banded = whole;
-    banded.band_pixels = 64 * 64;  // 64 own rows, halos of 75 rounded to 96
+    banded.band_pixels = 64 * 64;  // 64 own rows, halos of 77 rounded to 96
     ImageBuf a = sure_of(src, chain, whole), b = sure_of(src, chain, banded);
     EXPECT_TRUE(same_pixels(a, b)) << "largest difference " << max_difference(a, b);
 }
@@ -90,10 +90,10 @@ TEST(SureBands, TooSmallARadiusShows)
 
 TEST(SureBands, ChainRadiusCoversEachStageOnTheInputItGets)
 {
-    // nfor prefilters itself (75) unless a prefilter ran before it (13 + 62); a stage of
+    // nfor prefilters itself (77) unless a prefilter ran before it (13 + 64); a stage of
     // unknown reach (the cnn, a callable) makes the chain's unknown: SURE runs it whole.
-    EXPECT_EQ(chain_radius({ stage_reach(NforOptions()) }), 75);
-    EXPECT_EQ(chain_radius({ stage_reach(PrefilterOptions()), stage_reach(NforOptions()) }), 75);
-    EXPECT_EQ(chain_radius({ stage_reach(NforOptions()), stage_reach(PrefilterOptions()) }), 88);
+    EXPECT_EQ(chain_radius({ stage_reach(NforOptions()) }), 77);
+    EXPECT_EQ(chain_radius({ stage_reach(PrefilterOptions()), stage_reach(NforOptions()) }), 77);
+    EXPECT_EQ(chain_radius({ stage_reach(NforOptions()), stage_reach(PrefilterOptions()) }), 90);
     EXPECT_EQ(chain_radius({ stage_reach(PrefilterOptions()), StageReach() }), -1);
 }

@@ -55,6 +55,31 @@ struct NforOptions {
     /// the beauty still do. Each extra costs about the three regressions of the beauty.
     bool denoise_extras = true;
 
+    /// Heavy-tailed samples: a caustic or firefly pixel whose mean holds one sample worth
+    /// a hundred or more of its neighbours. The regressions would spread it over their
+    /// windows as blotches, black beside white (lib/src/nfor/outliers.h), so it is kept out
+    /// of them: its inputs become its 5×5 neighbourhood's medians. It is an outlier when
+    /// its variance of the mean exceeds outlier_variance_ratio times the neighbourhood's
+    /// median, and its mean exceeds theirs by outlier_sigma of their standard deviations and
+    /// by outlier_level_ratio times their value, the excess carried by one half buffer.
+    enum class Outliers {
+        /// The excess (render − median) is added back at the pixel after §5.4: the light
+        /// stays where and in the amount the renderer put it (as in the render, a firefly
+        /// stays a firefly), and the result converges to the render's mean.
+        Keep,
+        /// The excess is dropped, as a renderer's sample clamp would: lower error on a
+        /// frame with a few such samples, but a bias (the caustic loses the energy those
+        /// rare paths carry on average) until the sample count is high enough that no
+        /// pixel is an outlier.
+        Drop,
+        /// Not detected: the regressions see every pixel as rendered.
+        Off,
+    };
+    Outliers outliers = Outliers::Keep;
+    float outlier_sigma = 16.0f;
+    float outlier_variance_ratio = 256.0f;
+    float outlier_level_ratio = 64.0f;
+
     /// Add channels nfor.mse.R/G/B (estimated MSE of the chosen result, first pass) and
     /// nfor.selection.R/G/B (0: k = candidate_k[0], 1: candidate_k[1]).
     bool output_mse = false;
@@ -68,7 +93,7 @@ struct NforOptions {
 
     /// Frames with more pixels run in horizontal bands of at most this many pixels (about
     /// twice 1920×1080), each with NFOR's receptive radius of extra rows above and below
-    /// (75 rows at the default settings): the same output, memory that follows the band
+    /// (77 rows at the default settings): the same output, memory that follows the band
     /// rather than the frame, more time (the halos are computed twice). 0: always the
     /// whole frame.
     int64_t band_pixels = int64_t(1) << 22;
@@ -89,7 +114,7 @@ bool nfor(ImageBuf& dst, const ImageBuf& src, const NforOptions& options = {}, R
 ImageBuf nfor(const ImageBuf& src, const NforOptions& options = {}, ROI roi = {},
               int nthreads = 0);
 
-/// How far an output pixel reaches into the input, in pixels: 75 at the defaults, 62 when
+/// How far an output pixel reaches into the input, in pixels: 77 at the defaults, 64 when
 /// the input is already prefiltered ("mcdn:prefiltered", as after a prefilter stage). The
 /// halo of its bands, and its share of a chain's SureOptions::denoiser_radius.
 int receptive_radius(const NforOptions& options, bool prefiltered);

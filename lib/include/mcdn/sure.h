@@ -48,7 +48,7 @@ struct SureOptions {
 
     /// How far the denoiser's output at a pixel reaches into its input, in pixels: the sum
     /// of its stages' receptive radii (receptive_radius() of prefilter.h, nfor.h and cnn.h:
-    /// 13, 75 and 30 at the defaults, nfor 62 after a prefilter; mcdn::chain_radius;
+    /// 13, 77 and 30 at the defaults, nfor 64 after a prefilter; mcdn::chain_radius;
     /// mcdntool, run_chain and the Python module set it). When known (>= 0), frames above
     /// band_pixels run in horizontal bands, each with this many rows of halo (rounded up to
     /// whole converged tiles): the probe step and the probes' random numbers are the whole

@@ -171,7 +171,7 @@ const std::vector<std::string>& setting_keys(const std::string& stage)
     static const std::map<std::string, std::vector<std::string>> keys = {
         { "prefilter", { "window", "patch", "k", "features", "features-out", "skip", "converged" } },
         { "nfor", { "window", "patch", "k", "mse", "selection", "features", "features-out",
-                    "halves", "extras", "skip", "converged" } },
+                    "halves", "extras", "outliers", "skip", "converged" } },
         { "cnn", { "weights", "tile", "extras", "skip", "converged" } },
         { "sure", { "probes", "eps", "seed", "skip", "converged" } },
         { "mix", { "model", "weights", "ttest", "alpha", "afloor", "outlier", "drop", "skip", "converged" } },
@@ -206,6 +206,18 @@ bool apply_settings(NforOptions& o, const Settings& s, std::string& error)
                   .list("features", o.extra_features)
                   .flag("features-out", o.features_out)
                   .flag("halves", o.use_halves)
+                  .custom("outliers", "must be keep, drop or off",
+                          [&](const std::string& v) {
+                              if (v == "keep")
+                                  o.outliers = NforOptions::Outliers::Keep;
+                              else if (v == "drop")
+                                  o.outliers = NforOptions::Outliers::Drop;
+                              else if (v == "off" || v == "0")
+                                  o.outliers = NforOptions::Outliers::Off;
+                              else
+                                  return false;
+                              return true;
+                          })
                   .skip(o.skip)
                   .ok();
     // The second pass (§5.4) filters with the first pass's window.

@@ -104,6 +104,14 @@ void ExtraAovs::share_rounding(const Plane color[3], const std::vector<Plane>& d
         }
 }
 
+void ExtraAovs::put_back_outliers(const OutlierPixels& outliers)
+{
+    for (size_t e = 0; e < m_extras.size() && e < outliers.extra_excess.size(); ++e)
+        for (size_t k = 0; k < outliers.pixels.size(); ++k)
+            for (int c = 0; c < 3; ++c)
+                m_extras[e].denoised[c].px[outliers.pixels[k]] += outliers.extra_excess[e][k][c];
+}
+
 void ExtraAovs::pass_through(const ConvergedTiles& converged)
 {
     for (Extra& e : m_extras)

@@ -7,6 +7,7 @@
 
 #include "skip/converged_tiles.h"
 #include "core/extra_aovs.h"
+#include "nfor/outliers.h"
 #include "nfor/regression.h"
 
 namespace mcdn {
@@ -43,6 +44,9 @@ public:
     /// beauty − Σ extras of the result is shared out in proportion to |extra|, so that they
     /// add up there as well.
     void share_rounding(const Plane color[3], const std::vector<Plane>& denoised_color);
+    /// Adds each extra's share of the outliers' excess back at their pixels (after
+    /// share_rounding, which sees the inputs without it).
+    void put_back_outliers(const OutlierPixels& outliers);
     /// Each extra's result is its render on the converged tiles (mcdn/skip.h).
     void pass_through(const ConvergedTiles& converged);
     /// Writes each extra's result into its channels of dst inside roi.

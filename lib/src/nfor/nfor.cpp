@@ -29,6 +29,7 @@
 #include "mcdn/color.h"
 #include "nfor/extras_regression.h"
 #include "nfor/mse_estimate.h"
+#include "nfor/outliers.h"
 #include "nfor/regression.h"
 #include "prefilter/feature_prefilter.h"
 
@@ -48,6 +49,20 @@ bool check_options(ImageBuf& dst, const NforOptions& o)
                      "patch {}, k {} and {})", o.window_radius, o.patch_radius,
                      o.candidate_k[0], o.candidate_k[1]);
     return ok;
+}
+
+/// The options' outlier rule, its level floor from the frame's mean |colour| (three
+/// channels summed, as the rule compares them).
+OutlierRule outlier_rule(const NforOptions& o, const ColourSums& frame)
+{
+    OutlierRule rule;
+    rule.sigma = o.outlier_sigma;
+    rule.variance_ratio = o.outlier_variance_ratio;
+    rule.level_ratio = o.outlier_level_ratio;
+    rule.level_floor = frame.n ? float(OutlierRule::kFloorOfMean * 3.0 * frame.sum_abs
+                                       / double(frame.n))
+                               : 0.0f;
+    return rule;
 }
 
 /// The colour role's four faces as planes: mean, variance of the mean, halves A and B.
@@ -226,6 +241,7 @@ void two_buffer_mse(std::vector<Plane> mse[2], ColorPlanes& color, const FirstPa
 struct ProbeIndex {
     const FrameFacts* facts = nullptr;
     uint64_t first = 0;
+    ColourSums colour;  // the frame's (facts->colour), else the planes' as read
 };
 
 ColourSums colour_sums(const ColorPlanes& color)
@@ -253,7 +269,7 @@ FirstPass first_pass_one_buffer(const ColorPlanes& color, std::vector<FeaturePla
     for (const FeaturePlanes& f : features)
         first.features.push_back(&f.mean);
     const double eps = relative_probe_step(
-        probe_index.facts ? probe_index.facts->colour : colour_sums(color), 1e-3);
+        probe_index.colour, 1e-3);
     Plane probe[3], probed[3];
     for (int c = 0; c < 3; ++c) {
         first.image[c] = first.guide[c] = &color.mean[c];
@@ -421,21 +437,31 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     if (!read_inputs(in, dst, src, options))
         return false;
     ColorPlanes& color = in.color;
-    // Extra AOVs go through the beauty's filters stage by stage (nfor/extras_regression.h).
-    ExtraAovs extras(std::move(in.extras));
     // mcdn/skip.h: converged tiles pass through every stage below; constant features go.
     const ConvergedTiles converged = converged_tiles_of(src, color.mean, color.variance,
                                                         options.skip);
-    if (options.skip.enabled)
-        drop_constant_features(in.features, in.feature_channels, src.spec());
-    trace.mark("read planes");
-
+    // The frame's colour (of a band's frame: core/frame_facts.h), before anything changes it.
     FrameFacts facts;
     ProbeIndex probe_index;
     if (frame_facts(facts, src.spec())) {
         probe_index.facts = &facts;
         probe_index.first = uint64_t(src.spec().y - facts.ybegin) * uint64_t(src.spec().width);
     }
+    probe_index.colour = probe_index.facts ? facts.colour : colour_sums(color);
+    // Heavy-tailed samples are kept out of the regressions and put back after them
+    // (nfor/outliers.h).
+    OutlierPixels outliers;
+    if (options.outliers != NforOptions::Outliers::Off)
+        outliers = take_out_outliers(color.mean, color.variance,
+                                     in.halves ? color.half_a : nullptr,
+                                     in.halves ? color.half_b : nullptr, in.extras, converged,
+                                     outlier_rule(options, probe_index.colour), nthreads);
+    // Extra AOVs go through the beauty's filters stage by stage (nfor/extras_regression.h).
+    ExtraAovs extras(std::move(in.extras));
+    if (options.skip.enabled)
+        drop_constant_features(in.features, in.feature_channels, src.spec());
+    trace.mark("read planes");
+
     const bool prefiltered = src.spec().get_int_attribute("mcdn:prefiltered", 0) == 1;
     prefilter_features(in.features, options, prefiltered, converged, nthreads);
     trace.mark("prefilter (5.1)");
@@ -473,6 +499,15 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
                 denoised[c].px[i] = color.mean[c].px[i];
     for (int c = 0; c < 3; ++c)
         pass_through_converged(denoised[c], color.mean[c], converged);
+    // The extras' sum stays the denoised beauty, before and after the outliers' excess.
+    if (!extras.empty()) {
+        extras.share_rounding(color.mean, denoised);
+        if (options.outliers == NforOptions::Outliers::Keep)
+            extras.put_back_outliers(outliers);
+        extras.pass_through(converged);
+    }
+    if (options.outliers == NforOptions::Outliers::Keep)
+        put_back_outliers(outliers, denoised.data());
 
     // dst (a copy of src) is made only now, when the working planes are gone; everything was
     // read from src before (dst may be src).
@@ -482,12 +517,8 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     roi = output_roi(dst, roi);
     for (int c = 0; c < 3; ++c)
         write_plane(dst, in.aovs.channels(Role::Color)[c], denoised[c], roi);
-    // The extras' sum stays the denoised beauty.
-    if (!extras.empty()) {
-        extras.share_rounding(color.mean, denoised);
-        extras.pass_through(converged);
+    if (!extras.empty())
         extras.write(dst, roi);
-    }
     if (!write_maps(dst, selected, roi))
         return false;
     // features-out: the means it prefiltered (§5.1) over their channels.
@@ -511,7 +542,9 @@ int receptive_radius(const NforOptions& o, bool prefiltered)
                         ? 0
                         : p.window_radius + p.patch_radius + p.second_window_radius
                               + p.second_patch_radius;
-    return prefilter + 2 * o.window_radius + o.patch_radius
+    // Outliers are decided on the 5×5 neighbourhood of the input (nfor/outliers.h).
+    const int outliers = o.outliers != NforOptions::Outliers::Off ? OutlierRule::radius : 0;
+    return outliers + prefilter + 2 * o.window_radius + o.patch_radius
            + 2 * (o.map_window_radius + o.map_patch_radius) + 2 * o.second_window_radius
            + o.second_patch_radius;
 }

@@ -1,0 +1,134 @@
+// Outliers taken out of NFOR's input and put back after it (outliers.h says why and when).
+#include "nfor/outliers.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace mcdn {
+namespace {
+
+/// Median of the values of `plane` (or of the sum of three planes) over the neighbourhood
+/// of (x, y) without the pixel itself, clipped to the plane. Lower median for an even count.
+template <class Value>
+float neighbourhood_median(int x, int y, int width, int height, int radius, Value value,
+                           std::vector<float>& scratch)
+{
+    scratch.clear();
+    for (int v = std::max(0, y - radius); v <= std::min(height - 1, y + radius); ++v)
+        for (int u = std::max(0, x - radius); u <= std::min(width - 1, x + radius); ++u)
+            if (u != x || v != y)
+                scratch.push_back(value(size_t(v) * width + u));
+    auto middle = scratch.begin() + (scratch.size() - 1) / 2;
+    std::nth_element(scratch.begin(), middle, scratch.end());
+    return *middle;
+}
+
+/// One outlier found: where, and the values that replace its inputs.
+struct Found {
+    uint32_t pixel;
+    std::array<float, 3> mean, variance, half_a, half_b;
+};
+
+}  // namespace
+
+OutlierPixels take_out_outliers(Plane mean[3], Plane variance[3], Plane* half_a, Plane* half_b,
+                           std::vector<ExtraPlanes>& extras, const ConvergedTiles& converged,
+                           const OutlierRule& rule, int nthreads)
+{
+    const int width = mean[0].width, height = mean[0].height, r = OutlierRule::radius;
+    auto sum3 = [](const Plane* p, size_t i) { return p[0].px[i] + p[1].px[i] + p[2].px[i]; };
+    std::vector<std::vector<Found>> rows(size_t(std::max(height, 0)));
+    parallel_for_index(height, nthreads, [&](int y) {
+        std::vector<float> scratch;
+        for (int x = 0; x < width; ++x) {
+            const size_t i = size_t(y) * width + x;
+            if (converged.pixel(x, y))
+                continue;
+            // Cheap tests first: the pixel's variance must exceed the ratio times the
+            // smallest of its neighbours' (the median is at least that).
+            const float own_variance = sum3(variance, i);
+            if (!(own_variance > 0.0f))
+                continue;
+            float lowest = own_variance;
+            for (int v = std::max(0, y - r); v <= std::min(height - 1, y + r); ++v)
+                for (int u = std::max(0, x - r); u <= std::min(width - 1, x + r); ++u)
+                    if (u != x || v != y)
+                        lowest = std::min(lowest, sum3(variance, size_t(v) * width + u));
+            if (!(own_variance > rule.variance_ratio * lowest))
+                continue;
+            const float typical_variance = neighbourhood_median(
+                x, y, width, height, r, [&](size_t j) { return sum3(variance, j); }, scratch);
+            if (!(own_variance > rule.variance_ratio * typical_variance))
+                continue;
+            const float typical = neighbourhood_median(
+                x, y, width, height, r, [&](size_t j) { return sum3(mean, j); }, scratch);
+            const float excess = sum3(mean, i) - typical;
+            if (!(excess > rule.sigma * std::sqrt(typical_variance))
+                || !(excess > rule.level_ratio * (typical + rule.level_floor)))
+                continue;
+            if (half_a && half_b) {
+                const float excess_a = sum3(half_a, i) - typical;
+                const float excess_b = sum3(half_b, i) - typical;
+                if (std::min(excess_a, excess_b) > 0.5f * std::max(excess_a, excess_b))
+                    continue;
+            }
+            Found f { uint32_t(i), {}, {}, {}, {} };
+            for (int c = 0; c < 3; ++c) {
+                auto median_of = [&](const Plane& p) {
+                    return neighbourhood_median(x, y, width, height, r,
+                                                [&](size_t j) { return p.px[j]; }, scratch);
+                };
+                f.mean[c] = median_of(mean[c]);
+                f.variance[c] = median_of(variance[c]);
+                f.half_a[c] = half_a ? median_of(half_a[c]) : 0.0f;
+                f.half_b[c] = half_b ? median_of(half_b[c]) : 0.0f;
+            }
+            rows[size_t(y)].push_back(f);
+        }
+    });
+
+    // Replaced only now, so that every median was taken from the render as it came.
+    OutlierPixels out;
+    out.extra_excess.resize(extras.size());
+    for (const std::vector<Found>& row : rows)
+        for (const Found& f : row) {
+            const size_t i = f.pixel;
+            std::array<float, 3> excess;
+            for (int c = 0; c < 3; ++c) {
+                excess[c] = mean[c].px[i] - f.mean[c];
+                // Each extra gives up its share of the beauty's excess, so that extras which
+                // add up to the beauty still do (and again once it is put back).
+                for (size_t e = 0; e < extras.size(); ++e) {
+                    const float share = std::fabs(mean[c].px[i]) > 0.0f
+                                            ? extras[e].mean[c].px[i] / mean[c].px[i]
+                                            : 0.0f;
+                    const float part = share * excess[c];
+                    if (out.extra_excess[e].size() < out.pixels.size() + 1)
+                        out.extra_excess[e].push_back({ 0.0f, 0.0f, 0.0f });
+                    out.extra_excess[e].back()[c] = part;
+                    ExtraPlanes& x = extras[e];
+                    x.mean[c].px[i] -= part;
+                    if (!x.half_a[c].px.empty())
+                        x.half_a[c].px[i] = x.half_b[c].px[i] = x.mean[c].px[i];
+                }
+                mean[c].px[i] = f.mean[c];
+                variance[c].px[i] = f.variance[c];
+                if (half_a && half_b) {
+                    half_a[c].px[i] = f.half_a[c];
+                    half_b[c].px[i] = f.half_b[c];
+                }
+            }
+            out.pixels.push_back(f.pixel);
+            out.excess.push_back(excess);
+        }
+    return out;
+}
+
+void put_back_outliers(const OutlierPixels& outliers, Plane denoised[3])
+{
+    for (size_t k = 0; k < outliers.pixels.size(); ++k)
+        for (int c = 0; c < 3; ++c)
+            denoised[c].px[outliers.pixels[k]] += outliers.excess[k][c];
+}
+
+}  // namespace mcdn

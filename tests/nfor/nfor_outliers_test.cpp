@@ -1,0 +1,168 @@
+// Heavy-tailed samples (lib/src/nfor/outliers.h): a firefly planted in the box16 render, as
+// one sample of a caustic path would land — in one half buffer, its mean and a variance to
+// match. NFOR keeps it out of the regressions: the neighbourhood is what it is without it,
+// and the excess is back at the pixel (keep) or gone (drop). Renders without such samples
+// come out exactly as with the detection off.
+#include <algorithm>
+#include <cmath>
+
+#include <OpenImageIO/imagebufalgo.h>
+
+#include "fixtures.h"
+#include "mcdn/nfor.h"
+#include "partition.h"
+#include "same_pixels.h"
+
+using namespace mcdn;
+using namespace mcdn_test;
+
+namespace {
+
+constexpr int kX = 30, kY = 34;  // inside box16 (64×64), away from its edges
+
+/// The colour role's channels of `image` under `preset`: mean, variance, half A, half B.
+struct ColourChannels {
+    std::vector<int> mean, variance, half_a, half_b;
+};
+ColourChannels colour_channels(const ImageBuf& image, const AovSpec& spec)
+{
+    AovSet aovs;
+    std::string error;
+    EXPECT_TRUE(resolve_aovs(aovs, spec, image.spec(), error)) << error;
+    return { aovs.channels(Role::Color), aovs.channels(Role::ColorVariance),
+             aovs.channels(Role::ColorA), aovs.channels(Role::ColorB) };
+}
+
+/// One sample worth `times` the pixel's mean landed in half A at (x, y): the mean gains
+/// `excess`, half A twice that, and the variance of the mean the square of the excess
+/// (the spread of the seeds' means it would leave).
+ImageBuf with_firefly(const ImageBuf& src, const AovSpec& spec, int x, int y, float times,
+                      float* excess_out = nullptr)
+{
+    ImageBuf out;
+    out.copy(src);
+    const ColourChannels ch = colour_channels(src, spec);
+    std::vector<float> px(size_t(out.nchannels()));
+    out.getpixel(x, y, 0, px.data(), out.nchannels());
+    for (int c = 0; c < 3; ++c) {
+        const float excess = times * std::max(px[size_t(ch.mean[c])], 0.01f);
+        if (excess_out)
+            excess_out[c] = excess;
+        px[size_t(ch.mean[c])] += excess;
+        px[size_t(ch.half_a[c])] += 2.0f * excess;
+        px[size_t(ch.variance[c])] += excess * excess;
+    }
+    out.setpixel(x, y, 0, px.data(), out.nchannels());
+    return out;
+}
+
+NforOptions options(NforOptions::Outliers mode)
+{
+    NforOptions o;
+    o.aovs.preset = "cycles";
+    o.outliers = mode;
+    return o;
+}
+
+/// Largest |a − b| of the colour over the 37×37 pixels around (x, y) (NFOR's window reach),
+/// without (x, y) itself, relative to b + 0.05.
+float largest_change_around(const ImageBuf& a, const ImageBuf& b, const std::vector<int>& colour,
+                            int x, int y)
+{
+    float largest = 0.0f;
+    for (int v = std::max(0, y - 18); v <= std::min(a.spec().height - 1, y + 18); ++v)
+        for (int u = std::max(0, x - 18); u <= std::min(a.spec().width - 1, x + 18); ++u)
+            if (u != x || v != y)
+                for (int c : colour) {
+                    const float reference = b.getchannel(u, v, 0, c);
+                    largest = std::max(largest, std::fabs(a.getchannel(u, v, 0, c) - reference)
+                                                    / (std::fabs(reference) + 0.05f));
+                }
+    return largest;
+}
+
+}  // namespace
+
+TEST(NforOutliers, AFireflyStaysAtItsPixelAndItsNeighboursAsWithout)
+{
+    const ImageBuf clean = box16();
+    AovSpec spec;
+    spec.preset = "cycles";
+    float excess[3];
+    const ImageBuf fire = with_firefly(clean, spec, kX, kY, 500.0f, excess);
+    const std::vector<int> colour = colour_channels(clean, spec).mean;
+
+    const ImageBuf clean_out = nfor(clean, options(NforOptions::Outliers::Keep));
+    const ImageBuf keep = nfor(fire, options(NforOptions::Outliers::Keep));
+    const ImageBuf drop = nfor(fire, options(NforOptions::Outliers::Drop));
+    const ImageBuf off = nfor(fire, options(NforOptions::Outliers::Off));
+    ASSERT_FALSE(keep.has_error()) << keep.geterror();
+
+    // Kept out: the neighbours are within a few percent of the render without the firefly
+    // (its median stands in for the pixel's own value); left in, the regression spreads it
+    // over them many times over.
+    EXPECT_LT(largest_change_around(keep, clean_out, colour, kX, kY), 0.1f);
+    EXPECT_LT(largest_change_around(drop, clean_out, colour, kX, kY), 0.1f);
+    EXPECT_GT(largest_change_around(off, clean_out, colour, kX, kY), 1.0f);
+    for (int c = 0; c < 3; ++c) {
+        const float base = clean_out.getchannel(kX, kY, 0, colour[c]);
+        // keep: the whole excess is back at the pixel; drop: none of it.
+        EXPECT_NEAR(keep.getchannel(kX, kY, 0, colour[c]) - base, excess[c], 0.01f * excess[c]);
+        EXPECT_NEAR(drop.getchannel(kX, kY, 0, colour[c]), base, 0.1f * (base + 0.05f));
+    }
+}
+
+TEST(NforOutliers, RendersWithoutHeavyTailsComeOutAsWithTheDetectionOff)
+{
+    // box16 at 16 spp has fireflies of a few times their neighbours: the regression's own
+    // business, not outliers. Nor are cornell20's dim corner pixels beside black ones.
+    for (const char* name : { "box16", "cornell20" }) {
+        const bool box = std::string(name) == "box16";
+        const ImageBuf src = box ? box16() : cornell20();
+        NforOptions keep = options(NforOptions::Outliers::Keep), off = keep;
+        off.outliers = NforOptions::Outliers::Off;
+        keep.aovs.preset = off.aovs.preset = box ? "cycles" : "tungsten";
+        EXPECT_TRUE(same_pixels(nfor(src, keep), nfor(src, off))) << name;
+    }
+}
+
+TEST(NforOutliers, InBandsAsOnTheWholeFrame)
+{
+    // The firefly sits a few rows from a band's edge: the halo covers its detection too.
+    AovSpec spec;
+    spec.preset = "cycles";
+    const ImageBuf src = with_firefly(tall_box16(), spec, kX, 64 + 2, 500.0f);
+    NforOptions whole = options(NforOptions::Outliers::Keep), banded = whole;
+    whole.band_pixels = 0;
+    banded.band_pixels = int64_t(src.spec().width) * 64;
+    const ImageBuf a = nfor(src, whole, {}, 2), b = nfor(src, banded, {}, 2);
+    EXPECT_TRUE(same_pixels(a, b)) << "largest difference " << max_difference(a, b);
+}
+
+TEST(NforOutliers, LightGroupsStillAddUpToTheBeauty)
+{
+    AovSpec cycles;
+    cycles.preset = "cycles";
+    float excess[3];
+    Partition p = add_light_groups(with_firefly(box16(), cycles, kX, kY, 500.0f, excess),
+                                   "cycles", true);
+    for (NforOptions::Outliers mode : { NforOptions::Outliers::Keep, NforOptions::Outliers::Drop }) {
+        NforOptions o = options(mode);
+        o.aovs = p.spec;
+        const ImageBuf out = nfor(p.image, o);
+        ASSERT_FALSE(out.has_error()) << out.geterror();
+        for (int y = 0; y < out.spec().height; ++y)
+            for (int x = 0; x < out.spec().width; ++x)
+                for (int c = 0; c < 3; ++c) {
+                    const float beauty = out.getchannel(x, y, 0, p.beauty[c]);
+                    const float sum = out.getchannel(x, y, 0, p.key[c])
+                                      + out.getchannel(x, y, 0, p.fill[c]);
+                    ASSERT_NEAR(sum, beauty, 1e-4f * (std::fabs(beauty) + 1.0f))
+                        << "at " << x << "," << y << " channel " << c;
+                }
+        // Keep: the beauty has the excess back, and so do its groups between them.
+        if (mode == NforOptions::Outliers::Keep) {
+            EXPECT_GT(out.getchannel(kX, kY, 0, p.beauty[0]), 0.5f * excess[0]);
+        }
+    }
+}
