@@ -188,12 +188,13 @@ PYBIND11_MODULE(mcdenoise, m)
     m.def("nfor",
           [](const ImageBuf& src, const std::string& preset,
              const std::map<std::string, std::string>& aovs, const std::string& colorspace,
-             int window, int patch, bool mse, bool selection, bool extras, bool skip, float converged,
-              int nthreads) {
+             int window, int patch, bool mse, bool selection, bool extras,
+             const std::string& outliers, bool skip, float converged, int nthreads) {
               auto o = stage_options<mcdn::NforOptions>(
                   "nfor", aov_spec(preset, aovs, colorspace),
                   { { "window", text(window) }, { "patch", text(patch) }, { "mse", text(mse) },
-                    { "selection", text(selection) }, { "extras", text(extras) }, { "skip", text(skip) },
+                    { "selection", text(selection) }, { "extras", text(extras) },
+                    { "outliers", outliers }, { "skip", text(skip) },
                     { "converged", text(converged) } });
               o.prefilter.aovs = o.aovs;
               return run(src, [&](ImageBuf& d, const ImageBuf& s) {
@@ -203,10 +204,13 @@ PYBIND11_MODULE(mcdenoise, m)
           py::arg("image"), py::arg("preset") = "",
           py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
           py::arg("window") = 19, py::arg("patch") = 7, py::arg("mse") = false,
-          py::arg("selection") = false, py::arg("extras") = true, py::arg("skip") = true,
+          py::arg("selection") = false, py::arg("extras") = true, py::arg("outliers") = "keep",
+          py::arg("skip") = true,
           py::arg("converged") = mcdn::SkipOptions().max_relative_error, py::arg("nthreads") = 0,
           "NFOR: first-order regression denoiser (NFOR §5.2-5.4). extras: denoise the extra "
-          "AOVs (light groups) with the beauty's weights. skip: pass converged tiles (worst "
+          "AOVs (light groups) with the beauty's weights. outliers: a pixel holding one sample "
+          "worth a hundred of its neighbours is kept out of the regressions and put back "
+          "('keep'), removed ('drop') or left in ('off'). skip: pass converged tiles (worst "
           "relative standard error <= converged) through and drop constant features.");
 
     m.def("cnn",

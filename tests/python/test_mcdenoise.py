@@ -39,6 +39,14 @@ class OpsTakeAndReturnImageBufs(unittest.TestCase):
         self.assertLess(after["relmse"], 0.5 * noisy["relmse"])
         self.assertEqual(denoised.nchannels, self.render.nchannels)
 
+    def test_nfor_outlier_modes(self):
+        # box16 has no heavy-tailed pixel: every mode gives the same image; a bad mode raises.
+        keep = mcdenoise.nfor(self.render, preset="cycles").get_pixels(oiio.FLOAT)
+        off = mcdenoise.nfor(self.render, preset="cycles", outliers="off").get_pixels(oiio.FLOAT)
+        self.assertTrue((keep == off).all())
+        with self.assertRaises(Exception):
+            mcdenoise.nfor(self.render, preset="cycles", outliers="sometimes")
+
     def test_skip_passes_converged_tiles_through(self):
         # Variance 0 everywhere: every tile is converged (mcdn/skip.h).
         spec = self.render.spec()
