@@ -89,7 +89,8 @@ const std::vector<CommandInfo>& command_table()
               run_heatmap, false, check_heatmap, {} },
             { "--ch", "CHANNELS", {},
               "Channels -o writes, comma-separated, each a name or a wildcard (mix.alpha.*, "
-              "*.R); default: the render's own channels.",
+              "*.R); default: the render's own channels and those a stage was asked to add "
+              "(nfor's mse=1 and selection=1, mix's alpha=1).",
               run_channels, false, {}, {} },
             { "-o", "FILE", { "datatype", "compression" },
               "Write the current image (datatype=half|float, default float; compression=zip). "

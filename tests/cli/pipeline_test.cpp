@@ -135,6 +135,28 @@ TEST(Pipeline, ChannelWildcardsSelectWhatIsWritten)
     EXPECT_NE(run.output.find("--ch nothing.*: no channel matches"), std::string::npos) << run.output;
 }
 
+TEST(Pipeline, ChannelsAStageWasAskedToAddAreWritten)
+{
+    // mse=1, selection=1, alpha=1 ask for channels: -o writes them beside the render's own,
+    // and nothing else a stage made (sure.*, noisy.*).
+    std::string dir = mcdn_test::temp_dir("pipeline_maps");
+    auto run = run_mcdntool("-i " + box("box_0016spp.exr") + " -i:as=variance "
+                            + box("box_0016spp_var.exr") + " -i:as=halfA " + box("box_0016spp_A.exr")
+                            + " -i:as=halfB " + box("box_0016spp_B.exr")
+                            + " --nfor:mse=1:selection=1 --sure --mix:alpha=1 -o "
+                            + quote(dir + "/out.exr"));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    const std::string render_path = mcdn_test::test_data("box16/box_0016spp.exr");
+    OIIO::ImageBuf out(dir + "/out.exr"), render(render_path);
+    ASSERT_TRUE(out.init_spec(dir + "/out.exr", 0, 0)) << out.geterror();
+    ASSERT_TRUE(render.init_spec(render_path, 0, 0)) << render.geterror();
+    EXPECT_EQ(out.spec().nchannels, render.spec().nchannels + 9);
+    for (const char* name : { "nfor.mse.R", "nfor.selection.B", "mix.alpha.G" })
+        EXPECT_GE(out.spec().channelindex(name), 0) << name;
+    for (const std::string& name : out.spec().channelnames)
+        EXPECT_NE(name.rfind("sure.", 0), 0u) << name;
+}
+
 TEST(Pipeline, FeaturesAreWrittenBackUnchangedUnlessAsked)
 {
     std::string dir = mcdn_test::temp_dir("pipeline_features");
