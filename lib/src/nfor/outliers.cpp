@@ -94,6 +94,8 @@ OutlierPixels take_out_outliers(Plane mean[3], Plane variance[3], Plane* half_a,
         for (const Found& f : row) {
             const size_t i = f.pixel;
             std::array<float, 3> excess;
+            for (std::vector<std::array<float, 3>>& parts : out.extra_excess)
+                parts.push_back({ 0.0f, 0.0f, 0.0f });
             for (int c = 0; c < 3; ++c) {
                 excess[c] = mean[c].px[i] - f.mean[c];
                 // Each extra gives up its share of the beauty's excess, so that extras which
@@ -103,8 +105,6 @@ OutlierPixels take_out_outliers(Plane mean[3], Plane variance[3], Plane* half_a,
                                             ? extras[e].mean[c].px[i] / mean[c].px[i]
                                             : 0.0f;
                     const float part = share * excess[c];
-                    if (out.extra_excess[e].size() < out.pixels.size() + 1)
-                        out.extra_excess[e].push_back({ 0.0f, 0.0f, 0.0f });
                     out.extra_excess[e].back()[c] = part;
                     ExtraPlanes& x = extras[e];
                     x.mean[c].px[i] -= part;
