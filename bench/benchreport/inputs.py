@@ -16,7 +16,8 @@ SPP_FILE = re.compile(r"^(?P<stem>.+)_(?P<spp>\d{4})spp\.exr$")
 @dataclass
 class Render:
     """One noisy render with its reference: what one row of runs starts from."""
-    group: str       # "shared", "generated", "scaling", "custom": how the report aggregates it
+    group: str       # "shared", "generated", "caustics", "scaling", "custom": how the report
+                     # aggregates it
     scene: str       # levels of one scene share it (error vs spp)
     spp: int
     preset: str      # mcdntool --aov:preset
@@ -93,6 +94,24 @@ def generated_dataset():
         if os.path.isdir(root):
             return root
     return None
+
+
+def caustics_dataset():
+    """The caustics crops (training/datagen --families caustics, issue 22's heavy tails):
+    $MCDN_CACHE/datasets/caustics; None when they were not rendered."""
+    cache = os.environ.get("MCDN_CACHE") or os.path.join(os.path.expanduser("~"), ".cache/mcdenoise")
+    root = os.path.join(cache, "datasets", "caustics")
+    return root if os.path.isdir(root) else None
+
+
+def caustics_renders(root):
+    """Every level of every caustics crop, each its own row of the tables (group "caustics")."""
+    renders = []
+    for crop in sorted(os.listdir(root)):
+        directory = os.path.join(root, crop)
+        if os.path.isdir(directory) and not crop.startswith("."):
+            renders += box_layout_renders(directory, "caustics", crop)
+    return renders
 
 
 def generated_renders(root):

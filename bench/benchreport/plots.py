@@ -100,7 +100,8 @@ def pareto_front(points):
 def pareto(rows, path):
     rows = ok_rows(rows)
     chains = chain_order(rows)
-    groups = [g for g in ("shared", "generated", "custom") if any(r["group"] == g for r in rows)]
+    groups = [g for g in ("shared", "generated", "caustics", "custom")
+              if any(r["group"] == g for r in rows)]
     figure, axes = plt.subplots(1, max(1, len(groups)), figsize=(4.6 * max(1, len(groups)), 3.6),
                                 squeeze=False)
     for ax, group in zip(axes[0], groups):

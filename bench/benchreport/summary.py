@@ -4,7 +4,7 @@ from collections import defaultdict
 
 from .runs import CHAINS
 
-GROUP_TITLES = {"shared": "../shared/data", "generated": "generated set",
+GROUP_TITLES = {"shared": "../shared/data", "generated": "generated set", "caustics": "caustics crops",
                 "custom": "given scenes", "scaling": "box cut/tiled to sizes"}
 
 
@@ -27,8 +27,9 @@ def mean(values):
 
 
 def error_table(rows, metric="relmse"):
-    """(header, body, best): a line per render of the shared and given scenes and a line per
-    spp of the generated set (mean over its crops); a column per chain; best[i] is the
+    """(header, body, best): a line per render of the shared and given scenes and of the
+    caustics crops, and a line per spp of the generated set (mean over its crops); a column
+    per chain; best[i] is the
     column of line i's smallest error (SSIM: largest), denoisers only."""
     rows = ok_rows(rows)
     chains = chain_order(rows)
@@ -36,7 +37,7 @@ def error_table(rows, metric="relmse"):
     seen = []
     for row in rows:
         key = (row["group"], row["scene"], row["spp"])
-        if row["group"] in ("shared", "custom") and key not in seen:
+        if row["group"] in ("shared", "custom", "caustics") and key not in seen:
             seen.append(key)
     for group, scene, spp in seen:
         values = {r["chain"]: r[metric] for r in rows
