@@ -84,43 +84,36 @@ def shared_renders(shared_data):
     return renders
 
 
-def generated_dataset():
-    """The generator's held-out crops: $MCDN_CACHE (~/.cache/mcdenoise)/datasets/eval, else the
-    --small set (its seeds never overlap training's); None when neither was rendered.
+def cached_dataset(*names):
+    """The first of $MCDN_CACHE (~/.cache/mcdenoise)/datasets/NAME that exists, else None.
     (bench/bench_data.h finds the same cache for the C++ benchmarks.)"""
     cache = os.environ.get("MCDN_CACHE") or os.path.join(os.path.expanduser("~"), ".cache/mcdenoise")
-    for name in ("eval", "small"):
+    for name in names:
         root = os.path.join(cache, "datasets", name)
         if os.path.isdir(root):
             return root
     return None
 
 
+def generated_dataset():
+    """The generator's held-out crops: datasets/eval, else the --small set (its seeds never
+    overlap training's); None when neither was rendered."""
+    return cached_dataset("eval", "small")
+
+
 def caustics_dataset():
-    """The caustics crops (training/datagen --families caustics, issue 22's heavy tails):
-    $MCDN_CACHE/datasets/caustics; None when they were not rendered."""
-    cache = os.environ.get("MCDN_CACHE") or os.path.join(os.path.expanduser("~"), ".cache/mcdenoise")
-    root = os.path.join(cache, "datasets", "caustics")
-    return root if os.path.isdir(root) else None
+    """The caustics crops (training/datagen --families caustics, issue 22's heavy tails);
+    None when they were not rendered."""
+    return cached_dataset("caustics")
 
 
-def caustics_renders(root):
-    """Every level of every caustics crop, each its own row of the tables (group "caustics")."""
+def crop_renders(root, group):
+    """Every level of every crop directory under a dataset root (generated, caustics)."""
     renders = []
     for crop in sorted(os.listdir(root)):
         directory = os.path.join(root, crop)
         if os.path.isdir(directory) and not crop.startswith("."):
-            renders += box_layout_renders(directory, "caustics", crop)
-    return renders
-
-
-def generated_renders(root):
-    """Every level of every crop directory under a generated dataset root."""
-    renders = []
-    for crop in sorted(os.listdir(root)):
-        directory = os.path.join(root, crop)
-        if os.path.isdir(directory) and not crop.startswith("."):
-            renders += box_layout_renders(directory, "generated", crop)
+            renders += box_layout_renders(directory, group, crop)
     return renders
 
 

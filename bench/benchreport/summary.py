@@ -29,8 +29,8 @@ def mean(values):
 def error_table(rows, metric="relmse"):
     """(header, body, best): a line per render of the shared and given scenes and of the
     caustics crops, and a line per spp of the generated set (mean over its crops); a column
-    per chain; best[i] is the
-    column of line i's smallest error (SSIM: largest), denoisers only."""
+    per chain; best[i] is the column of line i's smallest error (SSIM: largest), denoisers
+    only."""
     rows = ok_rows(rows)
     chains = chain_order(rows)
     lines = []

@@ -18,4 +18,8 @@ constexpr const char* kProbeAttribute = "mcdn:sure_probe";
 /// a frame-sized copy less per probe). compose keeps it for a chain's last stage only.
 constexpr const char* kColourOnlyAttribute = "mcdn:colour_only";
 
+/// On a merged render (mcdn/io.h read_inputs): the channels write_image writes by default,
+/// one name a line — the render's own, and those a stage was asked to add (add_channels).
+constexpr const char* kOutputChannelsAttribute = "mcdn:output_channels";
+
 }  // namespace mcdn

@@ -6,6 +6,7 @@
 #include <OpenImageIO/imagebufalgo.h>
 #include <OpenImageIO/strutil.h>
 
+#include "core/attributes.h"
 #include "core/planar.h"
 
 namespace mcdn {
@@ -48,15 +49,15 @@ std::vector<int> add_channels(OIIO::ImageBuf& buf, const std::vector<std::string
         OIIO::ImageBufAlgo::channels(grown, buf, int(all.size()), order, fill, all);
         buf = std::move(grown);
     }
-    // Asked for, so written: a merged render's "mcdn:output_channels" (mcdn/io.h, the
-    // channels write_image writes by default) gains them.
-    const std::string listed = buf.spec().get_string_attribute("mcdn:output_channels");
+    // Asked for, so written: a merged render's list of the channels write_image writes by
+    // default gains them.
+    const std::string listed = buf.spec().get_string_attribute(kOutputChannelsAttribute);
     if (!listed.empty()) {
         std::vector<std::string> output = OIIO::Strutil::splits(listed, "\n");
         for (const auto& name : names)
             if (std::find(output.begin(), output.end(), name) == output.end())
                 output.push_back(name);
-        buf.specmod().attribute("mcdn:output_channels", OIIO::Strutil::join(output, "\n"));
+        buf.specmod().attribute(kOutputChannelsAttribute, OIIO::Strutil::join(output, "\n"));
     }
     std::vector<int> indices;
     for (const auto& name : names)

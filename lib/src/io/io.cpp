@@ -24,6 +24,7 @@
 #include <OpenImageIO/imageio.h>
 #include <OpenImageIO/strutil.h>
 
+#include "core/attributes.h"
 #include "core/planar.h"
 
 namespace mcdn {
@@ -531,7 +532,7 @@ bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs,
     // A multi-part render is written back with the same parts (write_image).
     if (layouts[meta_from].parts.size() > 1)
         spec.attribute(kPartsAttribute, parts_text(layouts[meta_from]));
-    spec.attribute("mcdn:output_channels", Strutil::join(output_channels, "\n"));
+    spec.attribute(kOutputChannelsAttribute, Strutil::join(output_channels, "\n"));
     ImageBuf out(spec);
     if (!allocated(out, inputs[meta_from].path, error)) {
         dst.errorfmt("{}", error);
@@ -850,7 +851,7 @@ bool output_layout(OutputLayout& layout, const ImageSpec& in_spec, const std::st
         return false;
     std::vector<std::string> wanted = options.channels;
     if (wanted.empty())
-        wanted = Strutil::splits(in_spec.get_string_attribute("mcdn:output_channels"), "\n");
+        wanted = Strutil::splits(in_spec.get_string_attribute(kOutputChannelsAttribute), "\n");
     if (wanted.empty())
         wanted = in_spec.channelnames;
     for (const auto& name : wanted)
@@ -890,7 +891,7 @@ bool output_layout(OutputLayout& layout, const ImageSpec& in_spec, const std::st
     spec = in_spec;
     spec.nchannels = int(wanted.size());
     spec.channelnames = wanted;
-    for (const auto& name : { "mcdn:inputs", "mcdn:output_channels", kPartsAttribute,
+    for (const auto& name : { "mcdn:inputs", kOutputChannelsAttribute, kPartsAttribute,
                               kHalvesUnread })
         spec.erase_attribute(name);
     spec.set_format(options.datatype);

@@ -268,8 +268,7 @@ FirstPass first_pass_one_buffer(const ColorPlanes& color, std::vector<FeaturePla
     RegressionInputs first = first_pass_settings(options, converged);
     for (const FeaturePlanes& f : features)
         first.features.push_back(&f.mean);
-    const double eps = relative_probe_step(
-        probe_index.colour, 1e-3);
+    const double eps = relative_probe_step(probe_index.colour, 1e-3);
     Plane probe[3], probed[3];
     for (int c = 0; c < 3; ++c) {
         first.image[c] = first.guide[c] = &color.mean[c];
@@ -500,13 +499,14 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     for (int c = 0; c < 3; ++c)
         pass_through_converged(denoised[c], color.mean[c], converged);
     // The extras' sum stays the denoised beauty, before and after the outliers' excess.
+    const bool keep_outliers = options.outliers == NforOptions::Outliers::Keep;
     if (!extras.empty()) {
         extras.share_rounding(color.mean, denoised);
-        if (options.outliers == NforOptions::Outliers::Keep)
+        if (keep_outliers)
             extras.put_back_outliers(outliers);
         extras.pass_through(converged);
     }
-    if (options.outliers == NforOptions::Outliers::Keep)
+    if (keep_outliers)
         put_back_outliers(outliers, denoised.data());
 
     // dst (a copy of src) is made only now, when the working planes are gone; everything was

@@ -7,19 +7,24 @@
 namespace mcdn {
 namespace {
 
-/// Median of the values of `plane` (or of the sum of three planes) over the neighbourhood
-/// of (x, y) without the pixel itself, clipped to the plane. Lower median for an even count.
+/// The values of the pixels around (x, y) within `radius`, without the pixel itself,
+/// clipped to the plane, into `values`.
 template <class Value>
-float neighbourhood_median(int x, int y, int width, int height, int radius, Value value,
-                           std::vector<float>& scratch)
+void gather_neighbourhood(int x, int y, int width, int height, int radius, Value value,
+                          std::vector<float>& values)
 {
-    scratch.clear();
+    values.clear();
     for (int v = std::max(0, y - radius); v <= std::min(height - 1, y + radius); ++v)
         for (int u = std::max(0, x - radius); u <= std::min(width - 1, x + radius); ++u)
             if (u != x || v != y)
-                scratch.push_back(value(size_t(v) * width + u));
-    auto middle = scratch.begin() + (scratch.size() - 1) / 2;
-    std::nth_element(scratch.begin(), middle, scratch.end());
+                values.push_back(value(size_t(v) * width + u));
+}
+
+/// Their median (the lower one for an even count); reorders `values`.
+float median(std::vector<float>& values)
+{
+    auto middle = values.begin() + (values.size() - 1) / 2;
+    std::nth_element(values.begin(), middle, values.end());
     return *middle;
 }
 
@@ -32,8 +37,8 @@ struct Found {
 }  // namespace
 
 OutlierPixels take_out_outliers(Plane mean[3], Plane variance[3], Plane* half_a, Plane* half_b,
-                           std::vector<ExtraPlanes>& extras, const ConvergedTiles& converged,
-                           const OutlierRule& rule, int nthreads)
+                                std::vector<ExtraPlanes>& extras, const ConvergedTiles& converged,
+                                const OutlierRule& rule, int nthreads)
 {
     const int width = mean[0].width, height = mean[0].height, r = OutlierRule::radius;
     auto sum3 = [](const Plane* p, size_t i) { return p[0].px[i] + p[1].px[i] + p[2].px[i]; };
@@ -49,19 +54,20 @@ OutlierPixels take_out_outliers(Plane mean[3], Plane variance[3], Plane* half_a,
             const float own_variance = sum3(variance, i);
             if (!(own_variance > 0.0f))
                 continue;
-            float lowest = own_variance;
-            for (int v = std::max(0, y - r); v <= std::min(height - 1, y + r); ++v)
-                for (int u = std::max(0, x - r); u <= std::min(width - 1, x + r); ++u)
-                    if (u != x || v != y)
-                        lowest = std::min(lowest, sum3(variance, size_t(v) * width + u));
-            if (!(own_variance > rule.variance_ratio * lowest))
+            gather_neighbourhood(x, y, width, height, r,
+                                 [&](size_t j) { return sum3(variance, j); }, scratch);
+            if (scratch.empty()
+                || !(own_variance
+                     > rule.variance_ratio * *std::min_element(scratch.begin(), scratch.end())))
                 continue;
-            const float typical_variance = neighbourhood_median(
-                x, y, width, height, r, [&](size_t j) { return sum3(variance, j); }, scratch);
+            const float typical_variance = median(scratch);
             if (!(own_variance > rule.variance_ratio * typical_variance))
                 continue;
-            const float typical = neighbourhood_median(
-                x, y, width, height, r, [&](size_t j) { return sum3(mean, j); }, scratch);
+            auto median_of = [&](auto value) {
+                gather_neighbourhood(x, y, width, height, r, value, scratch);
+                return median(scratch);
+            };
+            const float typical = median_of([&](size_t j) { return sum3(mean, j); });
             const float excess = sum3(mean, i) - typical;
             if (!(excess > rule.sigma * std::sqrt(typical_variance))
                 || !(excess > rule.level_ratio * (typical + rule.level_floor)))
@@ -74,14 +80,13 @@ OutlierPixels take_out_outliers(Plane mean[3], Plane variance[3], Plane* half_a,
             }
             Found f { uint32_t(i), {}, {}, {}, {} };
             for (int c = 0; c < 3; ++c) {
-                auto median_of = [&](const Plane& p) {
-                    return neighbourhood_median(x, y, width, height, r,
-                                                [&](size_t j) { return p.px[j]; }, scratch);
+                auto plane_median = [&](const Plane& p) {
+                    return median_of([&](size_t j) { return p.px[j]; });
                 };
-                f.mean[c] = median_of(mean[c]);
-                f.variance[c] = median_of(variance[c]);
-                f.half_a[c] = half_a ? median_of(half_a[c]) : 0.0f;
-                f.half_b[c] = half_b ? median_of(half_b[c]) : 0.0f;
+                f.mean[c] = plane_median(mean[c]);
+                f.variance[c] = plane_median(variance[c]);
+                f.half_a[c] = half_a ? plane_median(half_a[c]) : 0.0f;
+                f.half_b[c] = half_b ? plane_median(half_b[c]) : 0.0f;
             }
             rows[size_t(y)].push_back(f);
         }

@@ -32,10 +32,11 @@
 
 namespace mcdn {
 
+/// The thresholds above (their defaults: NforOptions::outlier_*).
 struct OutlierRule {
-    float sigma = 16.0f;
-    float variance_ratio = 256.0f;
-    float level_ratio = 64.0f;
+    float sigma = 0.0f;
+    float variance_ratio = 0.0f;
+    float level_ratio = 0.0f;
     /// Added to the neighbourhood's value in the level test, so that a dim pixel beside
     /// black ones (a corner a few paths reach) is not an outlier of nothing:
     /// kFloorOfMean × the frame's mean value.
@@ -60,8 +61,8 @@ struct OutlierPixels {
 /// given, else null) the halves at each outlier pixel replaced by the neighbourhood
 /// medians; each extra's mean and halves by the extra less its share of the excess.
 OutlierPixels take_out_outliers(Plane mean[3], Plane variance[3], Plane* half_a, Plane* half_b,
-                           std::vector<ExtraPlanes>& extras, const ConvergedTiles& converged,
-                           const OutlierRule& rule, int nthreads);
+                                std::vector<ExtraPlanes>& extras, const ConvergedTiles& converged,
+                                const OutlierRule& rule, int nthreads);
 
 /// Adds the excess back at each outlier pixel of the denoised colour (the extras' shares:
 /// ExtraAovs::put_back_outliers).
