@@ -287,6 +287,7 @@ void install_signal_handlers()
 int main(int argc, const char** argv)
 {
     install_signal_handlers();
+    keep_freed_memory();
     Filesystem::convert_native_arguments(argc, argv);
     if (wants_version(argc, argv)) {
         std::cout << "mcdntool " << mcdn::version() << "\n";

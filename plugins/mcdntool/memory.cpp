@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cstdlib>
 #include <fstream>
+#include <malloc.h>
 #include <sstream>
 #include <thread>
 
@@ -48,6 +49,12 @@ double cnn_thread_bytes(const std::vector<Command>& commands)
 }
 
 }  // namespace
+
+void keep_freed_memory()
+{
+    mallopt(M_MMAP_MAX, 0);
+    mallopt(M_TRIM_THRESHOLD, -1);
+}
 
 double estimated_peak_bytes(const std::vector<Command>& commands, double pixels, int channels,
                             int threads, double band_pixels)

@@ -18,6 +18,13 @@ namespace mcdntool {
 double estimated_peak_bytes(const std::vector<Command>& commands, double pixels, int channels,
                             int threads, double band_pixels = 0);
 
+/// Keeps the memory a frame's buffers free in the process for the next ones: large
+/// allocations come from the heap, not from mmap, and freed memory is not handed back to the
+/// kernel. A buffer mapped afresh costs the kernel clearing each of its pages (a third of a
+/// chain's CPU on frames of many channels); reused memory does not. Peak memory is the same:
+/// it is what the largest stage holds at once. For the process that owns main() only.
+void keep_freed_memory();
+
 /// Memory this process may still use: $MCDN_MEMORY_LIMIT when set (bytes, or with a G or M
 /// suffix: a farm slot's limit), else MemAvailable + SwapFree of /proc/meminfo, at most what
 /// the container's cgroup still allows; 0 when unknown. False with `error` for a

@@ -267,6 +267,29 @@ TEST(Io, RowWriterWritesWhatWriteImageWritesAndLeavesNothingUnclosed)
     }
 }
 
+// RowWriter hands the file a chunk of rows at a time: a band taller than a chunk, starting
+// off the chunk grid, is written as write_image writes it.
+TEST(Io, RowWriterWritesBandsTallerThanItsChunks)
+{
+    ImageSpec spec(40, 700, 5, OIIO::TypeDesc::FLOAT);
+    spec.y = -3;
+    ImageBuf frame(spec);
+    OIIO::ImageBufAlgo::noise(frame, "uniform", 0.0f, 4.0f, false, 7);
+    const std::string dir = mcdn_test::temp_dir("rowchunks");
+    std::string error;
+    ASSERT_TRUE(write_image(frame, dir + "/whole.exr", WriteOptions(), error)) << error;
+    RowWriter writer;
+    ASSERT_TRUE(writer.open(spec, dir + "/rows.exr", WriteOptions(), error)) << error;
+    ROI top = frame.roi(), bottom = frame.roi();
+    top.yend = bottom.ybegin = 30;
+    ASSERT_TRUE(writer.write_rows(frame, top, error)) << error;
+    ASSERT_TRUE(writer.write_rows(frame, bottom, error)) << error;  // 667 rows
+    ASSERT_TRUE(writer.close(error)) << error;
+    ImageBuf whole(dir + "/whole.exr"), rows(dir + "/rows.exr");
+    EXPECT_EQ(OIIO::ImageBufAlgo::compare(whole, rows, 0, 0).maxerror, 0.0);
+    EXPECT_EQ(rows.spec().y, -3);
+}
+
 // Renderers write tiled EXRs (Arnold's and RenderMan's drivers often do): read whole or for
 // the roles alone (rows of tiles, not scanlines, from a tiled file), every input reads the
 // same as its scanline original. A partial last row and column of tiles included.

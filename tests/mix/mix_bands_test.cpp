@@ -62,3 +62,21 @@ TEST(MixBands, NetInBandsEqualsTheWholeFrame)
     auto [whole, banded] = whole_and_banded(o);
     EXPECT_LT(max_difference(whole, banded), 1e-5f);
 }
+
+// In place (dst is src: what a chain does with its own sure result) is the same as into a
+// new buffer, whole (no copy) and in bands (a band's halo must not read its neighbour's z).
+TEST(MixBands, InPlaceEqualsIntoANewBuffer)
+{
+    for (int64_t band_pixels : { int64_t(0), int64_t(48 * 32) }) {
+        MixOptions o;
+        o.aovs = generic_spec();
+        o.output_alpha = true;
+        o.band_pixels = band_pixels;
+        const ImageBuf src = sure_output();
+        ImageBuf expected = mix(src, o, {}, 2), in_place = src.copy(OIIO::TypeDesc::FLOAT);
+        ASSERT_TRUE(mix(in_place, in_place, o, {}, 2)) << in_place.geterror();
+        EXPECT_TRUE(same_pixels(expected, in_place))
+            << "bands of " << band_pixels << " pixels: largest difference "
+            << max_difference(expected, in_place);
+    }
+}

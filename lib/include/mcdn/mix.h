@@ -95,7 +95,8 @@ std::string default_mix_weights(const std::string& denoiser = "nfor");
 int receptive_radius(const MixOptions& options, const std::string& denoiser = "nfor");
 
 /// dst = src with the colour role replaced by z (and mix.alpha.* if asked for). Pixels
-/// outside `roi` keep src's colour. Finite, identical for any thread count.
+/// outside `roi` keep src's colour. Finite, identical for any thread count. dst may be src
+/// (in place: no copy of the frame when it is one band).
 bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options = {}, ROI roi = {},
          int nthreads = 0);
 ImageBuf mix(const ImageBuf& src, const MixOptions& options = {}, ROI roi = {},

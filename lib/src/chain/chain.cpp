@@ -277,6 +277,8 @@ bool run_stages(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, ROI r
             continue;
         }
         ImageBuf next;
+        // mix runs in place on a result of the chain's own (not on src): a frame less.
+        ImageBuf& out = name == "mix" && current == &made ? made : next;
         bool ok;
         if (name == "sure") {
             SureOptions s;
@@ -288,17 +290,23 @@ bool run_stages(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, ROI r
         } else {  // mix
             MixOptions m;
             stage_options(m, o, name, error);
-            ok = mix(next, *current, m, roi, nthreads);
+            ok = mix(out, *current, m, roi, nthreads);
         }
         if (!ok) {
-            dst.errorfmt("{}: {}", name, next.geterror());
+            dst.errorfmt("{}: {}", name, out.geterror());
             return false;
         }
-        made = std::move(next);
+        if (&out == &next)
+            made = std::move(next);
         current = &made;
     }
     if (pending.empty()) {
-        dst = current == &src ? src : std::move(made);
+        // Not `dst = cond ? src : std::move(made)`: that expression is a const prvalue,
+        // so made would be copied, not moved.
+        if (current == &src)
+            dst.copy(src);
+        else
+            dst = std::move(made);
         return true;
     }
     return compose(std::move(pending))(dst, *current);

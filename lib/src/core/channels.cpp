@@ -3,52 +3,55 @@
 #include <algorithm>
 #include <cstring>
 
-#include <OpenImageIO/imagebufalgo.h>
 #include <OpenImageIO/strutil.h>
 
 #include "core/attributes.h"
+#include "core/op_prepare.h"
 #include "core/planar.h"
+#include "mcdn/threads.h"
 
 namespace mcdn {
 
-std::vector<int> add_channels(OIIO::ImageBuf& buf, const std::vector<std::string>& names)
+OIIO::ImageBuf copy_with_channels(const OIIO::ImageBuf& src, const std::vector<std::string>& names,
+                                  OIIO::ROI rows, int nthreads)
 {
-    const OIIO::ImageSpec& spec = buf.spec();
-    std::vector<int> order;
-    std::vector<float> fill;
-    std::vector<std::string> all = spec.channelnames;
-    for (int c = 0; c < spec.nchannels; ++c) {
-        order.push_back(c);
-        fill.push_back(0.0f);
-    }
+    const OIIO::ROI whole = src.roi();
+    if (!rows.defined())
+        rows = whole;
+    OIIO::ImageSpec spec = src.spec();
+    spec.set_format(OIIO::TypeDesc::FLOAT);
+    spec.channelformats.clear();
+    spec.y = rows.ybegin;
+    spec.height = rows.height();
+    const int old_channels = spec.nchannels;
     for (const auto& name : names)
         if (spec.channelindex(name) < 0) {
-            order.push_back(-1);  // IBA::channels fills -1 entries with the fill value
-            fill.push_back(0.0f);
-            all.push_back(name);
+            spec.channelnames.push_back(name);
+            ++spec.nchannels;
         }
-    if (all.size() != spec.channelnames.size() && float_frame_pixels(buf)) {
-        // Fast path for a float buffer in memory: one memcpy per pixel (IBA::channels goes
-        // value by value, slow on many-channel frames).
-        OIIO::ImageSpec grown_spec = spec;
-        grown_spec.nchannels = int(all.size());
-        grown_spec.channelnames = all;
-        grown_spec.channelformats.clear();
-        OIIO::ImageBuf grown(grown_spec);
-        const size_t pixels = spec.image_pixels(), old_bytes = spec.pixel_bytes();
-        const size_t new_floats = all.size();
-        const char* from = static_cast<const char*>(buf.localpixels());
-        float* to = static_cast<float*>(grown.localpixels());
-        for (size_t p = 0; p < pixels; ++p) {
-            std::memcpy(to + p * new_floats, from + p * old_bytes, old_bytes);
-            std::fill(to + p * new_floats + spec.nchannels, to + (p + 1) * new_floats, 0.0f);
-        }
-        buf = std::move(grown);
-    } else if (all.size() != spec.channelnames.size()) {
-        OIIO::ImageBuf grown;
-        OIIO::ImageBufAlgo::channels(grown, buf, int(all.size()), order, fill, all);
-        buf = std::move(grown);
-    }
+    OIIO::ImageBuf dst;
+    allocate_frame(dst, spec, false);
+    if (!dst.localpixels())
+        return dst;
+    const int nch = spec.nchannels;
+    // Row by row straight into dst's pixels with its strides, the new channels zeroed there.
+    parallel_for_index(rows.height(), nthreads, [&](int r) {
+        const int y = rows.ybegin + r;
+        OIIO::ROI row(whole.xbegin, whole.xend, y, y + 1, 0, 1, 0, old_channels);
+        float* to = static_cast<float*>(dst.pixeladdr(whole.xbegin, y));
+        src.get_pixels(row, OIIO::TypeDesc::FLOAT, to, dst.pixel_stride(), dst.scanline_stride());
+        if (nch > old_channels)
+            for (int x = 0; x < whole.width(); ++x)
+                std::fill(to + size_t(x) * nch + old_channels, to + size_t(x + 1) * nch, 0.0f);
+    });
+    return dst;
+}
+
+std::vector<int> add_channels(OIIO::ImageBuf& buf, const std::vector<std::string>& names)
+{
+    if (std::any_of(names.begin(), names.end(),
+                    [&](const std::string& name) { return buf.spec().channelindex(name) < 0; }))
+        buf = copy_with_channels(buf, names);
     // Asked for, so written: a merged render's list of the channels write_image writes by
     // default gains them.
     const std::string listed = buf.spec().get_string_attribute(kOutputChannelsAttribute);

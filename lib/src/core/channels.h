@@ -14,4 +14,11 @@ namespace mcdn {
 /// adds channels only when asked to (nfor's mse=1, mix's alpha=1).
 std::vector<int> add_channels(OIIO::ImageBuf& buf, const std::vector<std::string>& names);
 
+/// A float copy of rows `rows` of src (every channel; all rows when undefined) with each of
+/// `names` that src lacks appended, zero: an op that will add channels gets its copy with
+/// room for them (one frame-sized copy, not two). The rows are copied on `nthreads`
+/// threads (0 = all cores). kOutputChannelsAttribute is left as it is.
+OIIO::ImageBuf copy_with_channels(const OIIO::ImageBuf& src, const std::vector<std::string>& names,
+                                  OIIO::ROI rows = {}, int nthreads = 1);
+
 }  // namespace mcdn

@@ -25,6 +25,7 @@
 #include <OpenImageIO/strutil.h>
 
 #include "core/attributes.h"
+#include "core/op_prepare.h"
 #include "core/planar.h"
 
 namespace mcdn {
@@ -533,7 +534,9 @@ bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs,
     if (layouts[meta_from].parts.size() > 1)
         spec.attribute(kPartsAttribute, parts_text(layouts[meta_from]));
     spec.attribute(kOutputChannelsAttribute, Strutil::join(output_channels, "\n"));
-    ImageBuf out(spec);
+    // Not zero-filled: the files fill every channel (a fill would be a pass more).
+    ImageBuf out;
+    allocate_frame(out, spec, false);
     if (!allocated(out, inputs[meta_from].path, error)) {
         dst.errorfmt("{}", error);
         return false;
@@ -1069,9 +1072,6 @@ bool RowWriter::write_rows(const ImageBuf& band, const ROI& own, std::string& er
                        m->next_row);
         return false;
     }
-    // The output's channels of these rows, pixel-interleaved, checked as write_image checks.
-    const size_t npixels = size_t(own.width()) * own.height();
-    m->rows.resize(npixels * nch);
     std::vector<int> from(nch);
     for (int c = 0; c < nch; ++c) {
         from[c] = band.spec().channelindex(spec.channelnames[c]);
@@ -1080,37 +1080,52 @@ bool RowWriter::write_rows(const ImageBuf& band, const ROI& own, std::string& er
             return false;
         }
     }
+    // The output's channels, pixel-interleaved and checked as write_image checks, a chunk of
+    // rows at a time: the chunk is all the writer holds besides the band (a whole band's
+    // copy would add a frame of the output's channels at the peak). 256 rows: a whole
+    // number of every EXR compression's blocks.
+    constexpr int kChunkRows = 256;
     const ImageSpec& in = band.spec();
-    if (const float* pixels = float_frame_pixels(band)) {
-        // One pass over the band's rows (a channel at a time would stride through all of
-        // them once per channel).
-        const int bch = in.nchannels;
-        tbb::parallel_for(tbb::blocked_range<int>(own.ybegin, own.yend),
-                          [&](const tbb::blocked_range<int>& b) {
-            for (int y = b.begin(); y != b.end(); ++y) {
-                const float* src = pixels + (size_t(y - in.y) * in.width + size_t(own.xbegin - in.x)) * bch;
-                float* dst = m->rows.data() + size_t(y - own.ybegin) * own.width() * nch;
-                for (int x = 0; x < own.width(); ++x)
-                    for (int c = 0; c < nch; ++c)
-                        dst[size_t(x) * nch + c] = src[size_t(x) * bch + from[c]];
-            }
-        });
-    } else {
-        for (int c = 0; c < nch; ++c) {
-            ROI one = own;
-            one.chbegin = from[c];
-            one.chend = from[c] + 1;
-            if (!band.get_pixels(one, TypeDesc::FLOAT, m->rows.data() + c,
-                                 OIIO::stride_t(nch * sizeof(float)))) {
-                error = format("{}: {}", m->path, band.geterror());
-                return false;
+    const float* pixels = float_frame_pixels(band);
+    for (int y0 = own.ybegin; y0 < own.yend; y0 += kChunkRows) {
+        ROI chunk = own;
+        chunk.ybegin = y0;
+        chunk.yend = std::min(own.yend, y0 + kChunkRows);
+        const size_t npixels = size_t(chunk.width()) * chunk.height();
+        m->rows.resize(npixels * nch);
+        if (pixels) {
+            // One pass over the rows (a channel at a time would stride through all of them
+            // once per channel).
+            const int bch = in.nchannels;
+            tbb::parallel_for(tbb::blocked_range<int>(chunk.ybegin, chunk.yend),
+                              [&](const tbb::blocked_range<int>& b) {
+                for (int y = b.begin(); y != b.end(); ++y) {
+                    const float* src = pixels + (size_t(y - in.y) * in.width
+                                                 + size_t(chunk.xbegin - in.x)) * bch;
+                    float* dst = m->rows.data() + size_t(y - chunk.ybegin) * chunk.width() * nch;
+                    for (int x = 0; x < chunk.width(); ++x)
+                        for (int c = 0; c < nch; ++c)
+                            dst[size_t(x) * nch + c] = src[size_t(x) * bch + from[c]];
+                }
+            });
+        } else {
+            for (int c = 0; c < nch; ++c) {
+                ROI one = chunk;
+                one.chbegin = from[c];
+                one.chend = from[c] + 1;
+                if (!band.get_pixels(one, TypeDesc::FLOAT, m->rows.data() + c,
+                                     OIIO::stride_t(nch * sizeof(float)))) {
+                    error = format("{}: {}", m->path, band.geterror());
+                    return false;
+                }
             }
         }
-    }
-    m->counts.inspect(m->rows.data(), npixels, nch, m->to_half);
-    if (!m->output->write_scanlines(own.ybegin, own.yend, 0, TypeDesc::FLOAT, m->rows.data())) {
-        error = format("{}: write failed: {}", m->path, m->output->geterror());
-        return false;
+        m->counts.inspect(m->rows.data(), npixels, nch, m->to_half);
+        if (!m->output->write_scanlines(chunk.ybegin, chunk.yend, 0, TypeDesc::FLOAT,
+                                        m->rows.data())) {
+            error = format("{}: write failed: {}", m->path, m->output->geterror());
+            return false;
+        }
     }
     m->next_row = own.yend;
     return true;

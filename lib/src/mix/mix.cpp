@@ -146,11 +146,17 @@ bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options, ROI roi,
     }
 
     const ROI where = output_roi(src, roi);
+    const int radius = mix_radius(options, use_net ? &net : nullptr);
+    const std::vector<Band> bands = plan_bands(src.roi(), radius, is_frame_band(src.spec()) ? 0 : options.band_pixels);
+    // In place, one band reads all it needs before it writes; a band's halo would read rows
+    // the band above has written.
+    if (&dst == &src && bands.size() > 1) {
+        const ImageBuf input = src.copy(OIIO::TypeDesc::FLOAT);
+        return mix(dst, input, options, roi, nthreads);
+    }
     std::vector<int> alpha_channels;
     if (options.output_alpha)
         alpha_channels = add_channels(dst, { "mix.alpha.R", "mix.alpha.G", "mix.alpha.B" });
-    const int radius = mix_radius(options, use_net ? &net : nullptr);
-    const std::vector<Band> bands = plan_bands(src.roi(), radius, is_frame_band(src.spec()) ? 0 : options.band_pixels);
     ProgressCounter progress(options.progress, "mix", int(bands.size()));
     for (const Band& band : bands) {
         const MixInputs in = read_mix_inputs(src, channels, band.cut);

@@ -5,6 +5,7 @@
 
 #include <cmath>
 
+#include "core/channels.h"
 #include "core/frame_facts.h"
 #include "core/op_prepare.h"
 #include "core/progress.h"
@@ -15,22 +16,6 @@
 namespace mcdn {
 
 namespace {
-
-// rows `cut` of src as a float buffer of their own (the band a denoiser runs on).
-ImageBuf copy_rows(const ImageBuf& src, const ROI& cut)
-{
-    ImageSpec spec = src.spec();
-    spec.set_format(OIIO::TypeDesc::FLOAT);
-    spec.y = cut.ybegin;
-    spec.height = cut.height();
-    ImageBuf band;
-    allocate_frame(band, spec, false);
-    ROI all = cut;
-    all.chbegin = 0;
-    all.chend = spec.nchannels;
-    src.get_pixels(all, OIIO::TypeDesc::FLOAT, band.localpixels());
-    return band;
-}
 
 bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& denoiser,
                            const SureOptions& options, ROI roi, int nthreads)
@@ -96,14 +81,12 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
     ImageBuf out;
     ProgressCounter progress(options.progress, "sure", int(bands.size()));
     for (const Band& band : bands) {
-        ImageBuf noisy;
-        if (bands.size() == 1) {
-            AovSet unused;
-            if (!prepare_op(noisy, src, options.aovs, unused, "sure", nthreads))
-                return dst.errorfmt("{}", noisy.geterror()), false;
-        } else {
-            noisy = copy_rows(src, band.cut);
-        }
+        // The band's rows, with room for sure's channels (sure_steps.h).
+        ImageBuf noisy = copy_with_channels(src, sure_channel_names(frame), band.cut, nthreads);
+        if (!noisy.localpixels())
+            return dst.errorfmt("sure: could not allocate a {}x{} frame of {} channels",
+                                noisy.spec().width, noisy.spec().height,
+                                noisy.spec().nchannels), false;
         if (!band_of_frame)
             set_frame_facts(noisy.specmod(), facts);
         if (!sure_band(out, noisy, band, denoiser, options, frame, error)) {

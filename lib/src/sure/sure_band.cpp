@@ -6,6 +6,7 @@
 
 #include "core/attributes.h"
 #include "core/op_prepare.h"
+#include "core/planar.h"
 #include "core/random.h"
 #include "skip/converged_tiles.h"
 #include "core/trace.h"
@@ -16,18 +17,6 @@ namespace mcdn {
 namespace {
 
 using OIIO::Strutil::fmt::format;
-
-// The channels sure adds, in the order sure_band writes them: 4 groups of 3, then extras.
-std::vector<std::string> sure_channel_names(const SureFrame& frame)
-{
-    std::vector<std::string> names;
-    for (const auto* group : { sure_channels::kNoisy, sure_channels::kSure,
-                               sure_channels::kDivergence, sure_channels::kResidual })
-        names.insert(names.end(), group, group + 3);
-    for (const std::string& name : frame.extra_names)
-        names.push_back(sure_channels::noisy_extra(name));
-    return names;
-}
 
 // dst for the frame: the denoiser's channels (its first band's spec), then sure's own
 // (an existing one of the same name is reused, as add_channels does). Zero-filled only when
@@ -139,7 +128,35 @@ bool check_finite(const ImageBuf& denoised, const ImageBuf& noisy, int nthreads,
     return true;
 }
 
+// The denoiser's result is the output as it stands: the band is the whole frame, and the
+// result is a float frame in memory on the frame's window that kept sure's channels.
+bool is_whole_output(const ImageBuf& denoised, const Band& band, const SureFrame& frame)
+{
+    const ImageSpec& spec = denoised.spec();
+    if (band.cut.ybegin != frame.whole.ybegin || band.cut.yend != frame.whole.yend
+        || band.own_begin != frame.whole.ybegin || band.own_end != frame.whole.yend
+        || !float_frame_pixels(denoised) || spec.x != frame.whole.xbegin
+        || spec.width != frame.whole.width() || spec.y != frame.whole.ybegin
+        || spec.height != frame.whole.height())
+        return false;
+    for (const std::string& name : sure_channel_names(frame))
+        if (spec.channelindex(name) < 0)
+            return false;
+    return true;
+}
+
 }  // namespace
+
+std::vector<std::string> sure_channel_names(const SureFrame& frame)
+{
+    std::vector<std::string> names;
+    for (const auto* group : { sure_channels::kNoisy, sure_channels::kSure,
+                               sure_channels::kDivergence, sure_channels::kResidual })
+        names.insert(names.end(), group, group + 3);
+    for (const std::string& name : frame.extra_names)
+        names.push_back(sure_channels::noisy_extra(name));
+    return names;
+}
 
 bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser& denoiser,
                const SureOptions& options, const SureFrame& frame, std::string& error)
@@ -171,10 +188,15 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
         if (!check_finite(denoised, noisy, frame.nthreads, error))
             return false;
         trace.mark("y is finite");
-        if (!write_denoised_rows(dst, denoised, band, frame, error))
-            return false;
         for (int c = 0; c < 3; ++c)
             y[c] = read_plane(denoised, frame.color[c]);
+        if (!dst.initialized() && is_whole_output(denoised, band, frame)) {
+            // What allocate_output and write_denoised_rows would make of it.
+            dst = std::move(denoised);
+            dst.specmod().erase_attribute(kConvergedAttribute);
+        } else if (!write_denoised_rows(dst, denoised, band, frame, error)) {
+            return false;
+        }
         trace.mark("y into the output");
     }
     // Of those, the tiles the denoiser did pass through (a callable may not skip): no probes.

@@ -30,10 +30,17 @@ struct SureFrame {
     int nthreads = 0;            // for SURE's own per-pixel work (the op's nthreads)
 };
 
+/// The channels sure adds, in the order it writes them: noisy.*, sure.*, sure.divergence.*,
+/// sure.residual.*, then noisy.<extra>.
+std::vector<std::string> sure_channel_names(const SureFrame& frame);
+
 /// Runs the denoiser on `noisy` (one band of the frame, its own float copy: probed in place)
 /// K + 1 times and writes the band's own rows of dst: the denoised channels, noisy.*, sure.*,
 /// sure.divergence.*, sure.residual.*, noisy.<extra>. The first band allocates dst (the
-/// frame's window, the denoiser's channels plus those). False with `error` on failure.
+/// frame's window, the denoiser's channels plus those). `noisy` comes with those channels
+/// (zero): a denoiser that keeps every channel then returns them, and when the band is the
+/// whole frame its result becomes dst itself, without a frame-sized copy. False with
+/// `error` on failure.
 bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser& denoiser,
                const SureOptions& options, const SureFrame& frame, std::string& error);
 
