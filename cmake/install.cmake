@@ -8,7 +8,8 @@
 #   <prefix>/<libdir>/pkgconfig/mcdenoise.pc
 #   <prefix>/include/mcdn/*.h
 #   <prefix>/share/mcdenoise/{models,ocio}       found relative to the library's own file
-#   <python dir>/mcdenoise.*.so                  `import mcdenoise` for /usr/bin/python3
+#   <python dir>/mcdenoise/                      `import mcdenoise` for /usr/bin/python3
+#                                                (_mcdenoise.*.so, __init__.py, shot.py)
 #
 # Every binary finds the library through a relative RPATH ($ORIGIN), and the library finds
 # its data relative to itself, so an installed tree works wherever it is copied.
@@ -66,6 +67,8 @@ set(CPACK_DEBIAN_PACKAGE_SECTION graphics)
 set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
 set(CPACK_DEBIAN_PACKAGE_DEPENDS "python3-openimageio")
 set(CPACK_DEBIAN_PACKAGE_RECOMMENDS "openimageio-tools")
+# python3 -m mcdenoise.shot runs a shot's frames on Dask.
+set(CPACK_DEBIAN_PACKAGE_SUGGESTS "python3-distributed")
 set(CPACK_STRIP_FILES ON)
 set(CPACK_PACKAGE_INSTALL_DIRECTORY mcdenoise)
 include(CPack)

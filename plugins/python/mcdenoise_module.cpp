@@ -1,4 +1,5 @@
-// `import mcdenoise`: the library's ops for Python pipeline steps. Every op takes and returns
+// `import mcdenoise` (its compiled part, mcdenoise._mcdenoise): the library's ops for Python
+// pipeline steps. Every op takes and returns
 // OpenImageIO.ImageBuf (the types of python3-openimageio's module, shared through pybind11),
 // releases the GIL while it works, and raises RuntimeError with the library's message.
 #include <pybind11/functional.h>
@@ -96,7 +97,7 @@ mcdn::Denoiser named_denoiser(const std::string& chain, const mcdn::AovSpec& spe
 
 }  // namespace
 
-PYBIND11_MODULE(mcdenoise, m)
+PYBIND11_MODULE(_mcdenoise, m)
 {
     m.doc() = "mcdenoise: Monte Carlo render denoisers on OpenImageIO.ImageBuf";
     py::module_::import("OpenImageIO");  // registers ImageBuf with pybind11

@@ -136,8 +136,12 @@ class InstalledTree(unittest.TestCase):
         self.assertIn('mcdenoise %s"' % ARGS.version, info)
 
     def test_python_module_from_the_moved_tree(self):
-        site = [os.path.join(root) for root, dirs, files in os.walk(self.prefix)
-                if any(f.startswith("mcdenoise.") and f.endswith(".so") for f in files)]
+        # The package mcdenoise/ (its compiled _mcdenoise and the Python parts): its folder's
+        # parent goes on PYTHONPATH.
+        site = [os.path.dirname(root) for root, dirs, files in os.walk(self.prefix)
+                if os.path.basename(root) == "mcdenoise"
+                and any(f.startswith("_mcdenoise.") and f.endswith(".so") for f in files)
+                and {"__init__.py", "shot.py"} <= set(files)]
         self.assertEqual(len(site), 1, site)
         script = (
             "import sys, OpenImageIO as oiio, mcdenoise\n"
