@@ -365,4 +365,42 @@ PYBIND11_MODULE(_mcdenoise, m)
           py::arg("image"), py::arg("reference"), py::arg("channels") = std::vector<int> { 0, 1, 2 },
           py::arg("reference_channels") = std::vector<int>(), py::arg("trim") = false,
           "MSE, RMSE, relMSE, SMAPE, PSNR, SSIM as a dict.");
+
+    m.def("temporal_metrics",
+          [](const ImageBuf& image, const ImageBuf& previous, const ImageBuf& reference,
+             const ImageBuf& previous_reference, const ImageBuf* motion, std::vector<int> channels,
+             std::vector<int> reference_channels, std::vector<int> motion_channels,
+             double motion_scale, bool trim) {
+              mcdn::TemporalOptions o;
+              o.metrics.image_channels = channels;
+              o.metrics.reference_channels = reference_channels.empty() ? channels
+                                                                        : reference_channels;
+              o.metrics.trim = trim;
+              if (motion_channels.size() != 2)
+                  throw std::runtime_error("temporal_metrics: motion_channels needs 2 (x, y)");
+              o.motion_x = motion_channels[0];
+              o.motion_y = motion_channels[1];
+              o.motion_scale = motion_scale;
+              mcdn::TemporalMetrics r;
+              std::string error;
+              bool ok;
+              {
+                  py::gil_scoped_release release;
+                  ok = mcdn::compute_temporal_metrics(r, image, previous, reference,
+                                                      previous_reference, motion, o, error);
+              }
+              if (!ok)
+                  throw std::runtime_error(error);
+              return std::map<std::string, double> { { "mse", r.mse }, { "relmse", r.relmse },
+                                                     { "pixels", double(r.pixels) } };
+          },
+          py::arg("image"), py::arg("previous"), py::arg("reference"),
+          py::arg("previous_reference"), py::arg("motion") = nullptr,
+          py::arg("channels") = std::vector<int> { 0, 1, 2 },
+          py::arg("reference_channels") = std::vector<int>(),
+          py::arg("motion_channels") = std::vector<int> { 0, 1 }, py::arg("motion_scale") = 1.0,
+          py::arg("trim") = false,
+          "Flicker of frame `image` after `previous` against their references (mcdn/metrics.h): "
+          "temporal MSE and relMSE of the frame-to-frame difference after warping the previous "
+          "frame by `motion` (pixel p was at p + motion_scale * motion[p] before; None: still).");
 }

@@ -160,6 +160,22 @@ class OpsTakeAndReturnImageBufs(unittest.TestCase):
         with self.assertRaises(RuntimeError):
             mcdenoise.nfor(self.render, nthreads=70000)
 
+    def test_temporal_metrics(self):
+        # The render moved 2 px right between frames (each pixel was 2 px left of where it is),
+        # its error with it: no flicker with the motion vectors, some without.
+        shift = lambda img, dx: oiio.ImageBufAlgo.cut(img, oiio.ROI(dx, dx + 96, 0, 96, 0, 1, 0, 3))
+        x0, x1 = shift(self.render, 2), shift(self.render, 0)
+        r0, r1 = shift(self.reference, 2), shift(self.reference, 0)
+        spec = oiio.ImageSpec(96, 96, 2, oiio.FLOAT)
+        motion = oiio.ImageBuf(spec)
+        oiio.ImageBufAlgo.fill(motion, (-2.0, 0.0))
+        still = mcdenoise.temporal_metrics(x1, x0, r1, r0, motion)
+        self.assertLess(still["mse"], 1e-12)
+        self.assertEqual(still["pixels"], 94 * 96)
+        self.assertGreater(mcdenoise.temporal_metrics(x1, x0, r1, r0)["mse"], 1e-6)
+        with self.assertRaises(RuntimeError):
+            mcdenoise.temporal_metrics(x1, x0, r1, r0, motion, motion_channels=[0])
+
 
 if __name__ == "__main__":
     unittest.main(verbosity=2)

@@ -43,6 +43,38 @@ bool compute_metrics(Metrics& result, const ImageBuf& image, const ImageBuf& ref
                      const MetricsOptions& options, std::string& error, ROI roi = {},
                      int nthreads = 0);
 
+/// Flicker of a sequence: how a frame's error changes from the frame before, after motion
+/// compensation. With e_t = x_t - r_t the error of frame t and W the bilinear warp of frame
+/// t-1 onto frame t by the motion (pixel p of frame t was at p + m(p) in frame t-1):
+///   temporal MSE     mean (e_t - W e_{t-1})^2
+///   temporal relMSE  mean (e_t - W e_{t-1})^2 / (r_t^2 + 0.01)
+/// that is, the error of the frame-to-frame difference x_t - W x_{t-1} against the
+/// reference's r_t - W r_{t-1}: an error that moves with the picture does not flicker and
+/// counts 0; noise drawn anew every frame counts about twice its per-frame MSE. Pixels
+/// whose previous position lies outside frame t-1 are left out. Channels and trimming as
+/// MetricsOptions (trimmed on the per-pixel temporal error).
+struct TemporalOptions {
+    MetricsOptions metrics;
+    /// The motion buffer's two channels (x, y), times `motion_scale`, give m in pixels, +y
+    /// down the image (OIIO's rows); no motion buffer: m = 0.
+    int motion_x = 0, motion_y = 1;
+    double motion_scale = 1.0;
+};
+
+struct TemporalMetrics {
+    double mse = 0, relmse = 0;
+    long long pixels = 0;  // pixels in the mean (inside frame t-1, after trimming)
+};
+
+/// Computes the temporal metrics of `image` (frame t) after `previous` (frame t-1) against
+/// their references. Every buffer has the image's size; non-finite pixels are an error.
+/// `motion` may be null (a still camera and scene).
+bool compute_temporal_metrics(TemporalMetrics& result, const ImageBuf& image,
+                              const ImageBuf& previous, const ImageBuf& reference,
+                              const ImageBuf& previous_reference, const ImageBuf* motion,
+                              const TemporalOptions& options, std::string& error,
+                              int nthreads = 0);
+
 /// Which per-pixel error a heatmap shows.
 enum class ErrorKind { RelMSE, SquaredError, AbsoluteError, SMAPE };
 

@@ -208,6 +208,103 @@ bool compute_metrics(Metrics& m, const ImageBuf& image, const ImageBuf& referenc
     return true;
 }
 
+namespace {
+
+// Bilinear sample of a plane at (x, y) in pixel-centre coordinates; false outside.
+bool sample(const std::vector<float>& plane, int w, int h, double x, double y, double& value)
+{
+    if (!(x >= 0 && y >= 0 && x <= w - 1 && y <= h - 1))
+        return false;
+    // The last row and column interpolate towards themselves (fx or fy is then 1 or 0).
+    const int x0 = std::min(int(x), std::max(0, w - 2)), y0 = std::min(int(y), std::max(0, h - 2));
+    const int x1 = std::min(x0 + 1, w - 1), y1 = std::min(y0 + 1, h - 1);
+    const double fx = x - x0, fy = y - y0;
+    auto at = [&](int xi, int yi) { return double(plane[size_t(yi) * w + xi]); };
+    value = (1 - fy) * ((1 - fx) * at(x0, y0) + fx * at(x1, y0))
+            + fy * ((1 - fx) * at(x0, y1) + fx * at(x1, y1));
+    return true;
+}
+
+}  // namespace
+
+bool compute_temporal_metrics(TemporalMetrics& m, const ImageBuf& image, const ImageBuf& previous,
+                              const ImageBuf& reference, const ImageBuf& previous_reference,
+                              const ImageBuf* motion, const TemporalOptions& o,
+                              std::string& error, int nthreads)
+{
+    Planes now, before;
+    if (!check_threads(nthreads, error) || !gather(now, image, reference, o.metrics, {}, error))
+        return false;
+    if (!gather(before, previous, previous_reference, o.metrics, {}, error)) {
+        error = "previous frame: " + error;
+        return false;
+    }
+    const int w = now.width, h = now.height;
+    if (before.width != w || before.height != h) {
+        error = format("metrics: the previous frame is {}x{} but this one is {}x{}", before.width,
+                       before.height, w, h);
+        return false;
+    }
+    std::vector<float> mx(size_t(w) * h, 0.0f), my(mx.size(), 0.0f);
+    if (motion) {
+        const ImageSpec& ms = motion->spec();
+        if (ms.width != w || ms.height != h || o.motion_x < 0 || o.motion_y < 0
+            || std::max(o.motion_x, o.motion_y) >= ms.nchannels) {
+            error = format("metrics: the motion vectors ({}x{}, {} channels) do not match the "
+                           "{}x{} frame or channels {}, {}", ms.width, ms.height, ms.nchannels, w,
+                           h, o.motion_x, o.motion_y);
+            return false;
+        }
+        mx = plane(*motion, motion->roi(), o.motion_x);
+        my = plane(*motion, motion->roi(), o.motion_y);
+        for (const auto* v : { &mx, &my })
+            if (std::any_of(v->begin(), v->end(), [](float f) { return !std::isfinite(f); })) {
+                error = format("metrics: motion channel '{}' is not finite",
+                               ms.channel_name(v == &mx ? o.motion_x : o.motion_y));
+                return false;
+            }
+    }
+    // Per pixel inside frame t-1: (e_t - W e_{t-1})^2, mean over channels, and its relative
+    // form (one pass, cheap beside reading the frames).
+    const size_t n = size_t(w) * h, nc = now.image.size();
+    std::vector<double> squared(n, 0.0), relative(n, 0.0);
+    std::vector<char> inside(n, 0);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            const size_t p = size_t(y) * w + x;
+            const double px = x + o.motion_scale * mx[p], py = double(y) + o.motion_scale * my[p];
+            double sq = 0, rel = 0;
+            bool ok = true;
+            for (size_t c = 0; c < nc && ok; ++c) {
+                double x_before, r_before;
+                ok = sample(before.image[c], w, h, px, py, x_before)
+                     && sample(before.reference[c], w, h, px, py, r_before);
+                const double r = now.reference[c][p];
+                const double d = (double(now.image[c][p]) - r) - (x_before - r_before);
+                sq += d * d / double(nc);
+                rel += d * d / (r * r + o.metrics.relmse_epsilon) / double(nc);
+            }
+            inside[p] = ok;
+            squared[p] = sq;
+            relative[p] = rel;
+        }
+    auto kept = [&](const std::vector<double>& map) {
+        std::vector<double> out;
+        for (size_t p = 0; p < n; ++p)
+            if (inside[p])
+                out.push_back(map[p]);
+        return out;
+    };
+    m = TemporalMetrics();
+    m.mse = mean(kept(squared), o.metrics.trim, o.metrics.trim_fraction, &m.pixels);
+    m.relmse = mean(kept(relative), o.metrics.trim, o.metrics.trim_fraction, nullptr);
+    if (m.pixels == 0) {
+        error = "metrics: no pixel of this frame was inside the previous one";
+        return false;
+    }
+    return true;
+}
+
 bool error_map(ImageBuf& dst, const ImageBuf& image, const ImageBuf& reference,
                const MetricsOptions& options, ErrorKind kind, ROI roi, int nthreads)
 {
