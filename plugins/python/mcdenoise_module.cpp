@@ -370,7 +370,7 @@ PYBIND11_MODULE(_mcdenoise, m)
           [](const ImageBuf& image, const ImageBuf& previous, const ImageBuf& reference,
              const ImageBuf& previous_reference, const ImageBuf* motion, std::vector<int> channels,
              std::vector<int> reference_channels, std::vector<int> motion_channels,
-             double motion_scale, bool trim) {
+             std::pair<double, double> motion_scale, bool trim) {
               mcdn::TemporalOptions o;
               o.metrics.image_channels = channels;
               o.metrics.reference_channels = reference_channels.empty() ? channels
@@ -380,7 +380,8 @@ PYBIND11_MODULE(_mcdenoise, m)
                   throw std::runtime_error("temporal_metrics: motion_channels needs 2 (x, y)");
               o.motion_x = motion_channels[0];
               o.motion_y = motion_channels[1];
-              o.motion_scale = motion_scale;
+              o.motion_scale_x = motion_scale.first;
+              o.motion_scale_y = motion_scale.second;
               mcdn::TemporalMetrics r;
               std::string error;
               bool ok;
@@ -398,9 +399,11 @@ PYBIND11_MODULE(_mcdenoise, m)
           py::arg("previous_reference"), py::arg("motion") = nullptr,
           py::arg("channels") = std::vector<int> { 0, 1, 2 },
           py::arg("reference_channels") = std::vector<int>(),
-          py::arg("motion_channels") = std::vector<int> { 0, 1 }, py::arg("motion_scale") = 1.0,
+          py::arg("motion_channels") = std::vector<int> { 0, 1 },
+          py::arg("motion_scale") = std::pair<double, double>(1.0, 1.0),
           py::arg("trim") = false,
           "Flicker of frame `image` after `previous` against their references (mcdn/metrics.h): "
           "temporal MSE and relMSE of the frame-to-frame difference after warping the previous "
-          "frame by `motion` (pixel p was at p + motion_scale * motion[p] before; None: still).");
+          "frame by `motion` (pixel p was at p + motion_scale * motion[p] before, per axis, +y "
+          "down; Cycles' Vector X, Y: motion_scale=(1, -1); None: still).");
 }

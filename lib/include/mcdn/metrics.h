@@ -55,10 +55,11 @@ bool compute_metrics(Metrics& result, const ImageBuf& image, const ImageBuf& ref
 /// MetricsOptions (trimmed on the per-pixel temporal error).
 struct TemporalOptions {
     MetricsOptions metrics;
-    /// The motion buffer's two channels (x, y), times `motion_scale`, give m in pixels, +y
-    /// down the image (OIIO's rows); no motion buffer: m = 0.
+    /// The motion buffer's two channels (x, y), times their scales, give m in pixels, +y
+    /// down the image (OIIO's rows); no motion buffer: m = 0. Cycles' Vector pass is X, Y
+    /// with scales (1, -1): its X, Y point to frame t-1 in Blender's raster, y up.
     int motion_x = 0, motion_y = 1;
-    double motion_scale = 1.0;
+    double motion_scale_x = 1.0, motion_scale_y = 1.0;
 };
 
 struct TemporalMetrics {

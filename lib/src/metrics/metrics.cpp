@@ -272,7 +272,8 @@ bool compute_temporal_metrics(TemporalMetrics& m, const ImageBuf& image, const I
     for (int y = 0; y < h; ++y)
         for (int x = 0; x < w; ++x) {
             const size_t p = size_t(y) * w + x;
-            const double px = x + o.motion_scale * mx[p], py = double(y) + o.motion_scale * my[p];
+            const double px = x + o.motion_scale_x * mx[p];
+            const double py = double(y) + o.motion_scale_y * my[p];
             double sq = 0, rel = 0;
             bool ok = true;
             for (size_t c = 0; c < nc && ok; ++c) {
