@@ -3,7 +3,10 @@
     blender -b --factory-startup -t 2 -P blender_render.py -- --spec spec.json
 
 spec.json holds: family, seed, crop, frame, levels, K, ref_spp, ref_K, raw_dir, exposure, and
-optionally adaptive_levels, adaptive_threshold, sky, only_tags (render only those levels).
+optionally adaptive_levels, adaptive_threshold, sky, only_tags (render only those levels),
+and for a frame of a sequence: sequence (N frames), frame_number (1..N), seed_offset (added to
+every Cycles seed): the scene is animated (scenes.add_motion), set to that frame, and the
+Vector pass (motion vectors, motion blur off) is written.
 Writes raw per-seed multilayer EXRs ``L<NNNN>_s<k>.exr`` / ``ref_s<k>.exr`` into raw_dir and
 ``render_log.json`` (scene description, per-render seeds, spp, CPU and wall seconds).  All
 seeds of all levels render in this one process (a Cycles seed is only reproducible within a
@@ -86,6 +89,9 @@ def setup_render(scene, spec):
     vl.use_pass_emit = True
     vl.use_pass_environment = True
     vl.cycles.denoising_store_passes = True
+    if spec.get("sequence"):
+        r.use_motion_blur = False  # Cycles writes the Vector pass only without motion blur
+        vl.use_pass_vector = True
 
 
 def render(scene, path, spp, seed, adaptive_threshold=None):
@@ -130,6 +136,11 @@ def main():
     if spec.get("sky") is not None:
         aspect = spec["frame"][1] / spec["frame"][0]
         info["camera"]["levelled_for_sky"] = scenes.level_camera(spec["sky"], aspect)
+    if spec.get("sequence"):
+        info["motion"] = scenes.add_motion(spec["family"], spec["seed"], int(spec["sequence"]),
+                                           spec["frame"], spec["crop"])
+        bpy.context.scene.frame_set(int(spec["frame_number"]))
+        info["motion"]["frame_number"] = int(spec["frame_number"])
     build_s = time.perf_counter() - t0
     scene = bpy.context.scene
     setup_render(scene, spec)
@@ -156,7 +167,9 @@ def main():
         jobs.append(("ref", spec["ref_spp"], rk, s, spec["ref_spp"] // rk, 100000 + s))
     if spec.get("only_tags"):  # re-render some levels of a crop (the seeds stay theirs)
         jobs = [j for j in jobs if j[0] in spec["only_tags"]]
+    seed_offset = int(spec.get("seed_offset", 0))
     for tag, n, k, s, spp, seed in jobs:
+        seed += seed_offset
         path = os.path.join(spec["raw_dir"], f"{tag}_s{s}.exr")
         adaptive = spec.get("adaptive_threshold") if tag.startswith("A") else None
         cpu, wall = render(scene, path, spp, seed, adaptive)

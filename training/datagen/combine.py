@@ -41,8 +41,9 @@ def write_exr(path, px, names, attrs):
     os.replace(tmp, path)
 
 
-def combine(inputs, stem, extra_attrs=None, halves=True):
-    """inputs: list of seed EXR paths (K >= 2). Writes stem.exr, stem_var.exr, [stem_A/_B.exr]."""
+def combine(inputs, stem, extra_attrs=None, halves=True, suffix=".exr"):
+    """inputs: list of seed EXR paths (K >= 2). Writes stem.exr, stem_var.exr, [stem_A/_B.exr];
+    suffix replaces ".exr" (a frame of a sequence: ".0001.exr" -> stem_var.0001.exr, ...)."""
     k = len(inputs)
     if k < 2:
         raise ValueError("need at least two seeds for a variance")
@@ -59,15 +60,15 @@ def combine(inputs, stem, extra_attrs=None, halves=True):
     var = stack.var(axis=0, ddof=1) / k
     attrs = {"combine:inputs": ",".join(os.path.basename(p) for p in inputs), "combine:K": str(k)}
     attrs.update(extra_attrs or {})
-    write_exr(stem + ".exr", mean, names, attrs)
-    write_exr(stem + "_var.exr", var, names, attrs)
-    out = {"mean": stem + ".exr", "var": stem + "_var.exr"}
+    write_exr(stem + suffix, mean, names, attrs)
+    write_exr(stem + "_var" + suffix, var, names, attrs)
+    out = {"mean": stem + suffix, "var": stem + "_var" + suffix}
     if halves:
         h = k // 2
         for tag, part in (("A", stack[:h]), ("B", stack[h:2 * h])):
             a = dict(attrs)
             a["half"] = tag
             a["K_half"] = str(h)
-            write_exr(f"{stem}_{tag}.exr", part.mean(axis=0), names, a)
-            out[tag] = f"{stem}_{tag}.exr"
+            write_exr(f"{stem}_{tag}{suffix}", part.mean(axis=0), names, a)
+            out[tag] = f"{stem}_{tag}{suffix}"
     return out

@@ -941,7 +941,7 @@ def build_caustics(rng, seed):
         m, nt, p = new_material("glass")
         ior = rng.uniform(1.4, 1.6)
         set_p(p, base=(1, 1, 1), transmission=1.0, rough=0.0, ior=ior, spec=0.5)
-        add_prim("sphere", tuple(c), (r, r, r), mat=m)
+        CONTENT.append(add_prim("sphere", tuple(c), (r, r, r), mat=m).name)
         spot = c + to_ground * (c.z / -to_ground.z)  # where its focused light lands
         targets.append(((c + spot) / 2))
         objects.append({"prim": "sphere", "material": "clear glass", "ior": round(ior, 3),
@@ -954,7 +954,7 @@ def build_caustics(rng, seed):
         set_p(p, base=rand_color(rng, sat=(0.0, 0.3), val=(0.8, 1.0)), metallic=1.0, rough=rough)
         loc = (rng.uniform(-2.0, 2.0), rng.uniform(-1.0, wall_y - 1.0), s)
         rot = (rng.uniform(0.3, 1.3), 0, rng.uniform(0, 6.3)) if kind == "torus" else (0, 0, 0)
-        add_prim(kind, loc, (s, s, s), rot, m)
+        CONTENT.append(add_prim(kind, loc, (s, s, s), rot, m).name)
         objects.append({"prim": kind, "material": "metal", "roughness": round(rough, 3),
                         "size": round(s, 3), "loc": [round(v, 3) for v in loc]})
     info["objects"] = objects
@@ -979,11 +979,109 @@ def build_caustics(rng, seed):
 
 
 # ----------------------------------------------------------------------------------------
+# motion for sequences (generate --sequence N)
+# ----------------------------------------------------------------------------------------
+CONTENT = []  # names of the content objects of the last build() (candidates to move)
+
+
+def _linear_keys(ob):
+    for fc in ob.animation_data.action.fcurves:
+        fc.extrapolation = "LINEAR"  # frames 0 and N+1 move on: vectors on the end frames too
+        for kp in fc.keyframe_points:
+            kp.interpolation = "LINEAR"
+
+
+def add_motion(family, seed, n_frames, frame, crop):
+    """Animate the built scene over frames 1..n_frames (linear keys, linear extrapolation):
+    the camera trucks sideways, dollies and pans, and the content object seen nearest the
+    crop's centre slides over the ground and spins.  The middle of the sequence is the scene
+    as built.  Image speeds are drawn in pixels per frame (at the frame's resolution) and
+    capped so that the whole sequence moves the view by at most ~0.35 (camera) and ~0.5
+    (object) of the crop.  Deterministic from (family, seed, n_frames, frame, crop); the scene's
+    own random draws are untouched (a separate generator)."""
+    from bpy_extras.object_utils import world_to_camera_view
+    rng = random.Random(f"motion:{family}:{seed}")
+    scene = bpy.context.scene
+    cam = scene.camera
+    fw, fh = frame
+    x0, y0, cw, ch = crop
+    f_px = cam.data.lens / cam.data.sensor_width * max(fw, fh)  # pixels per radian
+    steps = max(n_frames - 1, 1)
+    mid = (n_frames + 1) / 2.0
+    bpy.context.view_layer.update()
+    cm = cam.matrix_world.copy()
+    right, up, back = (cm.to_3x3() @ Vector(v) for v in ((1, 0, 0), (0, 1, 0), (0, 0, 1)))
+    cam_loc = cm.translation.copy()
+    # the content object nearest the crop's centre (in view), else the nearest in view
+    ccx, ccy = (x0 + cw / 2) / fw, 1.0 - (y0 + ch / 2) / fh
+    best = None
+    for name in CONTENT:
+        ob = bpy.data.objects.get(name)
+        if ob is None:
+            continue
+        v = world_to_camera_view(scene, cam, ob.matrix_world.translation)
+        if v.z <= 0:
+            continue
+        d = math.hypot(v.x - ccx, (v.y - ccy) * fh / fw)
+        if best is None or d < best[0]:
+            best = (d, ob, v.z)
+    depth = best[2] if best else 5.0
+    # camera: truck + pan (image shift in px/frame) and a dolly (fraction of depth per frame)
+    cam_px = min(rng.uniform(1.0, 3.0), 0.35 * cw / steps)
+    split = rng.uniform(0.0, 1.0)  # truck vs pan share of the image shift
+    sgn = rng.choice([-1, 1])
+    truck = sgn * split * cam_px * depth / f_px  # world units per frame along camera right
+    pan = sgn * (1.0 - split) * cam_px / f_px  # radians per frame about world Z
+    pan *= 1.0 if rng.random() < 0.7 else -1.0  # sometimes against the truck (parallax)
+    dolly = rng.uniform(-0.01, 0.015) * depth  # towards the view (+) or away (-) per frame
+    rise = rng.gauss(0.0, 0.3) * cam_px * depth / f_px  # a little vertical drift
+    fwd = -back
+    rot0 = cam.rotation_euler.copy()
+    for fr in (1, n_frames):
+        t = fr - mid
+        cam.location = cam_loc + right * (truck * t) + fwd * (dolly * t) + up * (rise * t)
+        cam.rotation_euler = (rot0.x, rot0.y, rot0.z + pan * t)
+        cam.keyframe_insert("location", frame=fr)
+        cam.keyframe_insert("rotation_euler", frame=fr)
+    _linear_keys(cam)
+    cam.location, cam.rotation_euler = cam_loc, rot0
+    info = {"frames": n_frames, "middle_frame": mid,
+            "camera": {"truck_per_frame": round(truck, 5), "pan_deg_per_frame": round(math.degrees(pan), 4),
+                       "dolly_per_frame": round(dolly, 5), "rise_per_frame": round(rise, 5),
+                       "image_px_per_frame": round(cam_px, 3)}}
+    if best is not None:
+        ob = best[1]
+        obj_px = min(rng.uniform(2.0, 5.0), 0.5 * cw / steps)
+        # slide along the camera's horizontal axis on the ground, turned by up to 45 degrees
+        h = Vector((right.x, right.y, 0.0))
+        h = h.normalized() if h.length > 1e-6 else Vector((1, 0, 0))
+        a = rng.uniform(-math.pi / 4, math.pi / 4) + (math.pi if rng.random() < 0.5 else 0.0)
+        d = Vector((h.x * math.cos(a) - h.y * math.sin(a), h.x * math.sin(a) + h.y * math.cos(a), 0.0))
+        speed = obj_px * best[2] / f_px
+        spin = math.radians(rng.uniform(1.0, 4.0)) * rng.choice([-1, 1])
+        loc0, r0 = ob.location.copy(), ob.rotation_euler.copy()
+        for fr in (1, n_frames):
+            t = fr - mid
+            ob.location = loc0 + d * (speed * t)
+            ob.rotation_euler = (r0.x, r0.y, r0.z + spin * t)
+            ob.keyframe_insert("location", frame=fr)
+            ob.keyframe_insert("rotation_euler", frame=fr)
+        _linear_keys(ob)
+        ob.location, ob.rotation_euler = loc0, r0
+        info["object"] = {"name": ob.name, "direction": [round(v, 4) for v in d],
+                          "speed_per_frame": round(speed, 5), "image_px_per_frame": round(obj_px, 3),
+                          "spin_deg_per_frame": round(math.degrees(spin), 3)}
+    scene.frame_start, scene.frame_end = 1, n_frames
+    return info
+
+
+# ----------------------------------------------------------------------------------------
 # entry point
 # ----------------------------------------------------------------------------------------
 def build(family, seed):
     if family not in FAMILIES + EXTRA_FAMILIES:
         raise ValueError(f"unknown family {family}; known: {FAMILIES + EXTRA_FAMILIES}")
+    CONTENT.clear()
     rng = random.Random(f"{family}:{seed}")
     if family == "caustics":
         return build_caustics(rng, seed)
@@ -994,6 +1092,7 @@ def build(family, seed):
     n = rng.randint(4, 12) if family != "fine" else rng.randint(1, 5)
     arrangement, objs = place_content(rng, st, family, n)
     made, mats = build_objects(rng, objs, family)
+    CONTENT.extend(ob.name for ob in made)
     info["arrangement"] = arrangement
     info["objects"] = [{"prim": o["prim"], "size": round(o["size"], 3),
                         "loc": [round(x, 3) for x in o["loc"]], "material": m}
