@@ -112,21 +112,27 @@ bool available_bytes(double& bytes, std::string& error)
 bool check_memory(const std::vector<Command>& commands, int threads, int parallel_frames,
                   std::string& error)
 {
-    // The frame the inputs describe, from their headers alone.
+    // The frame the inputs describe, from their headers alone, and the channels read at
+    // least: every channel of a render (-i, -i:as=mean), the colour's face of a variance or
+    // half file (the reader takes only the roles' faces of those: mcdn::InputSelection).
     double pixels = 0, width = 0;
-    int channels = 0;
+    int channels = 0, in_files = 0;
     for (const auto& c : commands) {
         if (c.name != "-i")
             continue;
         auto in = OIIO::ImageInput::open(c.args[0]);
         if (!in)
             return true;  // a directory, or unreadable: reading will say
+        const std::string kind = c.modifier("as", "mean");
+        int file_channels = 0;
         for (int s = 0; in->seek_subimage(s, 0); ++s) {
             const OIIO::ImageSpec& spec = in->spec();
             pixels = std::max(pixels, double(spec.width) * spec.height);
             width = std::max(width, double(spec.width));
-            channels += spec.nchannels;
+            file_channels += spec.nchannels;
         }
+        in_files += file_channels;
+        channels += kind == "mean" ? file_channels : std::min(file_channels, 3);
     }
     double available = 0;
     if (!available_bytes(available, error))
@@ -153,10 +159,10 @@ bool check_memory(const std::vector<Command>& commands, int threads, int paralle
                                "reads), a shorter chain or a smaller frame would need less";
     if (frames_at_once > 1)
         advice += "; --parallel-frames 1 runs one frame at a time";
-    error = format("a {:.0f} Mpixel frame with {} channels needs about {:.1f} GB for this "
-                   "chain and {} thread(s), {:.1f} GB are available: {}",
-                   pixels / 1e6, channels, need / gb, per_frame_threads, available / gb,
-                   advice);
+    error = format("a {:.0f} Mpixel frame with {} channels ({} read at least) needs about "
+                   "{:.1f} GB for this chain and {} thread(s), {:.1f} GB are available: {}",
+                   pixels / 1e6, in_files, channels, need / gb, per_frame_threads,
+                   available / gb, advice);
     return false;
 }
 

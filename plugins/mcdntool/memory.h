@@ -9,8 +9,8 @@
 namespace mcdntool {
 
 /// A lower bound of the peak memory of running `commands` on a frame of `pixels` pixels
-/// and `channels` float channels (all inputs merged), in bytes. Stages keep frame-sized
-/// buffers (the merged input, each result, SURE's noisy copy and probe responses) and the
+/// and `channels` float channels (of the merged input: those read), in bytes. Stages keep
+/// frame-sized buffers (the merged input, each result, SURE's noisy copy) and the
 /// CNN per-thread network buffers; the factors are those of whole mcdntool runs on Blender
 /// files (bench/), rounded down so that a run which fits is never refused.
 /// A command line that streams (streamed_chain_start) keeps the merged input whole but each
