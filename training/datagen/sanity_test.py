@@ -5,7 +5,8 @@
     sanity_test.py --cache small       # $MCDN_CACHE/datasets/small; exit 77 (skip) if absent
 
 A crop is a directory holding <id>_ref.exr, <id>_ref_var.exr and, per sample count N,
-<id>_NNNNspp.exr, _var.exr, _A.exr, _B.exr.  Checks (all must hold, else exit 1):
+<id>_NNNNspp.exr, _var.exr, _A.exr, _B.exr; each frame of a sequence (generate --sequence) is
+checked as a crop, its files named <id>_ref.0001.exr, <id>_NNNNspp.0001.exr, ...  Checks (all must hold, else exit 1):
   1. no NaN/Inf in any channel of any file; variances >= 0;
   2. features present and in range: all 39 box channels; alpha in [0,1]; light passes >= 0;
      DiffCol in [0,1], Gloss/TransCol in [0,3]; Denoising Albedo >= 0 with median <= 1.05;
@@ -61,13 +62,19 @@ class Img:
 
 
 def find_crops(d):
-    refs = sorted(glob.glob(os.path.join(d, "*_ref.exr"))) + sorted(glob.glob(os.path.join(d, "*", "*_ref.exr")))
+    """(stem, levels, suffix) per crop, and per frame of a sequence (generate --sequence:
+    files <id>_ref.0001.exr, ...; suffix ".0001.exr", else ".exr")."""
+    refs = []
+    for pattern in ("*_ref.exr", "*_ref.[0-9][0-9][0-9][0-9].exr"):
+        refs += sorted(glob.glob(os.path.join(d, pattern))) + sorted(glob.glob(os.path.join(d, "*", pattern)))
     crops = []
     for r in refs:
-        stem = r[:-len("_ref.exr")]
-        levels = sorted({int(m.group(1)) for f in glob.glob(stem + "_*spp.exr")
-                         for m in [re.search(r"_(\d+)spp\.exr$", f)] if m})
-        crops.append((stem, levels))
+        m = re.search(r"_ref(\.\d{4})?\.exr$", r)
+        suffix = (m.group(1) or "") + ".exr"
+        stem = r[:m.start()]
+        levels = sorted({int(m.group(1)) for f in glob.glob(stem + "_*spp" + suffix)
+                         for m in [re.search(r"_(\d+)spp" + re.escape(suffix) + "$", f)] if m})
+        crops.append((stem, levels, suffix))
     return crops
 
 
@@ -134,11 +141,11 @@ def check_features(ck, im, name, var=None):
     return stats
 
 
-def check_crop(ck, stem, levels, full_features=True):
-    name = os.path.basename(stem)
+def check_crop(ck, stem, levels, full_features=True, suffix=".exr"):
+    name = os.path.basename(stem) + suffix[:-len(".exr")]
     print(f"{name}: levels {levels}")
-    ref = Img(stem + "_ref.exr")
-    ref_var = Img(stem + "_ref_var.exr")
+    ref = Img(stem + "_ref" + suffix)
+    ref_var = Img(stem + "_ref_var" + suffix)
     for im in (ref, ref_var):
         ck.check(np.isfinite(im.px).all(), f"{os.path.basename(im.path)}: NaN/Inf")
     ck.check(ref_var.px.min() >= 0, f"{name}: negative reference variance")
@@ -160,7 +167,7 @@ def check_crop(ck, stem, levels, full_features=True):
     ref_term = float(np.mean(rv / (r ** 2 + 0.01)))
     errs, ratios, consist = [], [], []
     for n in levels:
-        ims = {t: Img(f"{stem}_{n:04d}spp{t}.exr") for t in ("", "_var", "_A", "_B")}
+        ims = {t: Img(f"{stem}_{n:04d}spp{t}{suffix}") for t in ("", "_var", "_A", "_B")}
         for t, im in ims.items():
             ck.check(np.isfinite(im.px).all(), f"{os.path.basename(im.path)}: NaN/Inf")
             ck.check(im.names == ref.names, f"{os.path.basename(im.path)}: channels differ from ref")
@@ -215,8 +222,8 @@ def main():
     ck = Checker()
     ck.check(len(crops) >= a.min_crops, f"only {len(crops)} crops found in {dirs}")
     slopes, ratios, consist = [], [], []
-    for stem, levels in crops:
-        s, r = check_crop(ck, stem, levels, full_features=not a.quick)
+    for stem, levels, suffix in crops:
+        s, r = check_crop(ck, stem, levels, full_features=not a.quick, suffix=suffix)
         if s is not None:
             slopes.append(s)
             if not -0.8 <= s <= -0.2:  # single heavy-tailed crops may stray; the median must not
