@@ -166,8 +166,8 @@ std::vector<CommandInfo> stage_commands()
           "unless --prefilter ran. Extra AOVs (light groups, extra.NAME) are denoised with "
           "the beauty's weights so they still add up (extras=0: keep them as they are). "
           "A pixel holding one sample worth a hundred of its neighbours (a caustic through "
-          "glass, a firefly) is kept out of the regressions and added back where it was "
-          "(outliers=keep; drop: removed, as a sample clamp would; off).",
+          "glass, a firefly) is kept out of the regressions and its excess removed, as a "
+          "sample clamp would (outliers=drop; keep: added back where it was; off: left in).",
           queue_nfor, false, check<mcdn::NforOptions>,
           "the colour and its two half buffers (each the mean of half the samples: "
           "-i:as=halfA, -i:as=halfB; a Tungsten folder has them); the variance of the mean "

@@ -205,13 +205,13 @@ PYBIND11_MODULE(_mcdenoise, m)
           py::arg("image"), py::arg("preset") = "",
           py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
           py::arg("window") = 19, py::arg("patch") = 7, py::arg("mse") = false,
-          py::arg("selection") = false, py::arg("extras") = true, py::arg("outliers") = "keep",
+          py::arg("selection") = false, py::arg("extras") = true, py::arg("outliers") = "drop",
           py::arg("skip") = true,
           py::arg("converged") = mcdn::SkipOptions().max_relative_error, py::arg("nthreads") = 0,
           "NFOR: first-order regression denoiser (NFOR §5.2-5.4). extras: denoise the extra "
           "AOVs (light groups) with the beauty's weights. outliers: a pixel holding one sample "
-          "worth a hundred of its neighbours is kept out of the regressions and put back "
-          "('keep'), removed ('drop') or left in ('off'). skip: pass converged tiles (worst "
+          "worth a hundred of its neighbours is kept out of the regressions and removed "
+          "('drop'), put back ('keep') or left in ('off'). skip: pass converged tiles (worst "
           "relative standard error <= converged) through and drop constant features.");
 
     m.def("cnn",

@@ -65,17 +65,19 @@ struct NforOptions {
     enum class Outliers {
         /// The excess (render − median) is added back at the pixel after §5.4: the light
         /// stays where and in the amount the renderer put it (as in the render, a firefly
-        /// stays a firefly), and the result converges to the render's mean.
+        /// stays a firefly), and the result converges to the render's mean. On sparse
+        /// renders (many pixels pass the rule) this is the render's error: the denoising is
+        /// lost there (docs/accuracy.md).
         Keep,
-        /// The excess is dropped, as a renderer's sample clamp would: lower error on a
-        /// frame with a few such samples, but a bias (the caustic loses the energy those
+        /// The excess is dropped, as a renderer's sample clamp would: the lowest error of
+        /// the three on every input measured, but a bias (the caustic loses the energy those
         /// rare paths carry on average) until the sample count is high enough that no
         /// pixel is an outlier.
         Drop,
         /// Not detected: the regressions see every pixel as rendered.
         Off,
     };
-    Outliers outliers = Outliers::Keep;
+    Outliers outliers = Outliers::Drop;
     float outlier_sigma = 16.0f;
     float outlier_variance_ratio = 256.0f;
     float outlier_level_ratio = 64.0f;
