@@ -11,8 +11,8 @@
 
 #include "cnn/cnn_steps.h"
 #include "core/bands.h"
+#include "core/channels.h"
 #include "core/frame_facts.h"
-#include "core/op_prepare.h"
 #include "core/planar.h"
 #include "core/trace.h"
 #include "mcdn/cnn.h"
@@ -119,21 +119,6 @@ FrameFacts light_pass(const ImageBuf& src, const AovSet& aovs, const ChainOption
     return facts;
 }
 
-// Rows `cut` of src, every channel, as a float buffer of their own.
-void copy_band(ImageBuf& band, const ImageBuf& src, const ROI& cut)
-{
-    ImageSpec spec = src.spec();
-    spec.set_format(OIIO::TypeDesc::FLOAT);
-    spec.channelformats.clear();
-    spec.y = cut.ybegin;
-    spec.height = cut.height();
-    allocate_frame(band, spec, false);
-    ROI all = cut;
-    all.chbegin = 0;
-    all.chend = spec.nchannels;
-    src.get_pixels(all, OIIO::TypeDesc::FLOAT, band.localpixels());
-}
-
 }  // namespace
 
 int chain_reach(const ImageSpec& spec, const ChainOptions& o)
@@ -220,8 +205,8 @@ bool run_chain(const ImageBuf& input, const ChainOptions& o, const BandSink& sin
                                                               float fraction) {
                 o.progress(stage, (float(b) + fraction) / float(n));
             };
-        ImageBuf band, result;
-        copy_band(band, src, bands[b].cut);
+        // Rows of src, every channel, as a float buffer of their own.
+        ImageBuf band = copy_with_channels(src, {}, bands[b].cut, nthreads), result;
         set_frame_facts(band.specmod(), facts);
         if (!run_chain(result, band, band_options, {}, nthreads)) {
             error = result.geterror();

@@ -1082,8 +1082,8 @@ bool RowWriter::write_rows(const ImageBuf& band, const ROI& own, std::string& er
     }
     // The output's channels, pixel-interleaved and checked as write_image checks, a chunk of
     // rows at a time: the chunk is all the writer holds besides the band (a whole band's
-    // copy would add a frame of the output's channels at the peak). 256 rows: a whole
-    // number of every EXR compression's blocks.
+    // copy would add a frame of the output's channels at the peak). 256 rows: a multiple of
+    // every EXR compression's block height.
     constexpr int kChunkRows = 256;
     const ImageSpec& in = band.spec();
     const float* pixels = float_frame_pixels(band);

@@ -137,11 +137,11 @@ def main(argv=None):
         cluster = LocalCluster(n_workers=args.workers, threads_per_worker=1, processes=True,
                                dashboard_address=None)
         client = Client(cluster)
-    todo = chunks(frames, args.chunk)
-    print(f"mcdenoise.shot: {len(frames)} frames in {len(todo)} chunks of up to {args.chunk} "
+    planned = chunks(frames, args.chunk)
+    print(f"mcdenoise.shot: {len(frames)} frames in {len(planned)} chunks of up to {args.chunk} "
           f"on {client.scheduler.address}, logs in {logs}", flush=True)
     futures = {}
-    for first, last, spec in todo:
+    for first, last, spec in planned:
         log = os.path.join(logs, f"frames_{first}-{last}.log")
         future = client.submit(run_chunk, mcdntool, spec, arguments, log, os.getcwd(),
                                retries=args.retries,
