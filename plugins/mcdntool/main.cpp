@@ -152,12 +152,32 @@ mcdn::InputSelection input_selection(const std::vector<Command>& commands)
 
 // Runs the command line of one frame, one of `parallel` frames that run at once on
 // `all_threads` threads together (memory is checked for all of them).
+// The inputs of frame `frame` of the shot (the -i commands of `commands`, patterns
+// replaced), false when a file is missing: a cross-frame stage's neighbours (--nfor:frames).
+bool shot_frame_inputs(const std::vector<Command>& commands, int frame,
+                       std::vector<mcdn::InputFile>& inputs)
+{
+    if (frame < 0)
+        return false;
+    for (const Command& c : frame_commands(commands, frame))
+        if (c.name == "-i") {
+            mcdn::InputKind kind;
+            std::string error;
+            if (!input_kind_of(c, kind, error) || !Filesystem::exists(c.args[0]))
+                return false;
+            inputs.push_back({ c.args[0], kind, c.modifier("part") });
+        }
+    return !inputs.empty();
+}
+
 bool run_frame(const std::vector<Command>& commands, const std::string& history, int nthreads,
-               int all_threads, int parallel, bool verbose, std::string& error)
+               int all_threads, int parallel, bool verbose, std::string& error,
+               std::function<bool(int, std::vector<mcdn::InputFile>&)> neighbour_inputs = {})
 {
     if (!check_outputs(commands, error) || !check_memory(commands, all_threads, parallel, error))
         return false;
     Session session;
+    session.neighbour_inputs = std::move(neighbour_inputs);
     session.nthreads = nthreads;
     session.verbose = verbose;
     session.history = history;
@@ -211,9 +231,12 @@ bool run_frames(const std::vector<Command>& commands, const std::vector<int>& fr
                 continue;
             }
             try {
+                const int number = frames[f];
                 ok = run_frame(frame, line.text, parallel > 1 ? per_frame : nthreads, threads,
-                               parallel,
-                               verbose && parallel == 1, error);
+                               parallel, verbose && parallel == 1, error,
+                               [&commands, number](int offset, std::vector<mcdn::InputFile>& in) {
+                                   return shot_frame_inputs(commands, number + offset, in);
+                               });
             } catch (const std::bad_alloc&) {
                 // A frame too large for the memory left: one line and a non-zero exit, not
                 // an abort (outputs go through a temporary name: nothing partial is left).

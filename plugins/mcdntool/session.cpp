@@ -142,6 +142,38 @@ bool Session::apply_to(const std::string& name, const ImageBuf& input, const Sta
     return replace_image(std::move(result), error);
 }
 
+bool Session::read_neighbours(int radius, std::vector<std::shared_ptr<ImageBuf>>& previous,
+                              std::vector<std::shared_ptr<ImageBuf>>& next,
+                              std::string& error) const
+{
+    mcdn::InputSelection select = selection;
+    select.aovs = aov_spec;
+    for (int side : { -1, 1 }) {
+        std::vector<std::shared_ptr<ImageBuf>>& frames = side < 0 ? previous : next;
+        for (int k = 1; k <= radius; ++k) {
+            std::vector<mcdn::InputFile> files;
+            if (!neighbour_inputs || !neighbour_inputs(side * k, files)) {
+                if (verbose)
+                    std::cerr << format("mcdntool: cross-frame: no frame {:+d} (its files do "
+                                        "not exist): {} {} of {}\n", side * k,
+                                        k - 1, side < 0 ? "previous" : "next", radius);
+                break;
+            }
+            auto frame = std::make_shared<ImageBuf>();
+            mcdn::AovSet aovs;
+            if (!mcdn::read_inputs(*frame, files, select)) {
+                error = frame->geterror();
+                return false;
+            }
+            if (!mcdn::resolve_aovs(aovs, aov_spec, frame->spec(), error)
+                || !mcdn::validate_inputs(*frame, aovs, error))
+                return false;
+            frames.push_back(std::move(frame));
+        }
+    }
+    return true;
+}
+
 bool Session::load_inputs(std::string& error)
 {
     if (m_loaded)
@@ -197,8 +229,6 @@ bool Session::replace_image(ImageBuf result, std::string& error)
     return mcdn::resolve_aovs(m_aovs, aov_spec, m_image.spec(), error);
 }
 
-namespace {
-
 bool input_kind_of(const Command& c, mcdn::InputKind& kind, std::string& error)
 {
     auto named = mcdn::input_kind_from_name(c.modifier("as", "mean"));
@@ -209,6 +239,8 @@ bool input_kind_of(const Command& c, mcdn::InputKind& kind, std::string& error)
     kind = *named;
     return true;
 }
+
+namespace {
 
 bool metrics_format_of(const Command& c, bool& json, std::string& error)
 {

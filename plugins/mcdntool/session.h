@@ -3,6 +3,7 @@
 #pragma once
 
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -29,6 +30,16 @@ public:
     mcdn::InputSelection selection;
 
     std::vector<mcdn::InputFile> inputs;
+    /// The inputs of the frame `offset` frames away in the shot (the -i commands with the
+    /// frame patterns replaced), false when the run is no sequence or a file of that frame
+    /// does not exist (before the shot's first frame, after its last).
+    std::function<bool(int offset, std::vector<mcdn::InputFile>& inputs)> neighbour_inputs;
+    /// Reads the neighbouring frames of a cross-frame stage, up to `radius` on each side,
+    /// nearest first, as this frame's inputs are read (and checked); fewer at the shot's
+    /// ends (a -v line). False with `error` naming the file.
+    bool read_neighbours(int radius, std::vector<std::shared_ptr<OIIO::ImageBuf>>& previous,
+                         std::vector<std::shared_ptr<OIIO::ImageBuf>>& next,
+                         std::string& error) const;
     mcdn::AovSpec aov_spec;
     std::vector<std::string> output_channels;  // --ch
     std::string last_reference;                // --metrics REF, for --heatmap
@@ -99,6 +110,9 @@ bool run_info(Session&, const Command&, std::string& error);
 bool run_metrics(Session&, const Command&, std::string& error);
 bool run_heatmap(Session&, const Command&, std::string& error);
 bool run_fixnan(Session&, const Command&, std::string& error);
+
+/// The input kind of an -i command (its :as= modifier).
+bool input_kind_of(const Command& c, mcdn::InputKind& kind, std::string& error);
 
 /// Checks of the built-in commands' modifier values (session.cpp), run before any command.
 bool check_input(const Command&, std::string& error);

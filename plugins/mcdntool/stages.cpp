@@ -57,15 +57,55 @@ bool queue_prefilter(Session& s, const Command& c, std::string& error)
     return true;
 }
 
+// --nfor:frames=N: cross-frame NFOR over N frames on each side (§8), which mcdntool reads
+// (the frames=N modifier is the front end's: the op takes the frames themselves).
+bool nfor_options(const Command& c, mcdn::NforOptions& o, int& frames, std::string& error)
+{
+    Command settings = c;
+    frames = 0;
+    if (c.has("frames")) {
+        const std::string text = c.modifier("frames");
+        if (text.size() != 1 || text[0] < '0' || text[0] > '4') {
+            error = c.name + ":frames=" + text + " must be 0 to 4 (frames on each side)";
+            return false;
+        }
+        frames = text[0] - '0';
+        settings.modifiers.erase("frames");
+    }
+    return stage_options(settings, o, error);
+}
+
+std::vector<std::string> with_frames(std::vector<std::string> keys)
+{
+    keys.push_back("frames");
+    return keys;
+}
+
+bool check_nfor(const Command& c, std::string& error)
+{
+    mcdn::NforOptions o;
+    int frames;
+    return nfor_options(c, o, frames, error);
+}
+
 bool queue_nfor(Session& s, const Command& c, std::string& error)
 {
     mcdn::NforOptions o;
-    if (!stage_options(c, o, error))
+    int frames;
+    if (!nfor_options(c, o, frames, error))
         return false;
     o.aovs = o.prefilter.aovs = s.aov_spec;
     o.progress = s.progress();
     s.features_out |= o.features_out;
-    s.queue("nfor", [o](ImageBuf& dst, const ImageBuf& src, int nthreads) {
+    // The neighbours are read now and kept with the stage (SURE may run it again).
+    std::vector<std::shared_ptr<ImageBuf>> previous, next;
+    if (frames > 0 && !s.read_neighbours(frames, previous, next, error))
+        return false;
+    for (const auto& f : previous)
+        o.previous_frames.push_back(f.get());
+    for (const auto& f : next)
+        o.next_frames.push_back(f.get());
+    s.queue("nfor", [o, previous, next](ImageBuf& dst, const ImageBuf& src, int nthreads) {
         return mcdn::nfor(dst, src, o, {}, nthreads);
     }, mcdn::stage_reach(o));
     return true;
@@ -159,7 +199,7 @@ std::vector<CommandInfo> stage_commands()
           "the features (albedo, normal, depth, visibility) with their half buffers "
           "(-i:as=halfA, -i:as=halfB) and variances; without halves each feature is "
           "filtered by its own variance." },
-        { "--nfor", "", mcdn::setting_keys("nfor"),
+        { "--nfor", "", with_frames(mcdn::setting_keys("nfor")),
           "NFOR denoiser (§5.2-5.4): first-order regression on the features, collaborative, "
           "bandwidth chosen per pixel. window=19 patch=7 k=0.5,1.0; mse=1 and selection=1 "
           "add nfor.mse.* and nfor.selection.* channels. Prefilters the features itself "
@@ -167,8 +207,11 @@ std::vector<CommandInfo> stage_commands()
           "the beauty's weights so they still add up (extras=0: keep them as they are). "
           "A pixel holding one sample worth a hundred of its neighbours (a caustic through "
           "glass, a firefly) is kept out of the regressions and its excess removed, as a "
-          "sample clamp would (outliers=drop; keep: added back where it was; off: left in).",
-          queue_nfor, false, check<mcdn::NforOptions>,
+          "sample clamp would (outliers=drop; keep: added back where it was; off: left in). "
+          "Cross-frame (§8), in a sequence: frames=2 fits over the 2 previous and 2 next "
+          "frames too, aligned by the motion vectors (Blender's Vector pass); it reads them "
+          "(also across --frames chunk edges), never writes them, and runs the whole frame.",
+          queue_nfor, false, check_nfor,
           "the colour and its two half buffers (each the mean of half the samples: "
           "-i:as=halfA, -i:as=halfB; a Tungsten folder has them); the variance of the mean "
           "(else the halves' difference); features, prefiltered unless --prefilter ran. "

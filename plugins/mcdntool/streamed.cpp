@@ -55,6 +55,10 @@ size_t streamed_chain_start(const std::vector<Command>& commands)
     for (size_t i = first; i + 1 < commands.size(); ++i)
         if (!is_stage(commands[i].name))
             return 0;
+    // A cross-frame stage aligns its neighbours to the whole frame.
+    for (size_t i = first; i + 1 < commands.size(); ++i)
+        if (commands[i].has("frames"))
+            return 0;
     // --denoise picks its stages itself: alone or not at all.
     const size_t stages = commands.size() - 1 - first;
     for (size_t i = first; i + 1 < commands.size(); ++i)

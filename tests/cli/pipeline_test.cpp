@@ -1,5 +1,7 @@
 // What a TD meets in a pipeline: the silent cases of issue 20 are each an error, a warning or
 // a documented choice.
+#include <map>
+
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imagebufalgo.h>
 
@@ -294,4 +296,68 @@ TEST(Pipeline, StagesAndOneOutputStreamInBands)
     OIIO::Filesystem::get_directory_entries(dir, files);
     for (const auto& f : files)
         EXPECT_EQ(f.find("f.exr"), std::string::npos) << f;
+}
+
+// --nfor:frames=N (cross-frame NFOR, §8): each frame reads its neighbours' files, also
+// outside the --frames chunk, and writes only its own output; the inputs stay as they were.
+TEST(Pipeline, CrossFrameReadsNeighboursAcrossTheChunkAndWritesNone)
+{
+    const std::string dir = mcdn_test::temp_dir("pipeline_cross_frame");
+    std::map<std::string, std::string> before;
+    for (int f : { 1, 2, 3, 4 })
+        for (const char* face : { "", "_var", "_A", "_B" }) {
+            const std::string src = mcdn_test::test_data(std::string("box16/box_0016spp") + face + ".exr");
+            const std::string dst = OIIO::Strutil::fmt::format("{}/shot{}.{:04d}.exr", dir, face, f);
+            if (*face) {
+                OIIO::Filesystem::copy(src, dst);
+            } else {  // the render with Blender's Vector pass: a still camera
+                OIIO::ImageBuf render(src);
+                const int n = render.nchannels();
+                std::vector<int> order(size_t(n) + 4, -1);
+                std::vector<float> values(size_t(n) + 4, 0.0f);
+                std::vector<std::string> names(render.spec().channelnames);
+                for (int c = 0; c < n; ++c)
+                    order[size_t(c)] = c;
+                for (const char* c : { "X", "Y", "Z", "W" })
+                    names.push_back(std::string("ViewLayer.Vector.") + c);
+                OIIO::ImageBuf with = OIIO::ImageBufAlgo::channels(render, n + 4, order, values, names);
+                ASSERT_TRUE(with.write(dst)) << with.geterror();
+            }
+            std::string bytes;
+            OIIO::Filesystem::read_text_file(dst, bytes);
+            before[dst] = bytes;
+        }
+    const std::string shot = "-i " + quote(dir + "/shot.#.exr") + " -i:as=variance "
+                             + quote(dir + "/shot_var.#.exr") + " -i:as=halfA "
+                             + quote(dir + "/shot_A.#.exr") + " -i:as=halfB "
+                             + quote(dir + "/shot_B.#.exr");
+    auto run = run_mcdntool(shot + " --frames 2-3 --prefilter --nfor:frames=1 -o "
+                            + quote(dir + "/out.#.exr"));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_TRUE(OIIO::Filesystem::exists(dir + "/out.0002.exr"));
+    EXPECT_TRUE(OIIO::Filesystem::exists(dir + "/out.0003.exr"));
+    EXPECT_FALSE(OIIO::Filesystem::exists(dir + "/out.0001.exr"));
+    EXPECT_FALSE(OIIO::Filesystem::exists(dir + "/out.0004.exr"));
+    for (const auto& [path, bytes] : before) {
+        std::string now;
+        OIIO::Filesystem::read_text_file(path, now);
+        EXPECT_TRUE(now == bytes) << path << " changed";
+    }
+
+    // The shot's first frame has no previous one: fewer, and -v says so.
+    run = run_mcdntool(shot + " --frames 1 -v --nfor:frames=2 -o " + quote(dir + "/first.#.exr"));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_NE(run.output.find("no frame -1"), std::string::npos) << run.output;
+
+    // Without motion vectors, and with too many frames: one line each, nothing written.
+    const std::string plain = "-i " + quote(dir + "/shot_A.#.exr") + " -i:as=halfA "
+                              + quote(dir + "/shot_A.#.exr") + " -i:as=halfB "
+                              + quote(dir + "/shot_B.#.exr");
+    run = run_mcdntool(plain + " --frames 2 --nfor:frames=1 -o " + quote(dir + "/plain.#.exr"));
+    EXPECT_NE(run.exit_code, 0);
+    EXPECT_NE(run.output.find("motion"), std::string::npos) << run.output;
+    EXPECT_FALSE(OIIO::Filesystem::exists(dir + "/plain.0002.exr"));
+    run = run_mcdntool(shot + " --frames 2 --nfor:frames=9 -o " + quote(dir + "/nine.#.exr"));
+    EXPECT_NE(run.exit_code, 0);
+    EXPECT_NE(run.output.find("frames=9"), std::string::npos) << run.output;
 }

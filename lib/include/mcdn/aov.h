@@ -37,6 +37,10 @@ enum class Role {
     DiffuseColor, DiffuseDirect, DiffuseIndirect,
     GlossyColor, GlossyDirect, GlossyIndirect,
     Emission, Environment,
+    // Motion vectors, 4 channels: towards the previous frame (x, y) and from the next
+    // (x, y), in pixels, y up (Blender's Vector pass; core/motion.h). Read by the
+    // cross-frame modes only.
+    Motion,
     Count
 };
 
@@ -46,7 +50,8 @@ constexpr int kRoleCount = int(Role::Count);
 const char* role_name(Role role);
 /// The inverse of role_name; nullopt for an unknown name.
 std::optional<Role> role_from_name(string_view name);
-/// Number of channels a role holds: 3 for colours and normals, 1 for depth and visibility.
+/// Number of channels a role holds: 3 for colours and normals, 1 for depth and visibility,
+/// 4 for motion.
 int role_channel_count(Role role);
 /// The four faces of one quantity: the mean, its variance, halves A and B.
 enum class Face { Mean, Variance, HalfA, HalfB };

@@ -106,6 +106,17 @@ struct NforOptions {
     SkipOptions skip;
     /// Called as the stage advances (mcdn/progress.h); empty: nothing is reported.
     ProgressCallback progress;
+
+    /// Cross-frame NFOR (§8, spatio-temporal): neighbouring frames of the shot, nearest
+    /// first (previous: t-1, t-2, ...; next: t+1, t+2, ...; at most 4 each, a shot's first
+    /// and last frames have fewer), each with src's size, data window and channel names,
+    /// and the motion role (Blender's Vector pass, mcdn/aov.h). The first pass's fits
+    /// (§5.2) extend over their windows, aligned by the motion vectors, with the frame
+    /// offset as one more feature; §5.3, §5.4 and the extra AOVs stay on this frame
+    /// (lib/src/nfor/neighbour_frames.h). Runs the whole frame (band_pixels is not used).
+    /// The frames are read, never written. Both empty: the single-frame filter.
+    std::vector<const ImageBuf*> previous_frames, next_frames;
+    bool cross_frame() const { return !previous_frames.empty() || !next_frames.empty(); }
 };
 
 /// Denoises the colour. dst = src (every channel kept) with the colour role's channels

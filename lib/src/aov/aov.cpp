@@ -25,6 +25,7 @@ constexpr const char* kRoleNames[kRoleCount] = {
     "diffuse_color", "diffuse_direct", "diffuse_indirect",
     "glossy_color", "glossy_direct", "glossy_indirect",
     "emission", "environment",
+    "motion",
 };
 
 // Roles that come in four faces (mean, variance, A, B), laid out consecutively in Role.
@@ -89,6 +90,7 @@ Candidates preset_candidates(const std::string& preset, const std::string& layer
         case Role::GlossyIndirect: return { with_suffixes(L + "GlossInd", "RGB") };
         case Role::Emission: return { with_suffixes(L + "Emit", "RGB") };
         case Role::Environment: return { with_suffixes(L + "Env", "RGB") };
+        case Role::Motion: return { with_suffixes(L + "Vector", "XYZW") };
         default: return {};
         }
     }
@@ -269,6 +271,8 @@ std::optional<Role> role_from_name(string_view name)
 
 int role_channel_count(Role role)
 {
+    if (role == Role::Motion)
+        return 4;
     auto faced = split_face(role);
     if (faced && (faced->first == Role::Depth || faced->first == Role::Visibility))
         return 1;

@@ -603,9 +603,12 @@ bool validate_inputs(const ImageBuf& merged, const AovSet& aovs, std::string& er
     // read the whole frame once per role channel); only then the channel-by-channel scan
     // below names the first problem.
     std::vector<std::pair<Role, int>> checked;
+    // Motion vectors are not checked: only the cross-frame modes read them, and those take a
+    // non-finite vector as no motion (core/motion.h).
     for (int r = 0; r < kRoleCount; ++r)
-        for (int c : aovs.channels(Role(r)))
-            checked.emplace_back(Role(r), c);
+        if (Role(r) != Role::Motion)
+            for (int c : aovs.channels(Role(r)))
+                checked.emplace_back(Role(r), c);
     bool clean = true;
     for (size_t p = 0; p < npixels && clean; ++p)
         for (const auto& [role, c] : checked)
@@ -617,6 +620,8 @@ bool validate_inputs(const ImageBuf& merged, const AovSet& aovs, std::string& er
         return true;
     for (int r = 0; r < kRoleCount; ++r) {
         Role role = Role(r);
+        if (role == Role::Motion)
+            continue;
         for (int c : aovs.channels(role)) {
             for (size_t p = 0; p < npixels; ++p) {
                 const char* problem = problem_of(role, pixels[p * nch + c]);

@@ -4,11 +4,17 @@ namespace mcdn {
 
 namespace {
 
-/// The fits of `in` with `image` in place of the beauty's.
+/// The fits of `in` with `image` in place of the beauty's, on this frame alone: the extras
+/// of neighbouring frames are not read (nfor/neighbour_frames.h), and their frame-offset
+/// feature goes with them.
 std::vector<std::vector<Plane>> fit(RegressionInputs in, const Plane image[3], int nthreads)
 {
     for (int c = 0; c < 3; ++c)
         in.image[c] = &image[c];
+    if (!in.other_frames.empty()) {
+        in.other_frames.clear();
+        in.features.pop_back();
+    }
     return collaborative_regression(in, nthreads);
 }
 

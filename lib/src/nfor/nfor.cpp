@@ -29,6 +29,7 @@
 #include "mcdn/color.h"
 #include "nfor/extras_regression.h"
 #include "nfor/mse_estimate.h"
+#include "nfor/neighbour_frames.h"
 #include "nfor/outliers.h"
 #include "nfor/regression.h"
 #include "prefilter/feature_prefilter.h"
@@ -44,6 +45,17 @@ bool check_options(ImageBuf& dst, const NforOptions& o)
               && o.map_patch_radius >= 0 && o.second_window_radius >= 0
               && o.second_patch_radius >= 0 && o.candidate_k[0] > 0 && o.candidate_k[1] > 0
               && o.map_k > 0 && o.second_k > 0 && o.variance_scale > 0;
+    if (ok && (o.previous_frames.size() > 4 || o.next_frames.size() > 4)) {
+        dst.errorfmt("nfor: cross-frame takes at most 4 frames on each side ({} and {} given)",
+                     o.previous_frames.size(), o.next_frames.size());
+        return false;
+    }
+    for (const std::vector<const ImageBuf*>* side : { &o.previous_frames, &o.next_frames })
+        for (const ImageBuf* f : *side)
+            if (ok && !f) {
+                dst.errorfmt("nfor: cross-frame: a neighbouring frame is null");
+                return false;
+            }
     if (!ok)
         dst.errorfmt("nfor: window and patch radii must be >= 0 and every k > 0 (window {}, "
                      "patch {}, k {} and {})", o.window_radius, o.patch_radius,
@@ -64,11 +76,6 @@ OutlierRule outlier_rule(const NforOptions& o, const ColourSums& frame)
                                : 0.0f;
     return rule;
 }
-
-/// The colour role's four faces as planes: mean, variance of the mean, halves A and B.
-struct ColorPlanes {
-    Plane mean[3], variance[3], half_a[3], half_b[3];
-};
 
 /// What the op reads from src before anything is written (dst may be src).
 struct NforInputs {
@@ -109,9 +116,19 @@ bool read_inputs(NforInputs& in, ImageBuf& dst, const ImageBuf& src, const NforO
                      in.aovs.preset());
         return false;
     }
-    if (int(feature_channels.size()) > kMaxRegressionFeatures) {
-        dst.errorfmt("nfor: {} feature channels, at most {} are supported; drop extra features",
-                     feature_channels.size(), kMaxRegressionFeatures);
+    // Cross-frame, the frame offset is one more feature.
+    const int max_features = kMaxRegressionFeatures - (options.cross_frame() ? 1 : 0);
+    if (int(feature_channels.size()) > max_features) {
+        dst.errorfmt("nfor: {} feature channels, at most {} are supported{}; drop extra "
+                     "features", feature_channels.size(), max_features,
+                     options.cross_frame() ? " cross-frame" : "");
+        return false;
+    }
+    if (options.cross_frame() && !in.aovs.has(Role::Motion)) {
+        dst.errorfmt("nfor: cross-frame needs motion vectors and {} has none: render the "
+                     "Vector pass (Blender) or name them (--aov motion=X,Y,Z,W)",
+                     channel_source(src.spec(), src.spec().channel_name(
+                                                    in.aovs.channels(Role::Color)[0])));
         return false;
     }
     for (Role role : { Role::Color, Role::ColorA, Role::ColorB, Role::ColorVariance })
@@ -120,23 +137,7 @@ bool read_inputs(NforInputs& in, ImageBuf& dst, const ImageBuf& src, const NforO
                          in.aovs.channels(role).size());
             return false;
         }
-    ColorPlanes& color = in.color;
-    for (int c = 0; c < 3; ++c) {
-        color.mean[c] = read_plane(src, in.aovs.channels(Role::Color)[c]);
-        if (in.halves) {
-            color.half_a[c] = read_plane(src, in.aovs.channels(Role::ColorA)[c]);
-            color.half_b[c] = read_plane(src, in.aovs.channels(Role::ColorB)[c]);
-        }
-        if (in.aovs.has(Role::ColorVariance)) {
-            color.variance[c] = read_plane(src, in.aovs.channels(Role::ColorVariance)[c], true);
-        } else {  // two-buffer estimate of the variance of the mean
-            color.variance[c] = Plane(src.spec().width, src.spec().height);
-            for (size_t i = 0; i < color.variance[c].size(); ++i) {
-                float d = color.half_a[c].px[i] - color.half_b[c].px[i];
-                color.variance[c].px[i] = sanitize_variance(0.25f * d * d);
-            }
-        }
-    }
+    read_color_planes(in.color, src, in.aovs, in.halves);
     for (const FeatureChannel& f : feature_channels)
         in.features.push_back(read_feature(src, f));
     if (denoises_extras(options.denoise_extras, src)
@@ -195,8 +196,8 @@ void free_feature_halves(std::vector<FeaturePlanes>& features)
 /// §5.2: half A fitted with the features and colour weights of half B, and vice versa, for
 /// each candidate bandwidth. The features' halves are not needed after it.
 FirstPass first_pass(const ColorPlanes& color, std::vector<FeaturePlanes>& features,
-                     ExtraAovs& extras, const NforOptions& options,
-                     const ConvergedTiles& converged, int nthreads)
+                     const std::vector<NeighbourFrame>& neighbours, ExtraAovs& extras,
+                     const NforOptions& options, const ConvergedTiles& converged, int nthreads)
 {
     RegressionInputs first_a = first_pass_settings(options, converged), first_b = first_a;
     for (int c = 0; c < 3; ++c) {
@@ -210,6 +211,13 @@ FirstPass first_pass(const ColorPlanes& color, std::vector<FeaturePlanes>& featu
         first_a.features.push_back(&f.half_b);
         first_b.features.push_back(&f.half_a);
     }
+    // §8: the neighbouring frames' windows join every fit.
+    const Plane zero_offset = neighbours.empty() ? Plane()
+                                                 : Plane(color.mean[0].width, color.mean[0].height);
+    add_neighbour_frames(first_a, neighbours, FirstPassFace::HalfA, FirstPassFace::HalfB,
+                         FirstPassFace::HalfB, zero_offset);
+    add_neighbour_frames(first_b, neighbours, FirstPassFace::HalfB, FirstPassFace::HalfA,
+                         FirstPassFace::HalfA, zero_offset);
     FirstPass pass;
     take_candidates(pass.fit_a, collaborative_regression(first_a, nthreads));
     take_candidates(pass.fit_b, collaborative_regression(first_b, nthreads));
@@ -261,6 +269,7 @@ ColourSums colour_sums(const ColorPlanes& color)
 /// the pixel's index: the same for any thread count), so that §5.3 can pick by SURE
 /// (PD §2.3) instead of the two-buffer estimate. fit_b stays empty.
 FirstPass first_pass_one_buffer(const ColorPlanes& color, std::vector<FeaturePlanes>& features,
+                                const std::vector<NeighbourFrame>& neighbours,
                                 ExtraAovs& extras, const NforOptions& options,
                                 const ConvergedTiles& converged, int nthreads,
                                 std::vector<Plane> mse[2], const ProbeIndex& probe_index)
@@ -268,6 +277,12 @@ FirstPass first_pass_one_buffer(const ColorPlanes& color, std::vector<FeaturePla
     RegressionInputs first = first_pass_settings(options, converged);
     for (const FeaturePlanes& f : features)
         first.features.push_back(&f.mean);
+    // §8: the neighbouring frames' windows join every fit, unprobed (SURE's divergence is
+    // this frame's).
+    const Plane zero_offset = neighbours.empty() ? Plane()
+                                                 : Plane(color.mean[0].width, color.mean[0].height);
+    add_neighbour_frames(first, neighbours, FirstPassFace::Mean, FirstPassFace::Mean,
+                         FirstPassFace::Mean, zero_offset);
     const double eps = relative_probe_step(probe_index.colour, 1e-3);
     Plane probe[3], probed[3];
     for (int c = 0; c < 3; ++c) {
@@ -464,12 +479,34 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     const bool prefiltered = src.spec().get_int_attribute("mcdn:prefiltered", 0) == 1;
     prefilter_features(in.features, options, prefiltered, converged, nthreads);
     trace.mark("prefilter (5.1)");
+    // §8: the neighbouring frames, read as this one and aligned to it.
+    std::vector<NeighbourFrame> neighbours;
+    if (options.cross_frame()) {
+        NeighbourReading reading;
+        reading.spec = &options.aovs;
+        reading.aovs = &in.aovs;
+        reading.features = &in.feature_channels;
+        reading.halves = in.halves;
+        reading.prefilter = options.prefilter_features;
+        reading.prefilter_options = options.prefilter;
+        reading.outliers = options.outliers != NforOptions::Outliers::Off;
+        reading.outlier_rule = outlier_rule(options, probe_index.colour);
+        std::string error;
+        if (!read_neighbour_frames(neighbours, src, options.previous_frames,
+                                   options.next_frames, reading, nthreads, error)) {
+            dst.errorfmt("nfor: {}", error);
+            return false;
+        }
+        trace.mark("neighbouring frames (8)");
+    }
     progress.advance();
     std::vector<Plane> mse[2];
-    FirstPass pass = in.halves ? first_pass(color, in.features, extras, options, converged,
-                                            nthreads)
-                               : first_pass_one_buffer(color, in.features, extras, options,
-                                                       converged, nthreads, mse, probe_index);
+    FirstPass pass = in.halves ? first_pass(color, in.features, neighbours, extras, options,
+                                            converged, nthreads)
+                               : first_pass_one_buffer(color, in.features, neighbours, extras,
+                                                       options, converged, nthreads, mse,
+                                                       probe_index);
+    neighbours.clear();
     if (in.halves)
         two_buffer_mse(mse, color, pass);
     trace.mark("first pass regressions (5.2)");
@@ -556,7 +593,10 @@ bool nfor(ImageBuf& dst, const ImageBuf& src, const NforOptions& options, ROI ro
     bool prefiltered = src.spec().get_int_attribute("mcdn:prefiltered", 0) == 1;
     const int radius = receptive_radius(options, prefiltered);
     // A chain's band (core/frame_facts.h) runs whole.
-    const int64_t band_pixels = is_frame_band(src.spec()) ? 0 : options.band_pixels;
+    // Cross-frame, the neighbours are aligned to the whole frame.
+    const int64_t band_pixels = is_frame_band(src.spec()) || options.cross_frame()
+                                    ? 0
+                                    : options.band_pixels;
     // Four steps a band: §5.1, §5.2, §5.3, §5.4.
     ProgressCounter progress(options.progress, "nfor",
                              4 * band_count(src.roi(), radius, band_pixels));

@@ -63,7 +63,12 @@ std::vector<std::vector<Plane>> collaborative_regression(const RegressionInputs&
 {
     const int width = in.image[0]->width, height = in.image[0]->height;
     const int nf = int(in.features.size());
-    TileKernel kernel = nf <= kMaxRegressionFeatures ? select_kernel(in.any_size_kernel ? -1 : nf, detect_isa()) : nullptr;
+    bool frames_fit = int(in.other_frames.size()) < kMaxRegressionFrames;
+    for (const RegressionFrame& f : in.other_frames)
+        frames_fit = frames_fit && f.features.size() == in.features.size();
+    TileKernel kernel = nf <= kMaxRegressionFeatures && frames_fit
+                            ? select_kernel(in.any_size_kernel ? -1 : nf, detect_isa())
+                            : nullptr;
     const int NK = int(in.bandwidths.size());
     std::vector<std::vector<Plane>> out(NK);
     std::vector<Plane> weight_sum(NK);

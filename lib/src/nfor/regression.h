@@ -15,11 +15,26 @@ namespace mcdn {
 
 struct ConvergedTiles;
 
+/// One frame's planes of a fit: the colour fitted, the guide colour of the NL-means weights
+/// and its variance (× variance_scale), the features of the design.
+struct RegressionFrame {
+    const Plane* image[3] = {};
+    const Plane* guide[3] = {};
+    const Plane* variance[3] = {};
+    std::vector<const Plane*> features;
+};
+
 struct RegressionInputs {
     const Plane* image[3] = {};     // colour to fit
     const Plane* guide[3] = {};     // colour the NL-means weights are computed on
     const Plane* variance[3] = {};  // variance of the guide (× variance_scale)
     std::vector<const Plane*> features;
+    /// A spatio-temporal window (NFOR §8): other frames, aligned to this one (warped by the
+    /// motion vectors, core/motion.h), whose (2R+1)² windows join every fit, weighted by the
+    /// patch distance between this frame's guide at p and theirs at q. Each has the same
+    /// features in the same order (the caller adds the frame offset as one). The fits are
+    /// evaluated on this frame only: the result is this frame's.
+    std::vector<RegressionFrame> other_frames;
     int window_radius = 9;
     int patch_radius = 3;
     /// NL-means bandwidths: one fit per k, sharing the patch distances (weights
@@ -35,6 +50,8 @@ struct RegressionInputs {
 
 /// Most features a regression takes (design columns = 3 + this).
 constexpr int kMaxRegressionFeatures = 13;
+/// Most frames of a spatio-temporal window (this one and ±4).
+constexpr int kMaxRegressionFrames = 9;
 
 /// Returns the three filtered colour planes of each bandwidth. Deterministic for any thread
 /// count.

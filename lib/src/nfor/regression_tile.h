@@ -24,11 +24,12 @@ static_assert(T % L == 0, "tile side must be a multiple of the lane count");
 
 struct TileScratch {
     nlm::DistanceScratch distance;
-    nlm::LocalPlane guide[3], variance[3];
+    // Per frame (this one, then RegressionInputs::other_frames): guide and variance, 3 each.
+    std::vector<nlm::LocalPlane> guide, variance;
     std::vector<float> dist;      // [T*T] largest channel distance of one offset
-    std::vector<float> weights;   // per stored bandwidth [row][offset][T]
-    std::vector<float> row_weights;  // a derived bandwidth's weights of one row [offset][T]
-    std::vector<float> local;     // features then colour on the tile grown by R, 0 outside
+    std::vector<float> weights;   // per frame, per stored bandwidth [row][offset][T]
+    std::vector<float> row_weights;  // per frame a derived bandwidth's weights of one row [offset][T]
+    std::vector<float> local;     // per frame features then colour on the tile grown by R, 0 outside
     std::vector<float> normal;    // accumulators [entry][L]
     std::vector<float> beta;      // [D*3][L]
 };
@@ -63,16 +64,17 @@ struct GroupInputs {
     const vfloat16* fp;          // centre features of the 16 pixels
 };
 
-/// One pass over the window: rows [I0, I1) of the accumulators, kept in registers.
+/// One pass over the window: rows [I0, I1) of the accumulators, kept in registers; `add`:
+/// added to G (another frame's window), else G is set.
 template<int D, int I0, int I1>
-MCDN_INLINE void accumulate_pass(const GroupInputs& g, vfloat16* G)
+MCDN_INLINE void accumulate_pass(const GroupInputs& g, bool add, vfloat16* G)
 {
     constexpr int E = D + 3;
     constexpr int N = row_offset(D, I1) - row_offset(D, I0);
     vfloat16 acc[N];
 #pragma GCC unroll 64
     for (int e = 0; e < N; ++e)
-        acc[e] = vfloat16 {};
+        acc[e] = add ? G[row_offset(D, I0) + e] : vfloat16 {};
     const int R = g.R;
     const float* w_ptr = g.weights;
     for (int dy = -R; dy <= R; ++dy) {
@@ -110,22 +112,24 @@ MCDN_INLINE void accumulate_pass(const GroupInputs& g, vfloat16* G)
 }
 
 template<int D, int I0>
-MCDN_INLINE void accumulate_normal_equations(const GroupInputs& g, vfloat16* G)
+MCDN_INLINE void accumulate_normal_equations(const GroupInputs& g, bool add, vfloat16* G)
 {
     if constexpr (I0 < D) {
         constexpr int I1 = pass_end(D, I0);
-        accumulate_pass<D, I0, I1>(g, G);
-        accumulate_normal_equations<D, I1>(g, G);
+        accumulate_pass<D, I0, I1>(g, add, G);
+        accumulate_normal_equations<D, I1>(g, add, G);
     }
 }
 
 /// The same sums for a design size known only at run time: the accumulators stay in memory
 /// (L1), slower than the register-blocked passes; for the uncommon sizes.
-MCDN_INLINE void accumulate_normal_equations_any(const GroupInputs& g, int D, int NA, vfloat16* G)
+MCDN_INLINE void accumulate_normal_equations_any(const GroupInputs& g, int D, int NA, bool add,
+                                                vfloat16* G)
 {
     const int E = D + 3;
-    for (int e = 0; e < NA; ++e)
-        G[e] = vfloat16 {};
+    if (!add)
+        for (int e = 0; e < NA; ++e)
+            G[e] = vfloat16 {};
     const int R = g.R;
     const float* w_ptr = g.weights;
     vfloat16 v[kMaxDesign + 3];
@@ -188,33 +192,56 @@ MCDN_INLINE void regression_tile_impl(const RegressionInputs& in, Rect tile, Til
         if (source[j] < 0)
             slot[j] = nstored++;
     }
+    // Frames of the window: this one (0), then the other frames; each with its own weights,
+    // from this frame's guide at p and that frame's at q.
+    const int NFR = 1 + int(in.other_frames.size());
+    auto frame_image = [&](int f, int c) {
+        return f == 0 ? in.image[c] : in.other_frames[f - 1].image[c];
+    };
+    auto frame_guide = [&](int f, int c) {
+        return f == 0 ? in.guide[c] : in.other_frames[f - 1].guide[c];
+    };
+    auto frame_variance = [&](int f, int c) {
+        return f == 0 ? in.variance[c] : in.other_frames[f - 1].variance[c];
+    };
+    auto frame_feature = [&](int f, int k) {
+        return f == 0 ? in.features[k] : in.other_frames[f - 1].features[k];
+    };
     const size_t wsize = size_t(noff) * T * T;
+    auto stored_weights = [&](int f, int j) {
+        return s.weights.data() + wsize * (size_t(f) * nstored + slot[j]);
+    };
     s.distance.reserve(T, F);
     s.dist.resize(size_t(T) * T);
-    s.weights.resize(wsize * nstored);
-    s.row_weights.resize(size_t(noff) * T);
+    s.weights.resize(wsize * nstored * NFR);
+    s.row_weights.resize(size_t(noff) * T * NFR);
+    s.guide.resize(3 * NFR);
+    s.variance.resize(3 * NFR);
     const Rect garea = nlm::guide_area(tile, R, F);
-    for (int c = 0; c < 3; ++c) {
-        s.guide[c].load(in.guide[c]->data(), width, height, garea);
-        s.variance[c].load(in.variance[c]->data(), width, height, garea);
-    }
+    for (int f = 0; f < NFR; ++f)
+        for (int c = 0; c < 3; ++c) {
+            s.guide[3 * f + c].load(frame_guide(f, c)->data(), width, height, garea);
+            s.variance[3 * f + c].load(frame_variance(f, c)->data(), width, height, garea);
+        }
+    for (int f = 0; f < NFR; ++f) {
     for (int dy = -R, o = 0; dy <= R; ++dy) {
         for (int dx = -R; dx <= R; ++dx, ++o) {
             float* d = s.dist.data();
             std::fill(d, d + size_t(T) * T, inf);
             for (int c = 0; c < 3; ++c)
-                nlm::patch_distance(d, T, s.guide[c], s.variance[c], width, height, tile, dx, dy,
-                                    F, 1.0f, in.variance_scale, c > 0, s.distance);
+                nlm::patch_distance_between(d, T, s.guide[c], s.variance[c], s.guide[3 * f + c],
+                                            s.variance[3 * f + c], width, height, tile, dx, dy,
+                                            F, 1.0f, in.variance_scale, c > 0, s.distance);
             for (int j = 0; j < NK; ++j) {
                 if (source[j] >= 0)
                     continue;
-                float* wj = s.weights.data() + wsize * slot[j] + size_t(o) * T;
+                float* wj = stored_weights(f, j) + size_t(o) * T;
                 const vfloat16 k = splat16(inv_k2[j]);
                 for (int y = 0; y < th; ++y)
                     for (int i = 0; i < T; i += kLanes)
                         store16(wj + size_t(y) * noff * T + i,
                                 nlm::distance_weight(load16(d + y * T + i) * k));
-                if (dx == 0 && dy == 0)
+                if (f == 0 && dx == 0 && dy == 0)
                     for (int y = 0; y < th; ++y)
                         for (int x = 0; x < tw; ++x) {
                             float& w = wj[size_t(y) * noff * T + x];
@@ -223,27 +250,33 @@ MCDN_INLINE void regression_tile_impl(const RegressionInputs& in, Rect tile, Til
             }
         }
     }
+    }
 
     // Local copies of the features and the colour on the tile grown by R (+ one lane row of
-    // slack on the right for lanes past the tile edge), 0 outside the image.
+    // slack on the right for lanes past the tile edge), 0 outside the image; per frame.
     const int PS = P + L;  // row stride of the local buffers
     const size_t plane = size_t(PS) * P;
-    s.local.assign(plane * (NF + 3), 0.0f);
+    s.local.assign(plane * (NF + 3) * NFR, 0.0f);
     const int ox = tile.x0 - R, oy = tile.y0 - R;
-    for (int c = 0; c < NF + 3; ++c) {
-        const Plane& src = c < NF ? *in.features[c] : *in.image[c - NF];
-        float* dst = s.local.data() + plane * c;
-        for (int y = std::max(oy, 0); y < std::min(oy + P, height); ++y) {
-            int x0 = std::max(ox, 0), x1 = std::min(ox + P, width);
-            std::copy(src.row(y) + x0, src.row(y) + x1, dst + size_t(y - oy) * PS + (x0 - ox));
+    for (int f = 0; f < NFR; ++f)
+        for (int c = 0; c < NF + 3; ++c) {
+            const Plane& src = c < NF ? *frame_feature(f, c) : *frame_image(f, c - NF);
+            float* dst = s.local.data() + plane * ((NF + 3) * f + c);
+            for (int y = std::max(oy, 0); y < std::min(oy + P, height); ++y) {
+                int x0 = std::max(ox, 0), x1 = std::min(ox + P, width);
+                std::copy(src.row(y) + x0, src.row(y) + x1,
+                          dst + size_t(y - oy) * PS + (x0 - ox));
+            }
         }
+    const float* feat_of[kMaxRegressionFrames][NFM];
+    const float* color_of[kMaxRegressionFrames][3];
+    for (int f = 0; f < NFR; ++f) {
+        for (int k = 0; k < NF; ++k)
+            feat_of[f][k] = s.local.data() + plane * ((NF + 3) * f + k);
+        for (int c = 0; c < 3; ++c)
+            color_of[f][c] = s.local.data() + plane * ((NF + 3) * f + NF + c);
     }
-    const float* feat[NFM];
-    for (int k = 0; k < NF; ++k)
-        feat[k] = s.local.data() + plane * k;
-    const float* color[3];
-    for (int c = 0; c < 3; ++c)
-        color[c] = s.local.data() + plane * (NF + c);
+    const float* const* feat = feat_of[0];
 
     result.area = { std::max(tile.x0 - R, 0), std::max(tile.y0 - R, 0),
                     std::min(tile.x1 + R, width), std::min(tile.y1 + R, height) };
@@ -264,37 +297,45 @@ MCDN_INLINE void regression_tile_impl(const RegressionInputs& in, Rect tile, Til
     float* acc_weight = result.sum.data() + plane * (4 * kj + 3);
     const int stored = source[kj] < 0 ? kj : source[kj];
     for (int ty = 0; ty < th; ++ty) {
-        const float* row_weights = s.weights.data() + wsize * slot[stored] + size_t(ty) * noff * T;
-        if (source[kj] >= 0) {
-            // w^4 = exp(-4 d²); 0 where exp_neg16 would flush exp(-4 d²) (4 d² >= 80), so
-            // no denormals. The centre weight is max(1, kMinCenterWeight)^4 = 1 (d²(p, p) <= 0).
-            const vfloat16 zero = {}, cutoff = splat16(2.0611536e-9f);  // exp(-20)
-            for (size_t i = 0; i < size_t(noff) * T; i += kLanes) {
-                vfloat16 w = load16(row_weights + i), w2 = w * w;
-                store16(s.row_weights.data() + i, w > cutoff ? w2 * w2 : zero);
+        const float* row_weights[kMaxRegressionFrames];
+        for (int f = 0; f < NFR; ++f) {
+            row_weights[f] = stored_weights(f, stored) + size_t(ty) * noff * T;
+            if (source[kj] >= 0) {
+                // w^4 = exp(-4 d²); 0 where exp_neg16 would flush exp(-4 d²) (4 d² >= 80), so
+                // no denormals. The centre weight is max(1, kMinCenterWeight)^4 = 1 (d²(p, p) <= 0).
+                const vfloat16 zero = {}, cutoff = splat16(2.0611536e-9f);  // exp(-20)
+                float* derived = s.row_weights.data() + size_t(f) * noff * T;
+                for (size_t i = 0; i < size_t(noff) * T; i += kLanes) {
+                    vfloat16 w = load16(row_weights[f] + i), w2 = w * w;
+                    store16(derived + i, w > cutoff ? w2 * w2 : zero);
+                }
+                row_weights[f] = derived;
             }
-            row_weights = s.row_weights.data();
         }
         for (int tx = 0; tx < tw; tx += L) {
-            const float* weights = row_weights + tx;
+            const float* weights = row_weights[0] + tx;
             // Centre features of the 16 pixels.
             const size_t centre = size_t(ty + R) * PS + (tx + R);
             vfloat16 fp[NFM];
             for (int k = 0; k < NF; ++k)
                 fp[k] = load16(feat[k] + centre);
 
-            // 2. Normal equations X^T W X and X^T W y, summed over the window (float: the
-            // design is centred on the pixel, so the sums do not cancel catastrophically).
-            const GroupInputs group { weights, feat, color, centre, PS, R, fp };
-            if constexpr (DT > 0)
-                accumulate_normal_equations<DT, 0>(group, G);
-            else
-                accumulate_normal_equations_any(group, D, NA, G);
+            // 2. Normal equations X^T W X and X^T W y, summed over the window of every frame
+            // (float: the design is centred on the pixel, so the sums do not cancel
+            // catastrophically).
+            for (int f = 0; f < NFR; ++f) {
+                const GroupInputs group { row_weights[f] + tx, feat_of[f], color_of[f], centre,
+                                          PS, R, fp };
+                if constexpr (DT > 0)
+                    accumulate_normal_equations<DT, 0>(group, f > 0, G);
+                else
+                    accumulate_normal_equations_any(group, D, NA, f > 0, G);
+            }
 
             // Solve the 16 systems (double, 8 lanes at a time).
             solve_normal_equations16<DT>(D, G, B, std::min(L, tw - tx));
 
-            // 3. Collaborative filtering: evaluate each fit over its window.
+            // 3. Collaborative filtering: evaluate each fit over its window of this frame.
             const float* w_ptr = weights;
             for (int dy = -R; dy <= R; ++dy) {
                 vfloat16 base[3];

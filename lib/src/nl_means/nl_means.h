@@ -157,9 +157,12 @@ MCDN_INLINE void column_sums_block(float* out, size_t out_stride, const float* t
 /// combines colour channels by their largest distance). Pixels whose neighbour falls outside
 /// the image get +inf: columns here, rows by the caller, who fills `out` with +inf first.
 /// FT: the patch radius when known at compile time (sums unrolled), 0 for any.
+/// `guide_q` and `variance_q` hold the neighbours q: another frame aligned to this one (a
+/// spatio-temporal window, NFOR §8), or `guide` and `variance` themselves.
 template<int FT>
 MCDN_INLINE void patch_distance_impl(float* out, int stride, const LocalPlane& guide,
-                                     const LocalPlane& variance, int width, int height,
+                                     const LocalPlane& variance, const LocalPlane& guide_q,
+                                     const LocalPlane& variance_q, int width, int height,
                                      Rect tile, int dx, int dy, int patch_radius, float k,
                                      float variance_scale, bool take_max, DistanceScratch& scratch)
 {
@@ -188,9 +191,9 @@ MCDN_INLINE void patch_distance_impl(float* out, int stride, const LocalPlane& g
             continue;
         }
         const float* gp = guide.at(bx0, y);
-        const float* gq = guide.at(bx0 + dx, y + dy);
+        const float* gq = guide_q.at(bx0 + dx, y + dy);
         const float* vpr = variance.at(bx0, y);
-        const float* vqr = variance.at(bx0 + dx, y + dy);
+        const float* vqr = variance_q.at(bx0 + dx, y + dy);
         for (int i = 0; i < bws; i += kLanes) {
             vfloat16 vp = load16(vpr + i) * vs, vq = load16(vqr + i) * vs;
             vfloat16 diff = load16(gp + i) - load16(gq + i);
@@ -274,21 +277,34 @@ MCDN_INLINE void patch_distance_impl(float* out, int stride, const LocalPlane& g
     }
 }
 
-/// patch_distance_impl unrolled for the patch radii the defaults use (3: 7×7, 1: 3×3).
+/// patch_distance_impl unrolled for the patch radii the defaults use (3: 7×7, 1: 3×3), the
+/// neighbours q in `guide_q` and `variance_q`.
+MCDN_INLINE void patch_distance_between(float* out, int stride, const LocalPlane& guide,
+                                        const LocalPlane& variance, const LocalPlane& guide_q,
+                                        const LocalPlane& variance_q, int width, int height,
+                                        Rect tile, int dx, int dy, int patch_radius, float k,
+                                        float variance_scale, bool take_max,
+                                        DistanceScratch& scratch)
+{
+    if (patch_radius == 3)
+        patch_distance_impl<3>(out, stride, guide, variance, guide_q, variance_q, width, height,
+                               tile, dx, dy, 3, k, variance_scale, take_max, scratch);
+    else if (patch_radius == 1)
+        patch_distance_impl<1>(out, stride, guide, variance, guide_q, variance_q, width, height,
+                               tile, dx, dy, 1, k, variance_scale, take_max, scratch);
+    else
+        patch_distance_impl<0>(out, stride, guide, variance, guide_q, variance_q, width, height,
+                               tile, dx, dy, patch_radius, k, variance_scale, take_max, scratch);
+}
+
+/// The same within one frame.
 MCDN_INLINE void patch_distance(float* out, int stride, const LocalPlane& guide,
                                 const LocalPlane& variance, int width, int height, Rect tile,
                                 int dx, int dy, int patch_radius, float k, float variance_scale,
                                 bool take_max, DistanceScratch& scratch)
 {
-    if (patch_radius == 3)
-        patch_distance_impl<3>(out, stride, guide, variance, width, height, tile, dx, dy, 3, k,
-                               variance_scale, take_max, scratch);
-    else if (patch_radius == 1)
-        patch_distance_impl<1>(out, stride, guide, variance, width, height, tile, dx, dy, 1, k,
-                               variance_scale, take_max, scratch);
-    else
-        patch_distance_impl<0>(out, stride, guide, variance, width, height, tile, dx, dy,
-                               patch_radius, k, variance_scale, take_max, scratch);
+    patch_distance_between(out, stride, guide, variance, guide, variance, width, height, tile,
+                           dx, dy, patch_radius, k, variance_scale, take_max, scratch);
 }
 
 }  // namespace nlm
