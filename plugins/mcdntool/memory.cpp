@@ -60,8 +60,13 @@ double estimated_peak_bytes(const std::vector<Command>& commands, double pixels,
                             int threads, double band_pixels)
 {
     double frames = 0;
-    for (const auto& c : commands)
+    for (const auto& c : commands) {
         frames += stage_frames(c.name);
+        // Cross-frame (--nfor, --cnn, --denoise): the neighbours' merged inputs, held while
+        // the stage runs.
+        if (c.has("frames"))
+            frames += 2 * std::max(0.0, OIIO::Strutil::stod(c.modifier("frames")));
+    }
     const double stage_pixels = band_pixels > 0 ? std::min(pixels, band_pixels) : pixels;
     // The merged input, then the stages' buffers of a band (or of the frame).
     return (pixels + frames * stage_pixels) * channels * sizeof(float)

@@ -7,6 +7,7 @@
 
 #include "mcdn/cnn.h"
 #include "mcdn/denoise.h"
+#include "mcdn/frames.h"
 #include "mcdn/mix.h"
 #include "mcdn/nfor.h"
 #include "mcdn/prefilter.h"
@@ -57,22 +58,38 @@ bool queue_prefilter(Session& s, const Command& c, std::string& error)
     return true;
 }
 
-// --nfor:frames=N: cross-frame NFOR over N frames on each side (§8), which mcdntool reads
-// (the frames=N modifier is the front end's: the op takes the frames themselves).
-bool nfor_options(const Command& c, mcdn::NforOptions& o, int& frames, std::string& error)
+// `frames=N` of a cross-frame stage (--nfor: NFOR §8; --cnn, --denoise: the frames
+// combined first, mcdn/frames.h): the front end's modifier, as mcdntool reads the frames; the
+// rest are the stage's settings.
+bool frames_of(const Command& c, int& frames, Command& settings, std::string& error)
 {
-    Command settings = c;
+    settings = c;
     frames = 0;
-    if (c.has("frames")) {
-        const std::string text = c.modifier("frames");
-        if (text.size() != 1 || text[0] < '0' || text[0] > '4') {
-            error = c.name + ":frames=" + text + " must be 0 to 4 (frames on each side)";
-            return false;
-        }
-        frames = text[0] - '0';
-        settings.modifiers.erase("frames");
+    if (!c.has("frames"))
+        return true;
+    const std::string text = c.modifier("frames");
+    if (text.size() != 1 || text[0] < '0' || text[0] > '4') {
+        error = c.name + ":frames=" + text + " must be 0 to 4 (frames on each side)";
+        return false;
     }
-    return stage_options(settings, o, error);
+    frames = text[0] - '0';
+    settings.modifiers.erase("frames");
+    return true;
+}
+
+template <class Options>
+bool stage_and_frames(const Command& c, Options& o, int& frames, std::string& error)
+{
+    Command settings;
+    return frames_of(c, frames, settings, error) && stage_options(settings, o, error);
+}
+
+template <class Options>
+bool check_with_frames(const Command& c, std::string& error)
+{
+    Options o;
+    int frames;
+    return stage_and_frames(c, o, frames, error);
 }
 
 std::vector<std::string> with_frames(std::vector<std::string> keys)
@@ -81,31 +98,38 @@ std::vector<std::string> with_frames(std::vector<std::string> keys)
     return keys;
 }
 
-bool check_nfor(const Command& c, std::string& error)
-{
-    mcdn::NforOptions o;
-    int frames;
-    return nfor_options(c, o, frames, error);
-}
+/// The neighbouring frames a cross-frame stage reads, kept alive with the stage.
+struct Neighbours {
+    std::vector<std::shared_ptr<ImageBuf>> previous, next;
+    bool read(const Session& s, int frames, std::string& error)
+    {
+        return frames == 0 || s.read_neighbours(frames, previous, next, error);
+    }
+    template <class Options>
+    void give_to(Options& o) const
+    {
+        for (const auto& f : previous)
+            o.previous_frames.push_back(f.get());
+        for (const auto& f : next)
+            o.next_frames.push_back(f.get());
+    }
+};
 
 bool queue_nfor(Session& s, const Command& c, std::string& error)
 {
     mcdn::NforOptions o;
     int frames;
-    if (!nfor_options(c, o, frames, error))
+    if (!stage_and_frames(c, o, frames, error))
         return false;
     o.aovs = o.prefilter.aovs = s.aov_spec;
     o.progress = s.progress();
     s.features_out |= o.features_out;
     // The neighbours are read now and kept with the stage (SURE may run it again).
-    std::vector<std::shared_ptr<ImageBuf>> previous, next;
-    if (frames > 0 && !s.read_neighbours(frames, previous, next, error))
+    Neighbours neighbours;
+    if (!neighbours.read(s, frames, error))
         return false;
-    for (const auto& f : previous)
-        o.previous_frames.push_back(f.get());
-    for (const auto& f : next)
-        o.next_frames.push_back(f.get());
-    s.queue("nfor", [o, previous, next](ImageBuf& dst, const ImageBuf& src, int nthreads) {
+    neighbours.give_to(o);
+    s.queue("nfor", [o, neighbours](ImageBuf& dst, const ImageBuf& src, int nthreads) {
         return mcdn::nfor(dst, src, o, {}, nthreads);
     }, mcdn::stage_reach(o));
     return true;
@@ -114,12 +138,25 @@ bool queue_nfor(Session& s, const Command& c, std::string& error)
 bool queue_cnn(Session& s, const Command& c, std::string& error)
 {
     mcdn::CnnOptions o;
-    if (!stage_options(c, o, error))
+    int frames;
+    if (!stage_and_frames(c, o, frames, error))
         return false;
     o.aovs = s.aov_spec;
     o.progress = s.progress();
-    s.queue("cnn", [o](ImageBuf& dst, const ImageBuf& src, int nthreads) {
-        return mcdn::cnn(dst, src, o, {}, nthreads);
+    // Cross-frame: the frames combined (mcdn/frames.h), then the CNN; both are the denoiser
+    // (SURE probes this frame through both).
+    Neighbours neighbours;
+    if (!neighbours.read(s, frames, error))
+        return false;
+    mcdn::CombineFramesOptions combine;
+    combine.aovs = s.aov_spec;
+    neighbours.give_to(combine);
+    s.queue("cnn", [o, combine, neighbours](ImageBuf& dst, const ImageBuf& src, int nthreads) {
+        if (combine.previous_frames.empty() && combine.next_frames.empty())
+            return mcdn::cnn(dst, src, o, {}, nthreads);
+        return mcdn::denoise_with_frames(dst, src, combine, [&](ImageBuf& d, const ImageBuf& s) {
+            return mcdn::cnn(d, s, o, {}, nthreads);
+        }, nthreads);
     }, mcdn::stage_reach(o));
     return true;
 }
@@ -153,6 +190,13 @@ bool run_mix(Session& s, const Command& c, std::string& error)
 }
 
 // The best chain the inputs allow (mcdn/denoise.h), run as the stage commands would run it.
+bool check_denoise(const Command& c, std::string& error)
+{
+    int frames;
+    Command settings;
+    return frames_of(c, frames, settings, error);
+}
+
 bool run_denoise(Session& s, const Command& c, std::string& error)
 {
     if (!s.load(error))
@@ -168,6 +212,8 @@ bool run_denoise(Session& s, const Command& c, std::string& error)
         Command step { "--" + stage, {}, {} };
         if (stage == "mix")
             step.modifiers["model"] = "net";
+        if (stage == "cnn" && c.has("frames"))  // cross-frame: the CNN's input combined
+            step.modifiers["frames"] = c.modifier("frames");
         const bool ok = stage == "cnn"    ? queue_cnn(s, step, error)
                         : stage == "sure" ? run_sure(s, step, error)
                                           : run_mix(s, step, error);
@@ -182,12 +228,14 @@ bool run_denoise(Session& s, const Command& c, std::string& error)
 std::vector<CommandInfo> stage_commands()
 {
     return {
-        { "--denoise", "", {},
+        { "--denoise", "", { "frames" },
           "The best chain the inputs allow: with a colour variance --cnn --sure --mix "
           "(KPCN, its SURE, the progressive mix by the network: never much worse than the "
           "better of render and CNN), without one --cnn alone. -v prints which and why. "
-          "To choose stages and their settings, name them instead.",
-          run_denoise, false, {},
+          "To choose stages and their settings, name them instead. In a sequence, frames=2 "
+          "is cross-frame: the CNN's input is this frame combined with 2 previous and 2 next "
+          "ones where they agree (as --cnn:frames=2), against flicker.",
+          run_denoise, false, check_denoise,
           "the colour (any preset); with its variance (the renderer's variance AOV, Cycles "
           "via -i:as=variance, a Tungsten folder) the mixed chain. Albedo, normal and depth "
           "help the CNN; missing ones are zero (-v names them)." },
@@ -211,16 +259,20 @@ std::vector<CommandInfo> stage_commands()
           "Cross-frame (§8), in a sequence: frames=2 fits over the 2 previous and 2 next "
           "frames too, aligned by the motion vectors (Blender's Vector pass); it reads them "
           "(also across --frames chunk edges), never writes them, and runs the whole frame.",
-          queue_nfor, false, check_nfor,
+          queue_nfor, false, check_with_frames<mcdn::NforOptions>,
           "the colour and its two half buffers (each the mean of half the samples: "
           "-i:as=halfA, -i:as=halfB; a Tungsten folder has them); the variance of the mean "
           "(else the halves' difference); features, prefiltered unless --prefilter ran. "
           "Without halves, render them, or use --denoise or --cnn." },
-        { "--cnn", "", mcdn::setting_keys("cnn"),
+        { "--cnn", "", with_frames(mcdn::setting_keys("cnn")),
           "Kernel-predicting CNN denoiser (KPCN): diffuse/specular split, our trained weights "
           "(models/kpcn.mcdnw; weights=FILE), tiled (tile=512). Extra AOVs take their share "
-          "of the beauty's denoised light through its kernels (extras=0: keep them).",
-          queue_cnn, false, check<mcdn::CnnOptions>,
+          "of the beauty's denoised light through its kernels (extras=0: keep them). "
+          "Cross-frame, in a sequence: frames=2 first combines this frame with 2 previous "
+          "and 2 next ones, aligned by the motion vectors (Blender's Vector pass), weighted "
+          "by how well their patches agree: a render of up to 5 times the samples where "
+          "they do. It reads them (also across --frames chunk edges), never writes them.",
+          queue_cnn, false, check_with_frames<mcdn::CnnOptions>,
           "the colour; the diffuse/specular split (Cycles' DiffCol/Dir/Ind and Gloss*, or "
           "diffuse.*, specular.*) where present; albedo, normal, depth and their variances "
           "(missing ones are zero: -v names them)." },

@@ -9,6 +9,7 @@
 #include "mcdn/aov.h"
 #include "mcdn/cnn.h"
 #include "mcdn/denoise.h"
+#include "mcdn/frames.h"
 #include "mcdn/io.h"
 #include "mcdn/metrics.h"
 #include "mcdn/mix.h"
@@ -190,7 +191,9 @@ PYBIND11_MODULE(_mcdenoise, m)
           [](const ImageBuf& src, const std::string& preset,
              const std::map<std::string, std::string>& aovs, const std::string& colorspace,
              int window, int patch, bool mse, bool selection, bool extras,
-             const std::string& outliers, bool skip, float converged, int nthreads) {
+             const std::string& outliers, bool skip, float converged,
+             const std::vector<ImageBuf*>& previous, const std::vector<ImageBuf*>& next,
+             int nthreads) {
               auto o = stage_options<mcdn::NforOptions>(
                   "nfor", aov_spec(preset, aovs, colorspace),
                   { { "window", text(window) }, { "patch", text(patch) }, { "mse", text(mse) },
@@ -198,6 +201,8 @@ PYBIND11_MODULE(_mcdenoise, m)
                     { "outliers", outliers }, { "skip", text(skip) },
                     { "converged", text(converged) } });
               o.prefilter.aovs = o.aovs;
+              o.previous_frames.assign(previous.begin(), previous.end());
+              o.next_frames.assign(next.begin(), next.end());
               return run(src, [&](ImageBuf& d, const ImageBuf& s) {
                   return mcdn::nfor(d, s, o, {}, nthreads);
               });
@@ -207,32 +212,52 @@ PYBIND11_MODULE(_mcdenoise, m)
           py::arg("window") = 19, py::arg("patch") = 7, py::arg("mse") = false,
           py::arg("selection") = false, py::arg("extras") = true, py::arg("outliers") = "drop",
           py::arg("skip") = true,
-          py::arg("converged") = mcdn::SkipOptions().max_relative_error, py::arg("nthreads") = 0,
+          py::arg("converged") = mcdn::SkipOptions().max_relative_error,
+          py::arg("previous") = std::vector<ImageBuf*>(), py::arg("next") = std::vector<ImageBuf*>(),
+          py::arg("nthreads") = 0,
           "NFOR: first-order regression denoiser (NFOR §5.2-5.4). extras: denoise the extra "
           "AOVs (light groups) with the beauty's weights. outliers: a pixel holding one sample "
           "worth a hundred of its neighbours is kept out of the regressions and removed "
           "('drop'), put back ('keep') or left in ('off'). skip: pass converged tiles (worst "
-          "relative standard error <= converged) through and drop constant features.");
+          "relative standard error <= converged) through and drop constant features. previous, "
+          "next: cross-frame (NFOR §8), the neighbouring frames of the shot, nearest first "
+          "(at most 4 each), aligned to this one by the motion vectors (Blender's Vector "
+          "pass, or aovs={'motion': 'X,Y,Z,W'}).");
 
     m.def("cnn",
           [](const ImageBuf& src, const std::string& preset,
              const std::map<std::string, std::string>& aovs, const std::string& colorspace,
              const std::string& weights, bool extras, bool skip, float converged,
-              int nthreads) {
+             const std::vector<ImageBuf*>& previous, const std::vector<ImageBuf*>& next,
+             int nthreads) {
               auto o = stage_options<mcdn::CnnOptions>(
                   "cnn", aov_spec(preset, aovs, colorspace),
                   { { "weights", weights }, { "extras", text(extras) }, { "skip", text(skip) },
                     { "converged", text(converged) } });
+              mcdn::CombineFramesOptions frames;
+              frames.aovs = o.aovs;
+              frames.previous_frames.assign(previous.begin(), previous.end());
+              frames.next_frames.assign(next.begin(), next.end());
               return run(src, [&](ImageBuf& d, const ImageBuf& s) {
-                  return mcdn::cnn(d, s, o, {}, nthreads);
+                  if (previous.empty() && next.empty())
+                      return mcdn::cnn(d, s, o, {}, nthreads);
+                  return mcdn::denoise_with_frames(d, s, frames,
+                                                   [&](ImageBuf& dd, const ImageBuf& ss) {
+                                                       return mcdn::cnn(dd, ss, o, {}, nthreads);
+                                                   }, nthreads);
               });
           },
           py::arg("image"), py::arg("preset") = "",
           py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
           py::arg("weights") = "", py::arg("extras") = true, py::arg("skip") = true,
-          py::arg("converged") = mcdn::SkipOptions().max_relative_error, py::arg("nthreads") = 0,
+          py::arg("converged") = mcdn::SkipOptions().max_relative_error,
+          py::arg("previous") = std::vector<ImageBuf*>(), py::arg("next") = std::vector<ImageBuf*>(),
+          py::arg("nthreads") = 0,
           "KPCN: kernel-predicting CNN denoiser with our trained weights. extras: denoise the "
-          "extra AOVs (light groups) with the beauty's kernels.");
+          "extra AOVs (light groups) with the beauty's kernels. previous, next: cross-frame, "
+          "the neighbouring frames of the shot (nearest first, at most 4 each), aligned by "
+          "the motion vectors and combined with this one where they agree before the "
+          "network (mcdn/frames.h); the result keeps this frame's own variance and halves.");
     m.def("release_cnn_workers", &mcdn::release_cnn_workers,
           "Frees the networks and buffers cnn() keeps for its next call (~350 MB per thread).");
 

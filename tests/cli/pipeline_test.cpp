@@ -344,6 +344,16 @@ TEST(Pipeline, CrossFrameReadsNeighboursAcrossTheChunkAndWritesNone)
         EXPECT_TRUE(now == bytes) << path << " changed";
     }
 
+    // The CNN's cross-frame mode (its input combined with the neighbours), alone and as
+    // --denoise:frames picks it: also only the chunk's own frames written.
+    for (const char* stage : { "--cnn:frames=1", "--denoise:frames=1" }) {
+        const std::string out = dir + "/" + std::string(stage).substr(2, 3) + ".#.exr";
+        run = run_mcdntool(shot + " --frames 3 " + stage + " -o " + quote(out));
+        ASSERT_EQ(run.exit_code, 0) << stage << ": " << run.output;
+        EXPECT_TRUE(OIIO::Filesystem::exists(dir + "/" + std::string(stage).substr(2, 3) + ".0003.exr"));
+        EXPECT_FALSE(OIIO::Filesystem::exists(dir + "/" + std::string(stage).substr(2, 3) + ".0002.exr"));
+    }
+
     // The shot's first frame has no previous one: fewer, and -v says so.
     run = run_mcdntool(shot + " --frames 1 -v --nfor:frames=2 -o " + quote(dir + "/first.#.exr"));
     ASSERT_EQ(run.exit_code, 0) << run.output;
@@ -357,7 +367,10 @@ TEST(Pipeline, CrossFrameReadsNeighboursAcrossTheChunkAndWritesNone)
     EXPECT_NE(run.exit_code, 0);
     EXPECT_NE(run.output.find("motion"), std::string::npos) << run.output;
     EXPECT_FALSE(OIIO::Filesystem::exists(dir + "/plain.0002.exr"));
-    run = run_mcdntool(shot + " --frames 2 --nfor:frames=9 -o " + quote(dir + "/nine.#.exr"));
-    EXPECT_NE(run.exit_code, 0);
-    EXPECT_NE(run.output.find("frames=9"), std::string::npos) << run.output;
+    for (const char* stage : { "--nfor:frames=9", "--denoise:frames=9", "--cnn:frames=x" }) {
+        run = run_mcdntool(shot + " --frames 2 " + stage + " -o " + quote(dir + "/nine.#.exr"));
+        EXPECT_NE(run.exit_code, 0);
+        EXPECT_NE(run.output.find(std::string(stage).substr(std::string(stage).find(':') + 1)),
+                  std::string::npos) << run.output;
+    }
 }

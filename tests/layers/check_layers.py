@@ -7,7 +7,7 @@ Layers, lowest first (a file may include its own layer and those below it):
                 progress,
                 threads,version}.h: what every op stands on
   1 engines     lib/src/{nl_means,nn}/: the NL-means filter and the network engine
-  2 stages      lib/src/{prefilter,nfor,cnn,sure,mix}/ and their public headers
+  2 stages      lib/src/{prefilter,nfor,cnn,sure,mix,frames}/ and their public headers
   3 chains      lib/src/chain/, mcdn/{chain,settings,denoise}.h: the only code that knows
                 every stage
 Public headers follow the same rule by the layer of the header itself.
@@ -19,13 +19,13 @@ import sys
 FOLDERS = {
     "core": 0, "aov": 0, "io": 0, "color": 0, "metrics": 0, "skip": 0,
     "nl_means": 1, "nn": 1,
-    "prefilter": 2, "nfor": 2, "cnn": 2, "sure": 2, "mix": 2,
+    "prefilter": 2, "nfor": 2, "cnn": 2, "sure": 2, "mix": 2, "frames": 2,
     "chain": 3,
 }
 HEADERS = {
     "aov": 0, "io": 0, "color": 0, "metrics": 0, "skip": 0, "threads": 0, "version": 0,
     "progress": 0,
-    "prefilter": 2, "nfor": 2, "cnn": 2, "sure": 2, "mix": 2,
+    "prefilter": 2, "nfor": 2, "cnn": 2, "sure": 2, "mix": 2, "frames": 2,
     "chain": 3, "settings": 3, "denoise": 3,
 }
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"', re.M)

@@ -104,4 +104,82 @@ inline double relmse(const OIIO::ImageBuf& img, const std::vector<int>& channels
     return m.relmse;
 }
 
+/// A shot of a textured plane moving vx, vy pixels a frame, each frame with its own noise,
+/// the generic channels plus Blender's Vector pass as motion.X/Y/Z/W.
+struct Shot {
+    /// The generic preset with the motion channels named.
+    static mcdn::AovSpec aovs()
+    {
+        mcdn::AovSpec spec;
+        spec.preset = "generic";
+        spec.overrides["motion"] = { "motion.X", "motion.Y", "motion.Z", "motion.W" };
+        return spec;
+    }
+
+    int width = 64, height = 64;
+    float vx = 0, vy = 0;      // motion of the content per frame, pixels (y down)
+    float sigma_half = 0.15f;
+    /// Motion channels written: the true motion, or none (0) when false.
+    bool true_motion = true;
+
+    /// The albedo explains the texture; the shading, which varies over a few windows, no
+    /// feature explains.
+    float albedo(float x, float y, int c) const
+    {
+        return 0.5f + 0.4f * std::sin(0.41f * x + 0.3f * c) * std::cos(0.27f * y);
+    }
+    float color(int t, int x, int y, int c) const
+    {
+        const float u = x - vx * t, v = y - vy * t;  // where the content was at frame 0
+        return 0.05f + 0.9f * albedo(u, v, c) * (0.6f + 0.4f * std::sin(0.05f * u + 0.035f * v));
+    }
+    OIIO::ImageBuf frame(int t) const
+    {
+        std::vector<std::string> names = generic_channels();
+        for (const char* c : { "motion.X", "motion.Y", "motion.Z", "motion.W" })
+            names.push_back(c);
+        return mcdn_test::make_image(width, height, names, [&](int x, int y, int ch) -> float {
+            if (ch >= 24) {  // Blender's convention: previous at p + (X, -Y), next p + (-Z, W)
+                if (!true_motion)
+                    return 0.0f;
+                const float m[4] = { -vx, vy, -vx, vy };
+                return m[ch - 24];
+            }
+            const int face = ch / 6, c = ch % 6, cc = c % 3;
+            const float u = x - vx * t, v = y - vy * t;
+            const float clean = c < 3 ? color(t, x, y, cc) : albedo(u, v, cc);
+            const float sigma = c < 3 ? sigma_half : 0.0f;
+            const float a = clean + sigma * gauss(x, y, 2 * c + 100 * t);
+            const float b = clean + sigma * gauss(x, y, 2 * c + 1 + 100 * t);
+            switch (face) {
+            case 0: return 0.5f * (a + b);
+            case 1: return 0.5f * sigma * sigma;
+            case 2: return a;
+            default: return b;
+            }
+        });
+    }
+    double mse(const OIIO::ImageBuf& img, int t) const
+    {
+        double sum = 0;
+        int n = 0;
+        for (int y = 8; y < height - 8; ++y)  // away from where the motion leaves the frame
+            for (int x = 8; x < width - 8; ++x)
+                for (int c = 0; c < 3; ++c, ++n) {
+                    const double d = img.getchannel(x, y, 0, c) - color(t, x, y, c);
+                    sum += d * d;
+                }
+        return sum / n;
+    }
+};
+
+/// An op's options for a Shot: its AOV spec.
+template <class Options>
+Options shot_options()
+{
+    Options o;
+    o.aovs = Shot::aovs();
+    return o;
+}
+
 }  // namespace nfor_test

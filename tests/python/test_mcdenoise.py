@@ -39,6 +39,34 @@ class OpsTakeAndReturnImageBufs(unittest.TestCase):
         self.assertLess(after["relmse"], 0.5 * noisy["relmse"])
         self.assertEqual(denoised.nchannels, self.render.nchannels)
 
+    def test_nfor_takes_neighbouring_frames(self):
+        # Frames with Blender's Vector pass (a still camera); the neighbours are box16 with
+        # its halves swapped: other noise on the same picture.
+        def with_motion(image):
+            n = image.nchannels
+            names = list(image.spec().channelnames) + ["ViewLayer.Vector." + c for c in "XYZW"]
+            return oiio.ImageBufAlgo.channels(image, tuple(range(n)) + (0.0,) * 4,
+                                              newchannelnames=tuple(names))
+        swapped = with_motion(mcdenoise.read_inputs([
+            (os.path.join(BOX, "box_0016spp.exr"), "mean"),
+            (os.path.join(BOX, "box_0016spp_var.exr"), "variance"),
+            (os.path.join(BOX, "box_0016spp_B.exr"), "halfA"),
+            (os.path.join(BOX, "box_0016spp_A.exr"), "halfB"),
+        ]))
+        frame = with_motion(self.render)
+        single = mcdenoise.nfor(frame, preset="cycles")
+        cross = mcdenoise.nfor(frame, preset="cycles", previous=[swapped], next=[swapped])
+        self.assertIsInstance(cross, oiio.ImageBuf)
+        self.assertNotEqual(single.get_pixels(oiio.FLOAT).tobytes(),
+                            cross.get_pixels(oiio.FLOAT).tobytes())
+        self.assertLess(mcdenoise.metrics(cross, self.reference)["relmse"],
+                        0.5 * mcdenoise.metrics(self.render, self.reference)["relmse"])
+        with self.assertRaisesRegex(RuntimeError, "motion"):
+            mcdenoise.nfor(self.render, preset="cycles", previous=[self.render])
+        cnn = mcdenoise.cnn(frame, preset="cycles", previous=[swapped], next=[swapped])
+        self.assertLess(mcdenoise.metrics(cnn, self.reference)["relmse"],
+                        0.5 * mcdenoise.metrics(self.render, self.reference)["relmse"])
+
     def test_nfor_outlier_modes(self):
         # box16 has no heavy-tailed pixel: every mode gives the same image; a bad mode raises.
         default = mcdenoise.nfor(self.render, preset="cycles").get_pixels(oiio.FLOAT)

@@ -2,6 +2,10 @@
 
 #include <cmath>
 
+#include <OpenImageIO/strutil.h>
+
+#include "mcdn/color.h"
+
 namespace mcdn {
 
 bool read_motion(FrameMotion& motion, const OIIO::ImageBuf& frame, const AovSet& aovs,
@@ -78,6 +82,88 @@ Plane warp(const Plane& plane, const FrameAlignment& alignment, float outside)
         out.px[i] = s >= 0 ? plane.px[size_t(s)] : outside;
     }
     return out;
+}
+
+std::string AlignedFrame::error(const std::string& why) const
+{
+    return OIIO::Strutil::fmt::format("cross-frame: frame {:+d} ({}): {}", offset, name, why);
+}
+
+namespace {
+
+/// src's rows lie inside the frame's data window, which has src's columns.
+bool holds_rows_of(const ImageSpec& frame, const ImageSpec& src)
+{
+    return frame.x == src.x && frame.width == src.width && src.y >= frame.y
+           && src.y + src.height <= frame.y + frame.height;
+}
+
+/// The frame in the working space: itself, or a converted copy.
+bool to_working_space(AlignedFrame& f, const AovSpec& spec, std::string& error)
+{
+    std::string from, why;
+    if (!input_colorspace(from, why, spec, f.frame->spec(), error))
+        return false;
+    if (from == working_colorspace())
+        return true;
+    f.converted = std::make_unique<OIIO::ImageBuf>(f.frame->copy(OIIO::TypeDesc::FLOAT));
+    if (!convert_color_channels(*f.converted, f.aovs, from, working_colorspace(), error))
+        return false;
+    f.frame = f.converted.get();
+    return true;
+}
+
+}  // namespace
+
+bool align_neighbours(std::vector<AlignedFrame>& frames, const OIIO::ImageBuf& src,
+                      const AovSet& src_aovs, const AovSpec& spec,
+                      const std::vector<const OIIO::ImageBuf*>& previous,
+                      const std::vector<const OIIO::ImageBuf*>& next,
+                      const std::vector<Role>& required, std::string& error)
+{
+    FrameMotion own;
+    if (!read_motion(own, src, src_aovs, error)) {
+        error = "cross-frame: " + error;
+        return false;
+    }
+    std::vector<Role> roles = required;
+    roles.push_back(Role::Motion);
+    for (bool backwards : { true, false }) {
+        const std::vector<const OIIO::ImageBuf*>& side = backwards ? previous : next;
+        std::vector<FrameMotion> motions(side.size());  // of the frames between
+        std::vector<const FrameMotion*> steps { &own };
+        for (size_t k = 0; k < side.size(); ++k) {
+            AlignedFrame f;
+            f.offset = backwards ? -int(k + 1) : int(k + 1);
+            f.frame = side[k];
+            f.name = f.frame->name().empty() ? std::string("in memory")
+                                             : std::string(f.frame->name());
+            const ImageSpec& fs = f.frame->spec();
+            const ImageSpec& ss = src.spec();
+            if (!holds_rows_of(fs, ss)) {
+                error = f.error(OIIO::Strutil::fmt::format(
+                    "its data window {}x{}+{}+{} does not hold this frame's {}x{}+{}+{}",
+                    fs.width, fs.height, fs.x, fs.y, ss.width, ss.height, ss.x, ss.y));
+                return false;
+            }
+            if (!resolve_aovs(f.aovs, spec, fs, error) || !f.aovs.require(roles, fs, error)
+                || !to_working_space(f, spec, error)) {
+                error = f.error(error);
+                return false;
+            }
+            f.alignment = align_frames(steps, backwards, ss.x - fs.x, ss.y - fs.y, fs.width,
+                                       fs.height);
+            if (k + 1 < side.size()) {  // its motion leads to the next one out
+                if (!read_motion(motions[k], *f.frame, f.aovs, error)) {
+                    error = f.error(error);
+                    return false;
+                }
+                steps.push_back(&motions[k]);
+            }
+            frames.push_back(std::move(f));
+        }
+    }
+    return true;
 }
 
 }  // namespace mcdn

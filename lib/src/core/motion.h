@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -48,5 +49,29 @@ FrameAlignment align_frames(const std::vector<const FrameMotion*>& steps, bool b
 /// `plane` of the other frame resampled onto this frame's pixels; `outside` where the
 /// alignment leaves the other frame.
 Plane warp(const Plane& plane, const FrameAlignment& alignment, float outside);
+
+/// A neighbouring frame as the cross-frame modes take it: in the working space
+/// (mcdn/color.h), its roles resolved, and where each pixel of this frame is in it.
+struct AlignedFrame {
+    int offset = 0;    // frame number relative to this frame
+    std::string name;  // the file, for messages
+    const OIIO::ImageBuf* frame = nullptr;      // the frame itself, or *converted
+    std::unique_ptr<OIIO::ImageBuf> converted;  // a copy in the working space, if needed
+    AovSet aovs;
+    FrameAlignment alignment;
+    /// "cross-frame: frame -1 (shot.0009.exr): <why>".
+    std::string error(const std::string& why) const;
+};
+
+/// Checks, converts and aligns `previous` (frames t-1, t-2, ..., nearest first) and `next`
+/// (t+1, ...) to src (whose roles are `src_aovs`) by the motion vectors of src and of the
+/// frames between. Each must hold the roles `required` and src's data window (or src is a
+/// band of rows of it: a chain's band, a SURE probe). False with `error` naming the frame and
+/// what it lacks. Nothing is copied unless a frame is not in the working space.
+bool align_neighbours(std::vector<AlignedFrame>& frames, const OIIO::ImageBuf& src,
+                      const AovSet& src_aovs, const AovSpec& spec,
+                      const std::vector<const OIIO::ImageBuf*>& previous,
+                      const std::vector<const OIIO::ImageBuf*>& next,
+                      const std::vector<Role>& required, std::string& error);
 
 }  // namespace mcdn

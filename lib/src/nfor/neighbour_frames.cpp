@@ -1,7 +1,6 @@
 #include "nfor/neighbour_frames.h"
 
 #include "core/motion.h"
-#include "mcdn/color.h"
 
 namespace mcdn {
 
@@ -10,29 +9,6 @@ namespace {
 /// Far from any colour: a patch that reaches a pixel outside the aligned frame gets
 /// distance kDistanceClamp there, and weight 0.
 constexpr float kOutsideGuide = 1e10f;
-
-/// `frame` in the working space (mcdn/color.h): itself, or a converted copy in `storage`.
-bool in_working_space(const ImageBuf*& frame, ImageBuf& storage, const AovSpec& spec,
-                      const AovSet& aovs, std::string& error)
-{
-    std::string from, why;
-    if (!input_colorspace(from, why, spec, frame->spec(), error))
-        return false;
-    if (from == working_colorspace())
-        return true;
-    storage = frame->copy(OIIO::TypeDesc::FLOAT);
-    if (!convert_color_channels(storage, aovs, from, working_colorspace(), error))
-        return false;
-    frame = &storage;
-    return true;
-}
-
-/// src's rows lie inside the frame's data window, which has src's columns.
-bool holds_rows_of(const ImageSpec& frame, const ImageSpec& src)
-{
-    return frame.x == src.x && frame.width == src.width && src.y >= frame.y
-           && src.y + src.height <= frame.y + frame.height;
-}
 
 /// src's feature channels found by name in the frame; false with `missing` naming one.
 bool features_in(std::vector<FeatureChannel>& out, const std::vector<FeatureChannel>& features,
@@ -134,62 +110,25 @@ bool read_neighbour_frames(std::vector<NeighbourFrame>& frames, const ImageBuf& 
                            const std::vector<const ImageBuf*>& next,
                            const NeighbourReading& reading, int nthreads, std::string& error)
 {
-    FrameMotion own;
-    if (!read_motion(own, src, *reading.aovs, error)) {
-        error = "cross-frame: " + error;
+    std::vector<AlignedFrame> aligned;
+    const std::vector<Role> required
+        = reading.halves ? std::vector<Role> { Role::Color, Role::ColorA, Role::ColorB }
+                         : std::vector<Role> { Role::Color, Role::ColorVariance };
+    if (!align_neighbours(aligned, src, *reading.aovs, *reading.spec, previous, next, required,
+                          error))
         return false;
-    }
-    for (bool backwards : { true, false }) {
-        const std::vector<const ImageBuf*>& side = backwards ? previous : next;
-        std::vector<FrameMotion> motions;  // of the frames between
-        motions.reserve(side.size());
-        std::vector<const FrameMotion*> steps { &own };
-        for (size_t k = 0; k < side.size(); ++k) {
-            const int offset = backwards ? -int(k + 1) : int(k + 1);
-            const ImageBuf* frame = side[k];
-            const std::string name = frame->name().empty() ? std::string("in memory")
-                                                           : std::string(frame->name());
-            auto failed = [&](const std::string& why) {
-                error = OIIO::Strutil::fmt::format("cross-frame: frame {:+d} ({}): {}", offset,
-                                                   name, why);
-                return false;
-            };
-            const ImageSpec& spec = frame->spec();
-            if (!holds_rows_of(spec, src.spec()))
-                return failed(OIIO::Strutil::fmt::format(
-                    "its data window {}x{}+{}+{} does not hold this frame's {}x{}+{}+{}",
-                    spec.width, spec.height, spec.x, spec.y, src.spec().width,
-                    src.spec().height, src.spec().x, src.spec().y));
-            AovSet aovs;
-            std::vector<FeatureChannel> features;
-            std::string missing;
-            if (!resolve_aovs(aovs, *reading.spec, spec, error)
-                || !aovs.require({ Role::Color, Role::Motion }, spec, error)
-                || (reading.halves && !aovs.require({ Role::ColorA, Role::ColorB }, spec, error))
-                || (!reading.halves && !aovs.require({ Role::ColorVariance }, spec, error)))
-                return failed(error);
-            if (!features_in(features, *reading.features, src.spec(), spec, missing))
-                return failed("no channel " + missing);
-            ImageBuf converted;
-            if (!in_working_space(frame, converted, *reading.spec, aovs, error))
-                return failed(error);
-            NeighbourFrame f;
-            f.offset = offset;
-            read_frame(f, *frame, aovs, features, reading, nthreads);
-            align(f, align_frames(steps, backwards, src.spec().x - spec.x,
-                                  src.spec().y - spec.y, spec.width, spec.height),
-                  reading.halves);
-            frames.push_back(std::move(f));
-            if (k + 1 < side.size()) {  // its motion leads to the next one out
-                motions.emplace_back();
-                if (!read_motion(motions.back(), *frame, aovs, error)) {
-                    error = OIIO::Strutil::fmt::format("cross-frame: frame {:+d} ({}): {}",
-                                                       offset, name, error);
-                    return false;
-                }
-                steps.push_back(&motions.back());
-            }
+    for (const AlignedFrame& a : aligned) {
+        std::vector<FeatureChannel> features;
+        std::string missing;
+        if (!features_in(features, *reading.features, src.spec(), a.frame->spec(), missing)) {
+            error = a.error("no channel " + missing);
+            return false;
         }
+        NeighbourFrame f;
+        f.offset = a.offset;
+        read_frame(f, *a.frame, a.aovs, features, reading, nthreads);
+        align(f, a.alignment, reading.halves);
+        frames.push_back(std::move(f));
     }
     return true;
 }

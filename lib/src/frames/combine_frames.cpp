@@ -1,0 +1,297 @@
+// mcdn::combine_frames (mcdn/frames.h): the neighbours aligned (core/motion.h), one NL-means
+// weight per neighbour and pixel from the colour's patches, then every noisy light channel
+// averaged over the frames with those weights.
+#include "mcdn/frames.h"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+#include "core/motion.h"
+#include "core/op_prepare.h"
+#include "core/planar.h"
+#include "mcdn/color.h"
+#include "nl_means/nl_means.h"
+
+namespace mcdn {
+namespace {
+
+/// The colour and the variance of its mean (the role's, else the halves' squared
+/// difference / 4) of one frame.
+struct Colour {
+    Plane mean[3], variance[3];
+};
+
+bool read_colour(Colour& out, const ImageBuf& frame, const AovSet& aovs, std::string& error)
+{
+    const bool halves = aovs.has(Role::ColorA) && aovs.has(Role::ColorB);
+    if (!aovs.has(Role::ColorVariance) && !halves) {
+        error = "weighing the frames needs the colour's variance or two half buffers "
+                "(-i:as=variance, -i:as=halfA, -i:as=halfB)";
+        return false;
+    }
+    for (int c = 0; c < 3; ++c) {
+        out.mean[c] = read_plane(frame, aovs.channels(Role::Color)[c]);
+        if (aovs.has(Role::ColorVariance)) {
+            out.variance[c] = read_plane(frame, aovs.channels(Role::ColorVariance)[c], true);
+        } else {
+            const Plane a = read_plane(frame, aovs.channels(Role::ColorA)[c]);
+            const Plane b = read_plane(frame, aovs.channels(Role::ColorB)[c]);
+            out.variance[c] = Plane(a.width, a.height);
+            for (size_t i = 0; i < a.size(); ++i) {
+                const float d = a.px[i] - b.px[i];
+                out.variance[c].px[i] = sanitize_variance(0.25f * d * d);
+            }
+        }
+    }
+    return true;
+}
+
+/// Mean of each pixel's (2F+1)² patch, clipped to the plane (rows of prefix sums, then
+/// columns; in double, so that no running rounding is left).
+Plane box_mean(const Plane& in, int F, int nthreads)
+{
+    const int w = in.width, h = in.height;
+    Plane across(w, h), out(w, h);
+    parallel_for_index(h, nthreads, [&](int y) {
+        std::vector<double> prefix(size_t(w) + 1, 0.0);
+        const float* row = in.row(y);
+        for (int x = 0; x < w; ++x)
+            prefix[size_t(x) + 1] = prefix[size_t(x)] + row[x];
+        float* o = across.row(y);
+        for (int x = 0; x < w; ++x) {
+            const int x0 = std::max(0, x - F), x1 = std::min(w, x + F + 1);
+            o[x] = float((prefix[size_t(x1)] - prefix[size_t(x0)]) / (x1 - x0));
+        }
+    });
+    parallel_for_index(w, nthreads, [&](int x) {
+        std::vector<double> prefix(size_t(h) + 1, 0.0);
+        for (int y = 0; y < h; ++y)
+            prefix[size_t(y) + 1] = prefix[size_t(y)] + across(x, y);
+        for (int y = 0; y < h; ++y) {
+            const int y0 = std::max(0, y - F), y1 = std::min(h, y + F + 1);
+            out(x, y) = float((prefix[size_t(y1)] - prefix[size_t(y0)]) / (y1 - y0));
+        }
+    });
+    return out;
+}
+
+/// The weight of the aligned neighbour at each pixel: exp(-max(0, d²)), d² the largest
+/// channel's patch mean of NFOR's per-pixel distance (nl_means.h), +clamp where the
+/// alignment leaves the neighbour, so that no patch reaching there gets weight.
+Plane frame_weight(const Colour& own, const Colour& other, const FrameAlignment& alignment,
+                   const CombineFramesOptions& o, int nthreads)
+{
+    const int w = own.mean[0].width, h = own.mean[0].height;
+    const float k2 = o.k * o.k;
+    Plane distance(w, h);
+    for (int c = 0; c < 3; ++c) {
+        const Plane v = warp(other.mean[c], alignment, 0.0f);
+        const Plane vv = warp(other.variance[c], alignment, 0.0f);
+        Plane term(w, h);
+        parallel_for_index(h, nthreads, [&](int y) {
+            for (int x = 0; x < w; ++x) {
+                const size_t i = size_t(y) * w + x;
+                if (alignment.source[i] < 0) {
+                    term.px[i] = nlm::kDistanceClamp;
+                    continue;
+                }
+                const float vp = own.variance[c].px[i], vq = vv.px[i];
+                const float diff = own.mean[c].px[i] - v.px[i];
+                const float d = (diff * diff - (vp + std::min(vp, vq)))
+                                / (nlm::kEpsilon + k2 * (vp + vq));
+                term.px[i] = std::min(d, nlm::kDistanceClamp);
+            }
+        });
+        const Plane patch = box_mean(term, o.patch_radius, nthreads);
+        for (size_t i = 0; i < distance.size(); ++i)
+            distance.px[i] = c == 0 ? patch.px[i] : std::max(distance.px[i], patch.px[i]);
+    }
+    Plane weight(w, h);
+    for (size_t i = 0; i < weight.size(); ++i)
+        weight.px[i] = std::exp(-std::max(0.0f, distance.px[i]));
+    return weight;
+}
+
+/// The channels combined: the light (colour, its halves, Blender's light passes, the
+/// diffuse/specular components, extra AOVs) and, in `variances`, their variances.
+void light_channels(const AovSet& aovs, const ImageSpec& spec, std::set<int>& means,
+                    std::set<int>& variances)
+{
+    for (Role r : { Role::Color, Role::ColorA, Role::ColorB, Role::Diffuse, Role::Specular,
+                    Role::DiffuseDirect, Role::DiffuseIndirect, Role::GlossyDirect,
+                    Role::GlossyIndirect, Role::Emission, Role::Environment })
+        for (int c : aovs.channels(r))
+            means.insert(c);
+    for (int c : aovs.channels(Role::ColorVariance))
+        variances.insert(c);
+    for (const AovSet::Extra& e : aovs.extras()) {
+        for (const std::vector<int>* list : { &e.channels, &e.half_a, &e.half_b })
+            for (int c : *list)
+                means.insert(c);
+        for (int c : e.variance)
+            variances.insert(c);
+    }
+    // The faces of the light passes that the inputs hold by name (Cycles' variance file
+    // and halves carry every pass).
+    for (int c : std::set<int>(means)) {
+        const std::string& name = spec.channelnames[size_t(c)];
+        for (InputKind k : { InputKind::Variance, InputKind::HalfA, InputKind::HalfB }) {
+            const int face = spec.channelindex(input_kind_prefix(k) + name);
+            if (face >= 0)
+                (k == InputKind::Variance ? variances : means).insert(face);
+        }
+    }
+    for (int c : variances)
+        means.erase(c);
+}
+
+bool combine_in_working_space(ImageBuf& dst, const ImageBuf& src,
+                              const CombineFramesOptions& o, ROI roi, int nthreads)
+{
+    const char* op = "frames";
+    AovSet aovs;
+    std::string error;
+    Colour own;
+    if (!resolve_aovs(aovs, o.aovs, src.spec(), error)
+        || !aovs.require({ Role::Color, Role::Motion }, src.spec(), error)
+        || !read_colour(own, src, aovs, error)) {
+        dst.errorfmt("{}: {}", op, error);
+        return false;
+    }
+    std::vector<AlignedFrame> aligned;
+    if (!align_neighbours(aligned, src, aovs, o.aovs, o.previous_frames, o.next_frames,
+                          { Role::Color }, error)) {
+        dst.errorfmt("{}: {}", op, error);
+        return false;
+    }
+    std::vector<Plane> weights;
+    for (const AlignedFrame& a : aligned) {
+        Colour other;
+        if (!read_colour(other, *a.frame, a.aovs, error)) {
+            dst.errorfmt("{}: {}", op, a.error(error));
+            return false;
+        }
+        weights.push_back(frame_weight(own, other, a.alignment, o, nthreads));
+    }
+    own = Colour();
+    std::set<int> means, variances;
+    light_channels(aovs, src.spec(), means, variances);
+    // Every channel is found in every neighbour before anything is written.
+    std::vector<std::vector<int>> index(aligned.size());
+    for (size_t k = 0; k < aligned.size(); ++k)
+        for (const std::set<int>* set : { &means, &variances })
+            for (int c : *set) {
+                const std::string& name = src.spec().channelnames[size_t(c)];
+                index[k].push_back(aligned[k].frame->spec().channelindex(name));
+                if (index[k].back() < 0) {
+                    dst.errorfmt("{}: {}", op, aligned[k].error("no channel " + name));
+                    return false;
+                }
+            }
+    AovSet dst_aovs;
+    if (!prepare_op(dst, src, o.aovs, dst_aovs, op, nthreads))
+        return false;
+    roi = output_roi(dst, roi);
+    size_t n = 0;
+    for (const std::set<int>* set : { &means, &variances }) {
+        const bool variance = set == &variances;
+        for (int c : *set) {
+            // Each channel is read from src before it is written (dst may be src).
+            const Plane mine = read_plane(src, c, variance);
+            Plane sum = mine, total(mine.width, mine.height, 1.0f);
+            for (size_t k = 0; k < aligned.size(); ++k) {
+                const Plane other = warp(read_plane(*aligned[k].frame, index[k][n], variance),
+                                         aligned[k].alignment, 0.0f);
+                const Plane& wk = weights[k];
+                for (size_t i = 0; i < sum.size(); ++i) {
+                    sum.px[i] += (variance ? wk.px[i] * wk.px[i] : wk.px[i]) * other.px[i];
+                    total.px[i] += wk.px[i];
+                }
+            }
+            for (size_t i = 0; i < sum.size(); ++i) {
+                const float t = variance ? total.px[i] * total.px[i] : total.px[i];
+                const float v = sum.px[i] / t;
+                sum.px[i] = std::isfinite(v) ? v : mine.px[i];
+            }
+            write_plane(dst, c, sum, roi);
+            ++n;
+        }
+    }
+    return true;
+}
+
+}  // namespace
+
+bool combine_frames(ImageBuf& dst, const ImageBuf& src, const CombineFramesOptions& options,
+                    ROI roi, int nthreads)
+{
+    if (!check_op_threads(dst, nthreads, "frames"))
+        return false;
+    if (options.previous_frames.size() > 4 || options.next_frames.size() > 4
+        || options.patch_radius < 0 || !(options.k > 0)) {
+        dst.errorfmt("frames: at most 4 frames on each side ({} and {} given), patch >= 0 "
+                     "and k > 0", options.previous_frames.size(), options.next_frames.size());
+        return false;
+    }
+    for (const std::vector<const ImageBuf*>* side :
+         { &options.previous_frames, &options.next_frames })
+        for (const ImageBuf* f : *side)
+            if (!f) {
+                dst.errorfmt("frames: a neighbouring frame is null");
+                return false;
+            }
+    return run_in_working_space(dst, src, options.aovs, "frames",
+                                [&](ImageBuf& d, const ImageBuf& s) {
+                                    return combine_in_working_space(d, s, options, roi,
+                                                                    nthreads);
+                                });
+}
+
+bool denoise_with_frames(ImageBuf& dst, const ImageBuf& src, const CombineFramesOptions& options,
+                         const std::function<bool(ImageBuf&, const ImageBuf&)>& denoiser,
+                         int nthreads)
+{
+    ImageBuf combined, denoised;
+    if (!combine_frames(combined, src, options, {}, nthreads)) {
+        dst.errorfmt("{}", combined.geterror());
+        return false;
+    }
+    if (!denoiser(denoised, combined)) {
+        dst.errorfmt("{}", denoised.geterror());
+        return false;
+    }
+    combined.reset();
+    AovSet aovs;
+    std::string error;
+    if (!resolve_aovs(aovs, options.aovs, src.spec(), error)) {
+        dst.errorfmt("frames: {}", error);
+        return false;
+    }
+    std::set<int> means, variances, written;
+    light_channels(aovs, src.spec(), means, variances);
+    for (int c : aovs.channels(Role::Color))
+        written.insert(c);
+    for (const AovSet::Extra& e : aovs.extras())
+        written.insert(e.channels.begin(), e.channels.end());
+    for (const std::set<int>* set : { &means, &variances })
+        for (int c : *set) {
+            if (written.count(c))
+                continue;
+            const int to = denoised.spec().channelindex(src.spec().channelnames[size_t(c)]);
+            if (to >= 0)
+                write_plane(denoised, to, read_plane(src, c, set == &variances), denoised.roi());
+        }
+    dst = std::move(denoised);
+    return true;
+}
+
+ImageBuf combine_frames(const ImageBuf& src, const CombineFramesOptions& options, ROI roi,
+                        int nthreads)
+{
+    ImageBuf dst;
+    combine_frames(dst, src, options, roi, nthreads);
+    return dst;
+}
+
+}  // namespace mcdn
