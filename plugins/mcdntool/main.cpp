@@ -161,11 +161,11 @@ bool shot_frame_inputs(const std::vector<Command>& commands, int frame,
         return false;
     for (const Command& c : frame_commands(commands, frame))
         if (c.name == "-i") {
-            mcdn::InputKind kind;
+            mcdn::InputFile file;
             std::string error;
-            if (!input_kind_of(c, kind, error) || !Filesystem::exists(c.args[0]))
+            if (!input_file_of(c, file, error) || !Filesystem::exists(file.path))
                 return false;
-            inputs.push_back({ c.args[0], kind, c.modifier("part") });
+            inputs.push_back(file);
         }
     return !inputs.empty();
 }

@@ -229,6 +229,8 @@ bool Session::replace_image(ImageBuf result, std::string& error)
     return mcdn::resolve_aovs(m_aovs, aov_spec, m_image.spec(), error);
 }
 
+namespace {
+
 bool input_kind_of(const Command& c, mcdn::InputKind& kind, std::string& error)
 {
     auto named = mcdn::input_kind_from_name(c.modifier("as", "mean"));
@@ -237,6 +239,17 @@ bool input_kind_of(const Command& c, mcdn::InputKind& kind, std::string& error)
         return false;
     }
     kind = *named;
+    return true;
+}
+
+}  // namespace
+
+bool input_file_of(const Command& c, mcdn::InputFile& file, std::string& error)
+{
+    mcdn::InputKind kind;
+    if (!input_kind_of(c, kind, error))
+        return false;
+    file = { c.args[0], kind, c.modifier("part") };
     return true;
 }
 
@@ -328,10 +341,10 @@ bool check_output(const Command& c, std::string& error)
 
 bool run_input(Session& s, const Command& c, std::string& error)
 {
-    mcdn::InputKind kind;
-    if (!input_kind_of(c, kind, error))
+    mcdn::InputFile file;
+    if (!input_file_of(c, file, error))
         return false;
-    s.inputs.push_back({ c.args[0], kind, c.modifier("part") });
+    s.inputs.push_back(file);
     s.invalidate();
     return true;
 }

@@ -111,8 +111,8 @@ bool run_metrics(Session&, const Command&, std::string& error);
 bool run_heatmap(Session&, const Command&, std::string& error);
 bool run_fixnan(Session&, const Command&, std::string& error);
 
-/// The input kind of an -i command (its :as= modifier).
-bool input_kind_of(const Command& c, mcdn::InputKind& kind, std::string& error);
+/// The file an -i command reads: its path, kind and part.
+bool input_file_of(const Command& c, mcdn::InputFile& file, std::string& error);
 
 /// Checks of the built-in commands' modifier values (session.cpp), run before any command.
 bool check_input(const Command&, std::string& error);

@@ -34,14 +34,6 @@ bool read_motion(FrameMotion& motion, const OIIO::ImageBuf& frame, const AovSet&
     return true;
 }
 
-double FrameAlignment::inside_fraction() const
-{
-    size_t inside = 0;
-    for (int64_t s : source)
-        inside += s >= 0;
-    return source.empty() ? 0.0 : double(inside) / double(source.size());
-}
-
 FrameAlignment align_frames(const std::vector<const FrameMotion*>& steps, bool backwards,
                             int origin_x, int origin_y, int width, int height)
 {
@@ -121,6 +113,18 @@ bool align_neighbours(std::vector<AlignedFrame>& frames, const OIIO::ImageBuf& s
                       const std::vector<const OIIO::ImageBuf*>& next,
                       const std::vector<Role>& required, std::string& error)
 {
+    if (previous.size() > size_t(kMaxNeighbourFrames) || next.size() > size_t(kMaxNeighbourFrames)) {
+        error = OIIO::Strutil::fmt::format(
+            "cross-frame takes at most {} frames on each side ({} and {} given)",
+            kMaxNeighbourFrames, previous.size(), next.size());
+        return false;
+    }
+    for (const std::vector<const OIIO::ImageBuf*>* side : { &previous, &next })
+        for (const OIIO::ImageBuf* f : *side)
+            if (!f) {
+                error = "cross-frame: a neighbouring frame is null";
+                return false;
+            }
     FrameMotion own;
     if (!read_motion(own, src, src_aovs, error)) {
         error = "cross-frame: " + error;

@@ -21,6 +21,9 @@
 namespace mcdn {
 
 /// A frame's motion as displacements in pixel rows (x right, y down).
+/// Most neighbouring frames on each side a cross-frame mode takes.
+constexpr int kMaxNeighbourFrames = 4;
+
 struct FrameMotion {
     Plane to_previous[2], to_next[2];
 };
@@ -40,8 +43,6 @@ bool read_motion(FrameMotion& motion, const OIIO::ImageBuf& frame, const AovSet&
 struct FrameAlignment {
     int width = 0, height = 0;  // of steps[0]
     std::vector<int64_t> source;
-    /// Fraction of the frame's pixels that land inside the other frame.
-    double inside_fraction() const;
 };
 FrameAlignment align_frames(const std::vector<const FrameMotion*>& steps, bool backwards,
                             int origin_x, int origin_y, int width, int height);
@@ -66,8 +67,9 @@ struct AlignedFrame {
 /// Checks, converts and aligns `previous` (frames t-1, t-2, ..., nearest first) and `next`
 /// (t+1, ...) to src (whose roles are `src_aovs`) by the motion vectors of src and of the
 /// frames between. Each must hold the roles `required` and src's data window (or src is a
-/// band of rows of it: a chain's band, a SURE probe). False with `error` naming the frame and
-/// what it lacks. Nothing is copied unless a frame is not in the working space.
+/// band of rows of it: a chain's band, a SURE probe), and no side more than
+/// kMaxNeighbourFrames. False with `error` naming the frame and what it lacks. Nothing is
+/// copied unless a frame is not in the working space.
 bool align_neighbours(std::vector<AlignedFrame>& frames, const OIIO::ImageBuf& src,
                       const AovSet& src_aovs, const AovSpec& spec,
                       const std::vector<const OIIO::ImageBuf*>& previous,

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <set>
 
+#include "core/color_planes.h"
 #include "core/motion.h"
 #include "core/op_prepare.h"
 #include "core/planar.h"
@@ -16,13 +17,8 @@
 namespace mcdn {
 namespace {
 
-/// The colour and the variance of its mean (the role's, else the halves' squared
-/// difference / 4) of one frame.
-struct Colour {
-    Plane mean[3], variance[3];
-};
-
-bool read_colour(Colour& out, const ImageBuf& frame, const AovSet& aovs, std::string& error)
+/// The colour and the variance of its mean of one frame (the role's, else from the halves).
+bool read_colour(ColorPlanes& out, const ImageBuf& frame, const AovSet& aovs, std::string& error)
 {
     const bool halves = aovs.has(Role::ColorA) && aovs.has(Role::ColorB);
     if (!aovs.has(Role::ColorVariance) && !halves) {
@@ -30,20 +26,7 @@ bool read_colour(Colour& out, const ImageBuf& frame, const AovSet& aovs, std::st
                 "(-i:as=variance, -i:as=halfA, -i:as=halfB)";
         return false;
     }
-    for (int c = 0; c < 3; ++c) {
-        out.mean[c] = read_plane(frame, aovs.channels(Role::Color)[c]);
-        if (aovs.has(Role::ColorVariance)) {
-            out.variance[c] = read_plane(frame, aovs.channels(Role::ColorVariance)[c], true);
-        } else {
-            const Plane a = read_plane(frame, aovs.channels(Role::ColorA)[c]);
-            const Plane b = read_plane(frame, aovs.channels(Role::ColorB)[c]);
-            out.variance[c] = Plane(a.width, a.height);
-            for (size_t i = 0; i < a.size(); ++i) {
-                const float d = a.px[i] - b.px[i];
-                out.variance[c].px[i] = sanitize_variance(0.25f * d * d);
-            }
-        }
-    }
+    read_color_planes(out, frame, aovs, !aovs.has(Role::ColorVariance));
     return true;
 }
 
@@ -79,8 +62,8 @@ Plane box_mean(const Plane& in, int F, int nthreads)
 /// The weight of the aligned neighbour at each pixel: exp(-max(0, d²)), d² the largest
 /// channel's patch mean of NFOR's per-pixel distance (nl_means.h), +clamp where the
 /// alignment leaves the neighbour, so that no patch reaching there gets weight.
-Plane frame_weight(const Colour& own, const Colour& other, const FrameAlignment& alignment,
-                   const CombineFramesOptions& o, int nthreads)
+Plane frame_weight(const ColorPlanes& own, const ColorPlanes& other,
+                   const FrameAlignment& alignment, const CombineFramesOptions& o, int nthreads)
 {
     const int w = own.mean[0].width, h = own.mean[0].height;
     const float k2 = o.k * o.k;
@@ -152,7 +135,7 @@ bool combine_in_working_space(ImageBuf& dst, const ImageBuf& src,
     const char* op = "frames";
     AovSet aovs;
     std::string error;
-    Colour own;
+    ColorPlanes own;
     if (!resolve_aovs(aovs, o.aovs, src.spec(), error)
         || !aovs.require({ Role::Color, Role::Motion }, src.spec(), error)
         || !read_colour(own, src, aovs, error)) {
@@ -167,14 +150,19 @@ bool combine_in_working_space(ImageBuf& dst, const ImageBuf& src,
     }
     std::vector<Plane> weights;
     for (const AlignedFrame& a : aligned) {
-        Colour other;
+        ColorPlanes other;
         if (!read_colour(other, *a.frame, a.aovs, error)) {
             dst.errorfmt("{}: {}", op, a.error(error));
             return false;
         }
         weights.push_back(frame_weight(own, other, a.alignment, o, nthreads));
     }
-    own = Colour();
+    own = ColorPlanes();
+    // Each pixel's total weight: its own 1 and the neighbours'.
+    Plane total(src.spec().width, src.spec().height, 1.0f);
+    for (const Plane& wk : weights)
+        for (size_t i = 0; i < total.size(); ++i)
+            total.px[i] += wk.px[i];
     std::set<int> means, variances;
     light_channels(aovs, src.spec(), means, variances);
     // Every channel is found in every neighbour before anything is written.
@@ -199,15 +187,13 @@ bool combine_in_working_space(ImageBuf& dst, const ImageBuf& src,
         for (int c : *set) {
             // Each channel is read from src before it is written (dst may be src).
             const Plane mine = read_plane(src, c, variance);
-            Plane sum = mine, total(mine.width, mine.height, 1.0f);
+            Plane sum = mine;
             for (size_t k = 0; k < aligned.size(); ++k) {
                 const Plane other = warp(read_plane(*aligned[k].frame, index[k][n], variance),
                                          aligned[k].alignment, 0.0f);
                 const Plane& wk = weights[k];
-                for (size_t i = 0; i < sum.size(); ++i) {
+                for (size_t i = 0; i < sum.size(); ++i)
                     sum.px[i] += (variance ? wk.px[i] * wk.px[i] : wk.px[i]) * other.px[i];
-                    total.px[i] += wk.px[i];
-                }
             }
             for (size_t i = 0; i < sum.size(); ++i) {
                 const float t = variance ? total.px[i] * total.px[i] : total.px[i];
@@ -228,19 +214,11 @@ bool combine_frames(ImageBuf& dst, const ImageBuf& src, const CombineFramesOptio
 {
     if (!check_op_threads(dst, nthreads, "frames"))
         return false;
-    if (options.previous_frames.size() > 4 || options.next_frames.size() > 4
-        || options.patch_radius < 0 || !(options.k > 0)) {
-        dst.errorfmt("frames: at most 4 frames on each side ({} and {} given), patch >= 0 "
-                     "and k > 0", options.previous_frames.size(), options.next_frames.size());
+    if (options.patch_radius < 0 || !(options.k > 0)) {
+        dst.errorfmt("frames: patch must be >= 0 and k > 0 (patch {}, k {})",
+                     options.patch_radius, options.k);
         return false;
     }
-    for (const std::vector<const ImageBuf*>* side :
-         { &options.previous_frames, &options.next_frames })
-        for (const ImageBuf* f : *side)
-            if (!f) {
-                dst.errorfmt("frames: a neighbouring frame is null");
-                return false;
-            }
     return run_in_working_space(dst, src, options.aovs, "frames",
                                 [&](ImageBuf& d, const ImageBuf& s) {
                                     return combine_in_working_space(d, s, options, roi,

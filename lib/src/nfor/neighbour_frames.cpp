@@ -54,12 +54,15 @@ void read_frame(NeighbourFrame& f, const ImageBuf& frame, const AovSet& aovs,
 void align(NeighbourFrame& f, const FrameAlignment& a, bool halves)
 {
     for (int c = 0; c < 3; ++c) {
-        // Guides (the halves cross-guide, the mean guides itself) are far off outside.
-        f.color.mean[c] = warp(f.color.mean[c], a, kOutsideGuide);
+        // Guides (the halves cross-guide, the mean guides itself on the one-buffer path) are
+        // far off outside; the halves path reads no mean of a neighbour.
         f.color.variance[c] = warp(f.color.variance[c], a, 0.0f);
         if (halves) {
+            f.color.mean[c] = Plane();
             f.color.half_a[c] = warp(f.color.half_a[c], a, kOutsideGuide);
             f.color.half_b[c] = warp(f.color.half_b[c], a, kOutsideGuide);
+        } else {
+            f.color.mean[c] = warp(f.color.mean[c], a, kOutsideGuide);
         }
     }
     for (FeaturePlanes& p : f.features) {
@@ -68,7 +71,6 @@ void align(NeighbourFrame& f, const FrameAlignment& a, bool halves)
         p.half_b = warp(p.half_b, a, 0.0f);
     }
     f.offset_feature = Plane(a.width, a.height, float(f.offset));
-    f.inside = a.inside_fraction();
 }
 
 const Plane* face(const ColorPlanes& c, FirstPassFace f, int channel)
@@ -84,26 +86,6 @@ const Plane* face(const FeaturePlanes& p, FirstPassFace f)
 }
 
 }  // namespace
-
-void read_color_planes(ColorPlanes& color, const ImageBuf& src, const AovSet& aovs, bool halves)
-{
-    for (int c = 0; c < 3; ++c) {
-        color.mean[c] = read_plane(src, aovs.channels(Role::Color)[c]);
-        if (halves) {
-            color.half_a[c] = read_plane(src, aovs.channels(Role::ColorA)[c]);
-            color.half_b[c] = read_plane(src, aovs.channels(Role::ColorB)[c]);
-        }
-        if (aovs.has(Role::ColorVariance)) {
-            color.variance[c] = read_plane(src, aovs.channels(Role::ColorVariance)[c], true);
-        } else {  // two-buffer estimate of the variance of the mean
-            color.variance[c] = Plane(src.spec().width, src.spec().height);
-            for (size_t i = 0; i < color.variance[c].size(); ++i) {
-                float d = color.half_a[c].px[i] - color.half_b[c].px[i];
-                color.variance[c].px[i] = sanitize_variance(0.25f * d * d);
-            }
-        }
-    }
-}
 
 bool read_neighbour_frames(std::vector<NeighbourFrame>& frames, const ImageBuf& src,
                            const std::vector<const ImageBuf*>& previous,

@@ -17,6 +17,7 @@
 
 #include <OpenImageIO/imagebuf.h>
 
+#include "core/color_planes.h"
 #include "core/feature_channels.h"
 #include "core/planar.h"
 #include "mcdn/aov.h"
@@ -26,22 +27,12 @@
 
 namespace mcdn {
 
-/// The colour role's four faces as planes: mean, variance of the mean, halves A and B.
-struct ColorPlanes {
-    Plane mean[3], variance[3], half_a[3], half_b[3];
-};
-
-/// Reads the colour's faces of src (resolved in `aovs`); without a variance role, the
-/// variance of the mean is the halves' squared difference / 4.
-void read_color_planes(ColorPlanes& color, const ImageBuf& src, const AovSet& aovs, bool halves);
-
 /// One neighbouring frame, aligned to this one.
 struct NeighbourFrame {
     int offset = 0;  // frame number relative to this frame
     ColorPlanes color;
     std::vector<FeaturePlanes> features;  // mean and halves (prefiltered), no variance
     Plane offset_feature;                 // `offset` everywhere: the frame index feature
-    double inside = 0;                    // fraction of this frame's pixels it covers
 };
 
 /// What reading the neighbours needs of this frame's reading.

@@ -45,17 +45,6 @@ bool check_options(ImageBuf& dst, const NforOptions& o)
               && o.map_patch_radius >= 0 && o.second_window_radius >= 0
               && o.second_patch_radius >= 0 && o.candidate_k[0] > 0 && o.candidate_k[1] > 0
               && o.map_k > 0 && o.second_k > 0 && o.variance_scale > 0;
-    if (ok && (o.previous_frames.size() > 4 || o.next_frames.size() > 4)) {
-        dst.errorfmt("nfor: cross-frame takes at most 4 frames on each side ({} and {} given)",
-                     o.previous_frames.size(), o.next_frames.size());
-        return false;
-    }
-    for (const std::vector<const ImageBuf*>* side : { &o.previous_frames, &o.next_frames })
-        for (const ImageBuf* f : *side)
-            if (ok && !f) {
-                dst.errorfmt("nfor: cross-frame: a neighbouring frame is null");
-                return false;
-            }
     if (!ok)
         dst.errorfmt("nfor: window and patch radii must be >= 0 and every k > 0 (window {}, "
                      "patch {}, k {} and {})", o.window_radius, o.patch_radius,

@@ -1,0 +1,22 @@
+// The colour role's faces as planes, read the same way by every op that needs them.
+#pragma once
+
+#include <OpenImageIO/imagebuf.h>
+
+#include "core/planar.h"
+#include "mcdn/aov.h"
+
+namespace mcdn {
+
+/// The colour role's four faces as planes: mean, variance of the mean, halves A and B.
+struct ColorPlanes {
+    Plane mean[3], variance[3], half_a[3], half_b[3];
+};
+
+/// Reads the colour's faces of src (resolved in `aovs`), the halves when `halves`; without a
+/// variance role, the variance of the mean is the halves' squared difference / 4 (the
+/// caller has checked that src has one or the other).
+void read_color_planes(ColorPlanes& color, const OIIO::ImageBuf& src, const AovSet& aovs,
+                       bool halves);
+
+}  // namespace mcdn
