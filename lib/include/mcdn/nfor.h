@@ -82,6 +82,17 @@ struct NforOptions {
     float outlier_variance_ratio = 256.0f;
     float outlier_level_ratio = 64.0f;
 
+    /// The safety net (issue 22): a tile of kConvergedTileSize² pixels whose §5.3 MSE
+    /// estimate, summed over it, is above the render's variance of the mean summed likewise
+    /// (both weighted by relMSE's 1 / (ŷ² + 0.01)) is the render there — with outliers
+    /// dropped, the render with their medians — since by the filter's own estimate it made
+    /// the tile worse (lib/src/nfor/fallback.h). Off by default: a tile's sum is decided by
+    /// one pixel of garbage (1e30, a NaN's repair) or one heavy-tailed sample, so one such
+    /// pixel sends its whole tile back to the render (docs/accuracy.md).
+    bool fallback = false;
+    /// Add channel nfor.fallback: 1 on the tiles that fell back, else 0.
+    bool output_fallback = false;
+
     /// Add channels nfor.mse.R/G/B (estimated MSE of the chosen result, first pass) and
     /// nfor.selection.R/G/B (0: k = candidate_k[0], 1: candidate_k[1]).
     bool output_mse = false;

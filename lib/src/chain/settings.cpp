@@ -171,7 +171,8 @@ const std::vector<std::string>& setting_keys(const std::string& stage)
     static const std::map<std::string, std::vector<std::string>> keys = {
         { "prefilter", { "window", "patch", "k", "features", "features-out", "skip", "converged" } },
         { "nfor", { "window", "patch", "k", "mse", "selection", "features", "features-out",
-                    "halves", "extras", "outliers", "skip", "converged" } },
+                    "halves", "extras", "outliers", "fallback", "fallback-aov", "skip",
+                    "converged" } },
         { "cnn", { "weights", "tile", "extras", "skip", "converged" } },
         { "sure", { "probes", "eps", "seed", "skip", "converged" } },
         { "mix", { "model", "weights", "ttest", "alpha", "afloor", "outlier", "drop", "skip", "converged" } },
@@ -202,6 +203,8 @@ bool apply_settings(NforOptions& o, const Settings& s, std::string& error)
                           [&](const std::string& v) { return parse_bandwidths(v, o.candidate_k); })
                   .flag("mse", o.output_mse)
                   .flag("selection", o.output_selection)
+                  .flag("fallback", o.fallback)
+                  .flag("fallback-aov", o.output_fallback)
                   .flag("extras", o.denoise_extras)
                   .list("features", o.extra_features)
                   .flag("features-out", o.features_out)

@@ -18,6 +18,13 @@ constexpr const char* kProbeAttribute = "mcdn:sure_probe";
 /// a frame-sized copy less per probe). compose keeps it for a chain's last stage only.
 constexpr const char* kColourOnlyAttribute = "mcdn:colour_only";
 
+/// A tile map (skip/converged_tiles.h's encoding) a denoiser decided from its input and set
+/// on its output (nfor's safety net, nfor/fallback.h). sure sets it on its probes' input,
+/// where the denoiser uses it instead of deciding anew: a probe then differs from the
+/// unprobed run only by the probe (PD §2.3's finite difference would jump where a tile's
+/// decision flipped). Not written to files.
+constexpr const char* kDenoiserTilesAttribute = "mcdn:denoiser_tiles";
+
 /// On a merged render (mcdn/io.h read_inputs): the channels write_image writes by default,
 /// one name a line — the render's own, and those a stage was asked to add (add_channels).
 constexpr const char* kOutputChannelsAttribute = "mcdn:output_channels";

@@ -900,7 +900,7 @@ bool output_layout(OutputLayout& layout, const ImageSpec& in_spec, const std::st
     spec.nchannels = int(wanted.size());
     spec.channelnames = wanted;
     for (const auto& name : { "mcdn:inputs", kOutputChannelsAttribute, kPartsAttribute,
-                              kHalvesUnread })
+                              kHalvesUnread, kDenoiserTilesAttribute })
         spec.erase_attribute(name);
     spec.set_format(options.datatype);
     spec.channelformats.clear();

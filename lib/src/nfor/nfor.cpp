@@ -28,6 +28,7 @@
 #include "core/trace.h"
 #include "mcdn/color.h"
 #include "nfor/extras_regression.h"
+#include "nfor/fallback.h"
 #include "nfor/mse_estimate.h"
 #include "nfor/neighbour_frames.h"
 #include "nfor/outliers.h"
@@ -305,14 +306,31 @@ FirstPass first_pass_one_buffer(const ColorPlanes& color, std::vector<FeaturePla
 struct Selected {
     Plane combined[3], combined_variance[3];
     std::vector<Plane> mse, selection;
+    ConvergedTiles fallback;  // the safety net's tiles (nfor/fallback.h)
 };
+
+/// The safety net's map: the one attached to src (a probe of sure's, nfor/fallback.h) when
+/// it has one of the frame's size, else decided from the blended estimate.
+ConvergedTiles fallback_tiles(const ImageBuf& src, const Plane mse[3], const Plane variance[3],
+                              const Plane result[3], const NforOptions& options,
+                              const ConvergedTiles& converged)
+{
+    ConvergedTiles m;
+    if (!options.fallback)
+        return m;
+    const std::string attached = src.spec().get_string_attribute(kDenoiserTilesAttribute);
+    if (!attached.empty()
+        && decode_converged_tiles(m, attached, result[0].width, result[0].height))
+        return m;
+    return tiles_worse_than_render(mse, variance, result, converged);
+}
 
 /// §5.3: each candidate's MSE estimate NL-means filtered on the mean colour; the lower one
 /// picked per pixel; that selection map filtered the same way and the candidates blended
 /// with it (both halves' fits, or the render's alone on the one-buffer path). Consumes the
 /// MSE estimates, the fits and the colour's variance.
-Selected select_bandwidths(ColorPlanes& color, std::vector<Plane> mse[2], FirstPass& pass,
-                           ExtraAovs& extras, const NforOptions& options,
+Selected select_bandwidths(const ImageBuf& src, ColorPlanes& color, std::vector<Plane> mse[2],
+                           FirstPass& pass, ExtraAovs& extras, const NforOptions& options,
                            const ConvergedTiles& converged, int nthreads)
 {
     const NlMeansParams map_params { options.map_patch_radius, options.map_window_radius,
@@ -341,8 +359,6 @@ Selected select_bandwidths(ColorPlanes& color, std::vector<Plane> mse[2], FirstP
     Selected out;
     out.selection = nl_means(noisy, map_guide, map_variance, map_params, nthreads, &converged);
     selection_noisy.clear();
-    for (int c = 0; c < 3; ++c)
-        color.variance[c] = Plane();
 
     const std::vector<Plane>& selection = out.selection;
     for (int c = 0; c < 3; ++c) {
@@ -359,6 +375,10 @@ Selected select_bandwidths(ColorPlanes& color, std::vector<Plane> mse[2], FirstP
             mse0[c].px[i] = mse0[c].px[i] + s * (mse1[c].px[i] - mse0[c].px[i]);
         }
     }
+    out.fallback = fallback_tiles(src, mse0.data(), color.variance, out.combined, options,
+                                  converged);
+    for (int c = 0; c < 3; ++c)
+        color.variance[c] = Plane();
     extras.blend(selection);
     for (int j = 0; j < 2; ++j) {
         pass.fit_a[j].clear();
@@ -402,8 +422,9 @@ std::vector<Plane> second_pass(Selected& selected, std::vector<FeaturePlanes>& f
     return denoised;
 }
 
-/// The nfor.mse.* and nfor.selection.* channels, when asked for.
-bool write_maps(ImageBuf& dst, Selected& selected, ROI roi)
+/// The nfor.mse.*, nfor.selection.* and nfor.fallback channels, when asked for.
+bool write_maps(ImageBuf& dst, Selected& selected, const NforOptions& options,
+                const Plane& like, ROI roi)
 {
     std::vector<std::string> names;
     if (!selected.mse.empty())
@@ -412,6 +433,8 @@ bool write_maps(ImageBuf& dst, Selected& selected, ROI roi)
     if (!selected.selection.empty())
         for (const char* n : { "nfor.selection.R", "nfor.selection.G", "nfor.selection.B" })
             names.push_back(n);
+    if (options.output_fallback)
+        names.push_back("nfor.fallback");
     if (names.empty())
         return true;
     const std::vector<int> new_index = add_channels(dst, names);
@@ -427,6 +450,12 @@ bool write_maps(ImageBuf& dst, Selected& selected, ROI roi)
     }
     for (int c = 0; c < int(selected.selection.size()); ++c, ++n)
         write_plane(dst, new_index[n], selected.selection[c], roi);
+    if (options.output_fallback) {
+        const int w = like.width, h = like.height;
+        Plane fell_back(w, h);
+        pass_through_converged(fell_back, Plane(w, h, 1.0f), selected.fallback);
+        write_plane(dst, new_index[n], fell_back, roi);
+    }
     return true;
 }
 
@@ -500,7 +529,7 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
         two_buffer_mse(mse, color, pass);
     trace.mark("first pass regressions (5.2)");
     progress.advance();
-    Selected selected = select_bandwidths(color, mse, pass, extras, options, converged,
+    Selected selected = select_bandwidths(src, color, mse, pass, extras, options, converged,
                                           nthreads);
     trace.mark("MSE + selection maps (5.3)");
     progress.advance();
@@ -522,8 +551,10 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
         for (size_t i = 0; i < denoised[c].size(); ++i)
             if (!std::isfinite(denoised[c].px[i]))
                 denoised[c].px[i] = color.mean[c].px[i];
-    for (int c = 0; c < 3; ++c)
+    for (int c = 0; c < 3; ++c) {
         pass_through_converged(denoised[c], color.mean[c], converged);
+        pass_through_converged(denoised[c], color.mean[c], selected.fallback);
+    }
     // The extras' sum stays the denoised beauty, before and after the outliers' excess.
     const bool keep_outliers = options.outliers == NforOptions::Outliers::Keep;
     if (!extras.empty()) {
@@ -531,6 +562,7 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
         if (keep_outliers)
             extras.put_back_outliers(outliers);
         extras.pass_through(converged);
+        extras.pass_through(selected.fallback);
     }
     if (keep_outliers)
         put_back_outliers(outliers, denoised.data());
@@ -545,8 +577,16 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
         write_plane(dst, in.aovs.channels(Role::Color)[c], denoised[c], roi);
     if (!extras.empty())
         extras.write(dst, roi);
-    if (!write_maps(dst, selected, roi))
+    if (!write_maps(dst, selected, options, color.mean[0], roi))
         return false;
+    if (selected.fallback.any()) {
+        dst.specmod().attribute(kDenoiserTilesAttribute,
+                                encode_converged_tiles(selected.fallback));
+        dst.specmod().attribute(kFallbackCountAttribute, selected.fallback.count());
+    } else {
+        dst.specmod().erase_attribute(kDenoiserTilesAttribute);
+        dst.specmod().erase_attribute(kFallbackCountAttribute);
+    }
     // features-out: the means it prefiltered (§5.1) over their channels.
     if (options.features_out && !prefiltered && options.prefilter_features)
         for (size_t i = 0; i < in.features.size(); ++i)

@@ -29,6 +29,7 @@ void allocate_output(ImageBuf& dst, const ImageSpec& denoised, const SureFrame& 
     spec.y = frame.whole.ybegin;
     spec.height = frame.whole.height();
     spec.erase_attribute(kConvergedAttribute);
+    spec.erase_attribute(kDenoiserTilesAttribute);
     for (const std::string& name : sure_channel_names(frame))
         if (spec.channelindex(name) < 0) {
             spec.channelnames.push_back(name);
@@ -176,6 +177,7 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
 
     // y = F(x): the result we report SURE for. Written to dst at once, its colour kept.
     Plane y[3];
+    std::string denoiser_tiles;
     {
         ImageBuf denoised;
         trace.mark("read x, converged tiles");
@@ -190,10 +192,13 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
         trace.mark("y is finite");
         for (int c = 0; c < 3; ++c)
             y[c] = read_plane(denoised, frame.color[c]);
+        // The denoiser's own tile decisions hold for its probes (core/attributes.h).
+        denoiser_tiles = denoised.spec().get_string_attribute(kDenoiserTilesAttribute);
         if (!dst.initialized() && is_whole_output(denoised, band, frame)) {
             // What allocate_output and write_denoised_rows would make of it.
             dst = std::move(denoised);
             dst.specmod().erase_attribute(kConvergedAttribute);
+            dst.specmod().erase_attribute(kDenoiserTilesAttribute);
         } else if (!write_denoised_rows(dst, denoised, band, frame, error)) {
             return false;
         }
@@ -239,6 +244,8 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
         // as much as the denoiser's own work on half-converged frames).
         noisy.specmod().attribute(kProbeAttribute, 1);
         noisy.specmod().attribute(kColourOnlyAttribute, 1);
+        if (!denoiser_tiles.empty())
+            noisy.specmod().attribute(kDenoiserTilesAttribute, denoiser_tiles);
         for (size_t g = 0; g < frame.moved.size(); g += 3)
             add_probe(noisy, { frame.moved[g], frame.moved[g + 1], frame.moved[g + 2] }, b, eps);
         trace.mark("probe b");
@@ -249,6 +256,7 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
             noisy.set_pixels(channel_roi(frame.moved[m]), OIIO::TypeDesc::FLOAT, unprobed[m].data());
         noisy.specmod().erase_attribute(kProbeAttribute);
         noisy.specmod().erase_attribute(kColourOnlyAttribute);
+        noisy.specmod().erase_attribute(kDenoiserTilesAttribute);
         if (!probe_ok) {
             error = format("sure: the denoiser failed on probe {}: {}", k, response.geterror());
             return false;
