@@ -9,13 +9,8 @@ ConvergedTiles tiles_worse_than_render(const Plane mse[3], const Plane variance[
                                        const Plane result[3], const ConvergedTiles& converged)
 {
     const int w = result[0].width, h = result[0].height, t = kConvergedTileSize;
-    ConvergedTiles m;
-    m.width = w;
-    m.height = h;
-    m.tiles_x = (w + t - 1) / t;
-    m.tiles_y = (h + t - 1) / t;
-    std::vector<uint8_t> worse(size_t(m.tiles_x) * m.tiles_y, 0);
-    bool any = false;
+    ConvergedTiles m = empty_tile_map(w, h);
+    m.converged.assign(size_t(m.tiles_x) * m.tiles_y, 0);
     for (int ty = 0; ty < m.tiles_y; ++ty)
         for (int tx = 0; tx < m.tiles_x; ++tx) {
             if (converged.tile(tx, ty))
@@ -29,13 +24,10 @@ ConvergedTiles tiles_worse_than_render(const Plane mse[3], const Plane variance[
                         filter += weight * mse[c](x, y);
                         render += weight * variance[c](x, y);
                     }
-            if (filter > render) {
-                worse[size_t(ty) * m.tiles_x + tx] = 1;
-                any = true;
-            }
+            m.converged[size_t(ty) * m.tiles_x + tx] = filter > render;
         }
-    if (any)
-        m.converged = std::move(worse);
+    if (!m.any())
+        m.converged.clear();
     return m;
 }
 

@@ -10,8 +10,6 @@
 // as much as the squared noise it measures).
 #pragma once
 
-#include <string>
-
 #include "core/planar.h"
 #include "skip/converged_tiles.h"
 
@@ -23,7 +21,8 @@ ConvergedTiles tiles_worse_than_render(const Plane mse[3], const Plane variance[
                                        const Plane result[3], const ConvergedTiles& converged);
 
 /// The map goes on nfor's output as kDenoiserTilesAttribute (core/attributes.h), which its
-/// probes reuse. Int attribute on nfor's output: how many tiles fell back (mcdntool -v reports it).
+/// probes reuse. Int attribute on nfor's output: how many tiles fell back (of its band, in a
+/// banded run).
 constexpr const char* kFallbackCountAttribute = "mcdn:nfor_fallback_count";
 
 }  // namespace mcdn

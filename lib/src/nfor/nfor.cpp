@@ -316,11 +316,8 @@ ConvergedTiles fallback_tiles(const ImageBuf& src, const Plane mse[3], const Pla
                               const ConvergedTiles& converged)
 {
     ConvergedTiles m;
-    if (!options.fallback)
-        return m;
-    const std::string attached = src.spec().get_string_attribute(kDenoiserTilesAttribute);
-    if (!attached.empty()
-        && decode_converged_tiles(m, attached, result[0].width, result[0].height))
+    if (!options.fallback
+        || attached_tiles(m, src, kDenoiserTilesAttribute, result[0].width, result[0].height))
         return m;
     return tiles_worse_than_render(mse, variance, result, converged);
 }
@@ -451,9 +448,11 @@ bool write_maps(ImageBuf& dst, Selected& selected, const NforOptions& options,
     for (int c = 0; c < int(selected.selection.size()); ++c, ++n)
         write_plane(dst, new_index[n], selected.selection[c], roi);
     if (options.output_fallback) {
-        const int w = like.width, h = like.height;
-        Plane fell_back(w, h);
-        pass_through_converged(fell_back, Plane(w, h, 1.0f), selected.fallback);
+        Plane fell_back(like.width, like.height);
+        if (selected.fallback.any())
+            for (int y = 0; y < fell_back.height; ++y)
+                for (int x = 0; x < fell_back.width; ++x)
+                    fell_back(x, y) = selected.fallback.pixel(x, y) ? 1.0f : 0.0f;
         write_plane(dst, new_index[n], fell_back, roi);
     }
     return true;

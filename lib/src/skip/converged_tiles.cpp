@@ -49,6 +49,16 @@ inline float relative_variance(float mean, float variance)
 
 }  // namespace
 
+ConvergedTiles empty_tile_map(int width, int height)
+{
+    ConvergedTiles m;
+    m.width = width;
+    m.height = height;
+    m.tiles_x = (width + T - 1) / T;
+    m.tiles_y = (height + T - 1) / T;
+    return m;
+}
+
 float relative_standard_error(float mean, float variance_of_mean)
 {
     return std::sqrt(relative_variance(mean, variance_of_mean));
@@ -65,11 +75,7 @@ namespace {
 template <class At>
 ConvergedTiles scan_converged(int width, int height, float max_relative_error, At at)
 {
-    ConvergedTiles m;
-    m.width = width;
-    m.height = height;
-    m.tiles_x = (m.width + T - 1) / T;
-    m.tiles_y = (m.height + T - 1) / T;
+    ConvergedTiles m = empty_tile_map(width, height);
     const float limit = max_relative_error * max_relative_error;
     const float cap = kOutlierFactor * kOutlierFactor * limit;
     if (!(limit > 0) || m.width <= 0 || m.height <= 0)
@@ -140,22 +146,18 @@ ConvergedTiles find_converged_tiles(const Plane mean[3], const Plane variance[3]
     });
 }
 
-namespace {
-
-/// The map a chain attached to src (kConvergedAttribute), if it has one of this size.
-bool attached_map(ConvergedTiles& m, const ImageBuf& src, int width, int height)
+bool attached_tiles(ConvergedTiles& m, const ImageBuf& src, const char* attribute, int width,
+                    int height)
 {
-    const std::string attached = src.spec().get_string_attribute(kConvergedAttribute);
+    const std::string attached = src.spec().get_string_attribute(attribute);
     return !attached.empty() && decode_converged_tiles(m, attached, width, height);
 }
-
-}  // namespace
 
 ConvergedTiles converged_tiles_of(const ImageBuf& src, const Plane mean[3],
                                   const Plane variance[3], const SkipOptions& skip)
 {
     ConvergedTiles m;
-    if (!skip.enabled || attached_map(m, src, mean[0].width, mean[0].height))
+    if (!skip.enabled || attached_tiles(m, src, kConvergedAttribute, mean[0].width, mean[0].height))
         return m;
     return find_converged_tiles(mean, variance, skip.max_relative_error);
 }
@@ -173,7 +175,7 @@ ConvergedTiles converged_tiles_of(const ImageBuf& src, const AovSet& aovs, const
         // (Six planes would be six strided passes over a many-channel frame, and fresh
         // memory to fault in.)
         ConvergedTiles m;
-        if (attached_map(m, src, spec.width, spec.height))
+        if (attached_tiles(m, src, kConvergedAttribute, spec.width, spec.height))
             return m;
         const size_t nchannels = size_t(spec.nchannels);
         return scan_converged(spec.width, spec.height, skip.max_relative_error, [&](int c, int x, int y) {
@@ -201,11 +203,7 @@ ConvergedCount count_converged_tiles(const ImageBuf& src, const AovSet& aovs,
 
 ConvergedTiles tiles_where_equal(const Plane a[3], const Plane b[3], const ConvergedTiles* within)
 {
-    ConvergedTiles m;
-    m.width = a[0].width;
-    m.height = a[0].height;
-    m.tiles_x = (m.width + T - 1) / T;
-    m.tiles_y = (m.height + T - 1) / T;
+    ConvergedTiles m = empty_tile_map(a[0].width, a[0].height);
     m.converged.assign(size_t(m.tiles_x) * m.tiles_y, 0);
     for (int ty = 0; ty < m.tiles_y; ++ty)
         for (int tx = 0; tx < m.tiles_x; ++tx) {

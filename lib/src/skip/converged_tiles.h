@@ -34,6 +34,14 @@ struct ConvergedTiles {
     bool covers(Rect r) const;
 };
 
+/// The tile grid of a width × height image, no tile marked.
+ConvergedTiles empty_tile_map(int width, int height);
+
+/// A map of this size attached to src as the string attribute `attribute`
+/// (encode_converged_tiles): true and `m` set when there is one.
+bool attached_tiles(ConvergedTiles& m, const ImageBuf& src, const char* attribute, int width,
+                    int height);
+
 /// Relative standard error of one pixel and channel (mcdn/skip.h).
 float relative_standard_error(float mean, float variance_of_mean);
 
