@@ -40,6 +40,61 @@ TEST(Sure, DivergenceOfABoxBlurIsVarianceOverKernelSize)
     EXPECT_NEAR(stats.avg[d], variance / 9, 0.05 * variance / 9);
 }
 
+namespace {
+
+/// The spread over pixels of f'(x) = divergence / variance outside `skip` (the pixels a
+/// heavy pixel's own probe reaches through the blur), and its mean.
+std::pair<double, double> divergence_mean_and_spread(const ImageBuf& out, float variance,
+                                                     ROI interior, ROI skip)
+{
+    const int d = out.spec().channelindex("sure.divergence.G");
+    double sum = 0, sum2 = 0;
+    int n = 0;
+    for (int y = interior.ybegin; y < interior.yend; ++y)
+        for (int x = interior.xbegin; x < interior.xend; ++x) {
+            if (skip.contains(x, y))
+                continue;
+            const double f = out.getchannel(x, y, 0, d) / variance;
+            sum += f;
+            sum2 += f * f;
+            ++n;
+        }
+    const double mean = sum / n;
+    return { mean, std::sqrt(sum2 / n - mean * mean) };
+}
+
+}  // namespace
+
+TEST(Sure, OneHugeVariancePixelLeavesTheOthersProbed)
+{
+    // A caustic seen through glass: one pixel's variance is 1e12 times the others'. The
+    // probe step is set by the frame's standard deviations; were it set by their RMS (here
+    // the one pixel's), every other pixel would move by about a float ulp and its
+    // difference quotient would measure the blur's round-off: a spread of f' several
+    // times the clean frame's. The box blur's f' is 1/9 either way.
+    const float variance = 0.01f;
+    SureOptions options;
+    options.aovs = generic_spec();
+    options.probes = 4;
+    ImageBuf clean = noisy_render(128, 128, gradient, variance, 11);
+    ImageBuf heavy = clean;
+    float px[12];
+    heavy.getpixel(64, 64, px, 12);
+    for (int c = 3; c < 6; ++c)
+        px[c] = variance * 1e12f;
+    heavy.setpixel(64, 64, px, 12);
+    const ROI interior(4, 124, 4, 124), near_heavy(63, 66, 63, 66);
+    auto [clean_mean, clean_spread] =
+        divergence_mean_and_spread(sure(clean, box_denoiser(1), options), variance, interior,
+                                   near_heavy);
+    ImageBuf out = sure(heavy, box_denoiser(1), options);
+    ASSERT_FALSE(out.has_error()) << out.geterror();
+    auto [mean, spread] = divergence_mean_and_spread(out, variance, interior, near_heavy);
+    EXPECT_NEAR(clean_mean, 1.0 / 9, 0.05 / 9);
+    EXPECT_NEAR(mean, 1.0 / 9, 0.05 / 9);
+    EXPECT_NEAR(spread, clean_spread, 0.1 * clean_spread);
+}
+
 TEST(Sure, MeanSureMatchesTheTrueMse)
 {
     // 4 renders of 256x256x3: the mean of per-pixel SURE has a relative standard deviation

@@ -32,8 +32,9 @@ struct SureOptions {
     AovSpec aovs;
     /// K, the number of Monte Carlo probes (PD §3.2 uses 1 or 4).
     int probes = 1;
-    /// The probe step: eps is chosen so that the RMS of eps*b is this fraction of the mean
-    /// |x| of the image. Scale-free (a 100x brighter render gets the same relative step);
+    /// The probe step: eps is chosen so that eps times the mean standard deviation sqrt(Var)
+    /// is this fraction of the mean |x| of the image (the mean, not the RMS: a heavy tail's
+    /// few huge variances would set the step of every pixel). Scale-free (a 100x brighter render gets the same relative step);
     /// 1e-3 sits between float round-off in the denoiser (~1e-6 relative) and the
     /// nonlinearity of NL-means weights (tested in tests/sure).
     float epsilon_relative = 1e-3f;  // (0, kMaxEpsilonRelative]

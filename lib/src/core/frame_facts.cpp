@@ -31,7 +31,7 @@ ColourSums colour_sums(const OIIO::ImageBuf& src, const int colour[3], const int
             }
             if (variance)
                 for (float v : read_rows(src, variance[c], rows, true).px)
-                    s.sum_var += v;
+                    s.sum_sd += std::sqrt(v);
             s.n += x.size();
         }
     return s;
@@ -39,9 +39,9 @@ ColourSums colour_sums(const OIIO::ImageBuf& src, const int colour[3], const int
 
 double relative_probe_step(const ColourSums& s, double relative)
 {
-    if (s.n == 0 || s.sum_var <= 0 || s.sum_abs <= 0)
+    if (s.n == 0 || s.sum_sd <= 0 || s.sum_abs <= 0)
         return 0;  // no noise, or a black image: nothing to probe
-    return relative * (s.sum_abs / s.n) / std::sqrt(s.sum_var / s.n);
+    return relative * s.sum_abs / s.sum_sd;
 }
 
 float t_test_sigma(const ColourSums& s, float scale)
@@ -69,7 +69,7 @@ void set_frame_facts(OIIO::ImageSpec& spec, const FrameFacts& f)
 {
     // One line per value; channel names (which may hold spaces) last on their line.
     std::string text = Strutil::fmt::format("rows {} {}\ncolour {} {} {} {} {}\n", f.ybegin,
-                                            f.yend, hex(f.colour.sum_abs), hex(f.colour.sum_var),
+                                            f.yend, hex(f.colour.sum_abs), hex(f.colour.sum_sd),
                                             hex(f.colour.sum), hex(f.colour.sum2), f.colour.n);
     if (f.has_depth)
         text += Strutil::fmt::format("depth {} {}\n", hex(f.depth_lo), hex(f.depth_span));

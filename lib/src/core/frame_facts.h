@@ -18,8 +18,9 @@ constexpr const char* kFrameFactsAttribute = "mcdn:frame";
 /// Sums over the colour's three channels and every pixel, each summed channel by channel in
 /// row order (the order the whole-frame computations use, so the doubles are the same).
 struct ColourSums {
-    double sum_abs = 0, sum_var = 0;  // |x| and the variance of the mean (sanitized)
-    double sum = 0, sum2 = 0;         // x and x² (the t-test's image variance)
+    double sum_abs = 0;  // |x|
+    double sum_sd = 0;   // sqrt of the variance of the mean (sanitized): the probe's scale
+    double sum = 0, sum2 = 0;  // x and x² (the t-test's image variance)
     uint64_t n = 0;
 };
 
@@ -27,8 +28,12 @@ struct ColourSums {
 /// rows at a time: the same doubles for any band size.
 ColourSums colour_sums(const OIIO::ImageBuf& src, const int colour[3], const int variance[3]);
 
-/// eps such that RMS(eps * b) = relative * mean|x| (b = sqrt(Var) n): SURE's probe step
-/// (PD §3.2) and one-buffer NFOR's; 0 when there is nothing to probe.
+/// eps such that eps * mean(sqrt(Var)) = relative * mean|x| (b = sqrt(Var) n): SURE's probe
+/// step (PD §3.2) and one-buffer NFOR's; 0 when there is nothing to probe. The mean of the
+/// standard deviations, not their RMS: on a heavy-tailed render (a caustic through glass)
+/// a few pixels' variance is a million times the others', the RMS is theirs, and a step
+/// scaled by it moves the typical pixel by less than the denoiser's float rounding, so that
+/// the finite difference of eq. 2 measures the rounding (|f'| in the hundreds).
 double relative_probe_step(const ColourSums& sums, double relative);
 /// The t-test's sigma_s (PD §4.3): min(sqrt(Var[x]), 1) * scale, Var[x] over the frame.
 float t_test_sigma(const ColourSums& sums, float scale);

@@ -233,7 +233,8 @@ void two_buffer_mse(std::vector<Plane> mse[2], ColorPlanes& color, const FirstPa
 }
 
 /// The probe step of the one-buffer SURE, relative to the render's scale as in the sure op
-/// (SureOptions::epsilon_relative): eps sqrt(Var) moves a pixel by ~1e-3 of the mean |x|.
+/// (SureOptions::epsilon_relative): eps sqrt(Var) moves a pixel of
+/// mean standard deviation by 1e-3 of the mean |x|.
 /// Where the probes' index space starts: one-buffer NFOR draws b of a pixel by its index in
 /// the frame (of a band's frame, core/frame_facts.h), and takes the frame's probe step.
 struct ProbeIndex {
@@ -248,7 +249,7 @@ ColourSums colour_sums(const ColorPlanes& color)
     for (int c = 0; c < 3; ++c)
         for (size_t i = 0; i < color.mean[c].size(); ++i, ++sums.n) {
             sums.sum_abs += std::fabs(color.mean[c].px[i]);
-            sums.sum_var += color.variance[c].px[i];
+            sums.sum_sd += std::sqrt(color.variance[c].px[i]);
         }
     return sums;
 }

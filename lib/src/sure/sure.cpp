@@ -67,7 +67,7 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
         facts.colour = colour_sums(src, frame.color.data(), frame.variance.data());
     }
     frame.index_origin = facts.ybegin;
-    // eps such that RMS(eps * b) = epsilon_relative * mean|x| over the frame.
+    // eps such that eps * mean(sqrt(Var)) = epsilon_relative * mean|x| over the frame.
     frame.eps = relative_probe_step(facts.colour, options.epsilon_relative);
     frame.nthreads = nthreads;
     StageTrace trace("sure");
