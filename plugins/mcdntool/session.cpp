@@ -16,6 +16,7 @@
 #include "mcdn/color.h"
 #include "mcdn/denoise.h"
 #include "mcdn/metrics.h"
+#include "mcdn/nfor.h"
 #include "mcdn/settings.h"
 #include "mcdn/skip.h"
 
@@ -119,6 +120,15 @@ bool Session::take_denoiser_chain(mcdn::Denoiser& chain, int& chain_radius,
     return true;
 }
 
+void report_fallback(int tiles)
+{
+    if (tiles > 0)
+        std::cerr << format("mcdntool: nfor: {} tile(s) of {}x{} pixels are the render: NFOR's "
+                            "own MSE estimate says it made them worse (safety net; "
+                            "--nfor:fallback=0 turns it off, fallback-aov=1 shows where)\n",
+                            tiles, mcdn::kConvergedTileSize, mcdn::kConvergedTileSize);
+}
+
 bool Session::apply(const std::string& name, const StageOp& op, std::string& error)
 {
     if (!load(error))
@@ -136,8 +146,11 @@ bool Session::apply_to(const std::string& name, const ImageBuf& input, const Sta
         return false;
     }
     if (verbose)
+    {
         std::cerr << format("mcdntool: {} {}x{} done in {:.2f} s\n", name, result.spec().width,
                             result.spec().height, timer());
+        report_fallback(result.spec().get_int_attribute(mcdn::kNforFallbackCountAttribute, 0));
+    }
     m_applied.clear();  // the current image is no longer what the chain made from its input
     return replace_image(std::move(result), error);
 }

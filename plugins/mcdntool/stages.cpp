@@ -256,9 +256,9 @@ std::vector<CommandInfo> stage_commands()
           "A pixel holding one sample worth a hundred of its neighbours (a caustic through "
           "glass, a firefly) is kept out of the regressions and its excess removed, as a "
           "sample clamp would (outliers=drop; keep: added back where it was; off: left in). "
-          "Safety net (fallback=1): a 32x32 tile where NFOR's own MSE estimate is above the "
-          "render's variance is the render (fallback-aov=1 adds channel nfor.fallback, 1 on "
-          "those tiles). "
+          "Safety net (on; fallback=0: off): a 32x32 tile where NFOR's own MSE estimate is "
+          "above the render's variance is the render, -v says how many (fallback-aov=1 adds "
+          "channel nfor.fallback, 1 on those tiles). "
           "Cross-frame (§8), in a sequence: frames=2 fits over the 2 previous and 2 next "
           "frames too, aligned by the motion vectors (Blender's Vector pass); it reads them "
           "(also across --frames chunk edges), never writes them, and runs the whole frame.",

@@ -10,6 +10,7 @@
 
 #include "mcdn/chain.h"
 #include "mcdn/denoise.h"
+#include "mcdn/nfor.h"
 #include "mcdn/skip.h"
 
 #include "session.h"
@@ -122,8 +123,9 @@ bool run_streamed_chain(Session& s, const std::vector<Command>& commands, size_t
     }
     OIIO::Timer timer;
     mcdn::RowWriter writer;
-    int bands = 0;
+    int bands = 0, fell_back = 0;
     auto sink = [&](const ImageBuf& band, const OIIO::ROI& own, std::string& sink_error) {
+        fell_back += band.spec().get_int_attribute(mcdn::kNforFallbackCountAttribute, 0);
         if (bands++ == 0) {
             OIIO::ImageSpec frame = band.spec();
             frame.y = input.spec().y;
@@ -144,6 +146,8 @@ bool run_streamed_chain(Session& s, const std::vector<Command>& commands, size_t
         std::cerr << format("mcdntool: {} {}x{} in {} band(s) of rows, written to {}: {:.2f} s\n",
                             Strutil::join(chain.stages, " "), input.spec().width,
                             input.spec().height, bands, output.args[0], timer());
+    if (s.verbose)
+        report_fallback(fell_back);
     return true;
 }
 

@@ -191,15 +191,15 @@ PYBIND11_MODULE(_mcdenoise, m)
           [](const ImageBuf& src, const std::string& preset,
              const std::map<std::string, std::string>& aovs, const std::string& colorspace,
              int window, int patch, bool mse, bool selection, bool extras,
-             const std::string& outliers, bool skip, float converged,
+             const std::string& outliers, bool fallback, bool skip, float converged,
              const std::vector<ImageBuf*>& previous, const std::vector<ImageBuf*>& next,
              int nthreads) {
               auto o = stage_options<mcdn::NforOptions>(
                   "nfor", aov_spec(preset, aovs, colorspace),
                   { { "window", text(window) }, { "patch", text(patch) }, { "mse", text(mse) },
                     { "selection", text(selection) }, { "extras", text(extras) },
-                    { "outliers", outliers }, { "skip", text(skip) },
-                    { "converged", text(converged) } });
+                    { "outliers", outliers }, { "fallback", text(fallback) },
+                    { "skip", text(skip) }, { "converged", text(converged) } });
               o.prefilter.aovs = o.aovs;
               o.previous_frames.assign(previous.begin(), previous.end());
               o.next_frames.assign(next.begin(), next.end());
@@ -211,14 +211,15 @@ PYBIND11_MODULE(_mcdenoise, m)
           py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
           py::arg("window") = 19, py::arg("patch") = 7, py::arg("mse") = false,
           py::arg("selection") = false, py::arg("extras") = true, py::arg("outliers") = "drop",
-          py::arg("skip") = true,
+          py::arg("fallback") = mcdn::NforOptions().fallback, py::arg("skip") = true,
           py::arg("converged") = mcdn::SkipOptions().max_relative_error,
           py::arg("previous") = std::vector<ImageBuf*>(), py::arg("next") = std::vector<ImageBuf*>(),
           py::arg("nthreads") = 0,
           "NFOR: first-order regression denoiser (NFOR §5.2-5.4). extras: denoise the extra "
           "AOVs (light groups) with the beauty's weights. outliers: a pixel holding one sample "
           "worth a hundred of its neighbours is kept out of the regressions and removed "
-          "('drop'), put back ('keep') or left in ('off'). skip: pass converged tiles (worst "
+          "('drop'), put back ('keep') or left in ('off'). fallback: the safety net, a 32x32 "
+          "tile where NFOR's own MSE estimate is above the render's variance is the render. skip: pass converged tiles (worst "
           "relative standard error <= converged) through and drop constant features. previous, "
           "next: cross-frame (NFOR §8), the neighbouring frames of the shot, nearest first "
           "(at most 4 each), aligned to this one by the motion vectors (Blender's Vector "

@@ -85,6 +85,40 @@ TEST(NforFallback, TilesWhereTheEstimateIsAboveTheVariance)
     EXPECT_TRUE(tiles_worse_than_render(mse, variance, result, {}).tile(2, 1));
 }
 
+TEST(NforFallback, AFewPixelsDoNotDecideATileABlotchDoes)
+{
+    // Two tiles where the filter's estimate is half the render's variance. Tile 0 has 32
+    // pixels (3%) of garbage estimates (1e15, a repaired Inf): a plain sum would be theirs.
+    // Tile 1 has a blotch over 200 of its pixels (20%), 20 times the variance there.
+    const int w = 2 * kTile, h = kTile;
+    Plane mse[3], variance[3], result[3];
+    for (int c = 0; c < 3; ++c) {
+        mse[c] = Plane(w, h, 1.0f);
+        variance[c] = Plane(w, h, 2.0f);
+        result[c] = Plane(w, h, 0.5f);
+    }
+    for (int i = 0; i < 32; ++i)
+        for (int c = 0; c < 3; ++c)
+            mse[c]((i * 7) % kTile, (i * 13) % kTile) = 1e15f;
+    for (int y = 0; y < 10; ++y)
+        for (int x = kTile; x < kTile + 20; ++x)
+            for (int c = 0; c < 3; ++c)
+                mse[c](x, y) = 40.0f;
+    const ConvergedTiles worse = tiles_worse_than_render(mse, variance, result, {});
+    EXPECT_FALSE(worse.tile(0, 0));
+    EXPECT_TRUE(worse.tile(1, 0));
+}
+
+TEST(NforFallback, TrimmedSumDropsTheShareAtEachEnd)
+{
+    std::vector<double> terms(100, 1.0);
+    terms[3] = 1e30;
+    terms[7] = -1e30;
+    EXPECT_EQ(trimmed_sum(terms), 90.0);  // 5 dropped at each end, the two extremes among them
+    std::vector<double> none;
+    EXPECT_EQ(trimmed_sum(none), 0.0);
+}
+
 TEST(NforFallback, OverCleanRenderFallsBackEverywhere)
 {
     const ImageBuf clean = with_variance_over(box16(), 100.0f);
@@ -113,7 +147,7 @@ TEST(NforFallback, RenderAsRenderedKeepsTheFilter)
     const ImageBuf in = box16();
     NforOptions o = options(true);
     o.skip.enabled = true;
-    EXPECT_FALSE(NforOptions().fallback);  // opt-in (docs/accuracy.md)
+    EXPECT_TRUE(NforOptions().fallback);  // on by default (docs/accuracy.md)
     const ImageBuf out = nfor(in, o);
     ASSERT_FALSE(out.has_error()) << out.geterror();
     const int flag = out.spec().channelindex("nfor.fallback");

@@ -21,6 +21,10 @@
 
 namespace mcdn {
 
+/// Int attribute of nfor's output: how many tiles the safety net (NforOptions::fallback)
+/// sent back to the render (of its band, in a banded run); absent when none.
+constexpr const char* kNforFallbackCountAttribute = "mcdn:nfor_fallback_count";
+
 struct NforOptions {
     /// Which channels are what: colour with its variance and halves; the features.
     AovSpec aovs;
@@ -82,14 +86,14 @@ struct NforOptions {
     float outlier_variance_ratio = 256.0f;
     float outlier_level_ratio = 64.0f;
 
-    /// The safety net (issue 22): a tile of kConvergedTileSize² pixels whose §5.3 MSE
-    /// estimate, summed over it, is above the render's variance of the mean summed likewise
-    /// (both weighted by relMSE's 1 / (ŷ² + 0.01)) is the render there — with outliers
-    /// dropped, the render with their medians — since by the filter's own estimate it made
-    /// the tile worse (lib/src/nfor/fallback.h). Off by default: a tile's sum is decided by
-    /// one pixel of garbage (1e30, a NaN's repair) or one heavy-tailed sample, so one such
-    /// pixel sends its whole tile back to the render (docs/accuracy.md).
-    bool fallback = false;
+    /// The safety net: a tile of kConvergedTileSize² pixels where NFOR's own per-pixel §5.3
+    /// MSE estimate is above the render's variance of the mean — compared by the trimmed sum
+    /// over the tile of their difference, weighted by relMSE's 1 / (ŷ² + 0.01), so that a
+    /// few pixels (garbage, a heavy-tailed sample) do not decide it — is the render there
+    /// (with outliers dropped, the render with their medians), since by the filter's own
+    /// estimate it made the tile worse (lib/src/nfor/fallback.h). The count is the
+    /// attribute kNforFallbackCountAttribute of the output (mcdntool -v prints it).
+    bool fallback = true;
     /// Add channel nfor.fallback: 1 on the tiles that fell back, else 0.
     bool output_fallback = false;
 

@@ -343,8 +343,11 @@ Selected select_bandwidths(const ImageBuf& src, ColorPlanes& color, std::vector<
             noisy.push_back(&mse[j][c]);
     std::vector<Plane> filtered_mse = nl_means(noisy, map_guide, map_variance, map_params,
                                                nthreads, &converged);
-    for (int j = 0; j < 2; ++j)
-        mse[j].clear();
+    // The safety net decides on the estimates as they were, before the map filter spread a
+    // garbage pixel's estimate over its window (nfor/fallback.h).
+    if (!options.fallback)
+        for (int j = 0; j < 2; ++j)
+            mse[j].clear();
     std::vector<Plane> mse0(std::make_move_iterator(filtered_mse.begin()),
                             std::make_move_iterator(filtered_mse.begin() + 3));
     std::vector<Plane> mse1(std::make_move_iterator(filtered_mse.begin() + 3),
@@ -371,10 +374,15 @@ Selected select_bandwidths(const ImageBuf& src, ColorPlanes& color, std::vector<
             out.combined[c].px[i] = 0.5f * (a + b);
             out.combined_variance[c].px[i] = sanitize_variance(0.25f * (b - a) * (b - a));
             mse0[c].px[i] = mse0[c].px[i] + s * (mse1[c].px[i] - mse0[c].px[i]);
+            if (!mse[0].empty())
+                mse[0][c].px[i] += s * (mse[1][c].px[i] - mse[0][c].px[i]);
         }
     }
-    out.fallback = fallback_tiles(src, mse0.data(), color.variance, out.combined, options,
-                                  converged);
+    if (!mse[0].empty())
+        out.fallback = fallback_tiles(src, mse[0].data(), color.variance, out.combined, options,
+                                      converged);
+    for (int j = 0; j < 2; ++j)
+        mse[j].clear();
     for (int c = 0; c < 3; ++c)
         color.variance[c] = Plane();
     extras.blend(selection);
@@ -582,10 +590,10 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     if (selected.fallback.any()) {
         dst.specmod().attribute(kDenoiserTilesAttribute,
                                 encode_converged_tiles(selected.fallback));
-        dst.specmod().attribute(kFallbackCountAttribute, selected.fallback.count());
+        dst.specmod().attribute(kNforFallbackCountAttribute, selected.fallback.count());
     } else {
         dst.specmod().erase_attribute(kDenoiserTilesAttribute);
-        dst.specmod().erase_attribute(kFallbackCountAttribute);
+        dst.specmod().erase_attribute(kNforFallbackCountAttribute);
     }
     // features-out: the means it prefiltered (§5.1) over their channels.
     if (options.features_out && !prefiltered && options.prefilter_features)
