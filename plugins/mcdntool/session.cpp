@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <iostream>
+#include <tuple>
 
 #include <fnmatch.h>
 #include <unistd.h>
@@ -120,12 +121,21 @@ bool Session::take_denoiser_chain(mcdn::Denoiser& chain, int& chain_radius,
     return true;
 }
 
-void report_fallback(int tiles)
+void report_fallback(const OIIO::ImageSpec& result)
 {
-    if (tiles > 0)
-        std::cerr << format("mcdntool: nfor: {} tile(s) of {}x{} pixels are the render: NFOR's "
-                            "own MSE estimate says it made them worse (safety net; "
-                            "--nfor:fallback=0 turns it off, fallback-aov=1 shows where)\n",
+    for (const auto& [stage, attribute, estimate] :
+         { std::tuple { "nfor", mcdn::kNforFallbackCountAttribute, "NFOR's own MSE estimate" },
+           std::tuple { "sure", mcdn::kSureFallbackCountAttribute, "SURE" } })
+        if (const int tiles = result.get_int_attribute(attribute, 0); tiles > 0)
+            std::cerr << format("mcdntool: {}: {} tile(s) of {}x{} pixels are the render: {} "
+                                "says the denoiser made them worse (safety net; --{}:fallback=0 "
+                                "turns it off, fallback-aov=1 shows where)\n",
+                                stage, tiles, mcdn::kConvergedTileSize,
+                                mcdn::kConvergedTileSize, estimate, stage);
+    if (const int tiles = result.get_int_attribute(mcdn::kSureWorseCountAttribute, 0); tiles > 0)
+        std::cerr << format("mcdntool: sure: SURE says the denoiser made {} tile(s) of {}x{} "
+                            "pixels worse than the render (kept; --sure:fallback=1 makes them "
+                            "the render, fallback-aov=1 shows where)\n",
                             tiles, mcdn::kConvergedTileSize, mcdn::kConvergedTileSize);
 }
 
@@ -149,7 +159,7 @@ bool Session::apply_to(const std::string& name, const ImageBuf& input, const Sta
     {
         std::cerr << format("mcdntool: {} {}x{} done in {:.2f} s\n", name, result.spec().width,
                             result.spec().height, timer());
-        report_fallback(result.spec().get_int_attribute(mcdn::kNforFallbackCountAttribute, 0));
+        report_fallback(result.spec());
     }
     m_applied.clear();  // the current image is no longer what the chain made from its input
     return replace_image(std::move(result), error);

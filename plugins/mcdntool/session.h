@@ -122,9 +122,9 @@ bool check_heatmap(const Command&, std::string& error);
 bool check_output(const Command&, std::string& error);
 bool check_fixnan(const Command&, std::string& error);
 
-/// The -v line of NFOR's safety net: how many tiles it sent back to the render (none: no
-/// line) (session.cpp).
-void report_fallback(int tiles);
+/// The -v lines of the safety nets (nfor's, sure's): how many tiles each sent back to the
+/// render, from the counts on `result` (none: no line) (session.cpp).
+void report_fallback(const OIIO::ImageSpec& result);
 
 /// -o's modifiers as WriteOptions (session.cpp).
 bool write_options_of(const Command& c, mcdn::WriteOptions& options, std::string& error);

@@ -11,6 +11,7 @@
 #include "mcdn/chain.h"
 #include "mcdn/denoise.h"
 #include "mcdn/nfor.h"
+#include "mcdn/sure.h"
 #include "mcdn/skip.h"
 
 #include "session.h"
@@ -123,9 +124,14 @@ bool run_streamed_chain(Session& s, const std::vector<Command>& commands, size_t
     }
     OIIO::Timer timer;
     mcdn::RowWriter writer;
-    int bands = 0, fell_back = 0;
+    int bands = 0;
+    OIIO::ImageSpec fell_back;  // the safety nets' counts, summed over the bands
     auto sink = [&](const ImageBuf& band, const OIIO::ROI& own, std::string& sink_error) {
-        fell_back += band.spec().get_int_attribute(mcdn::kNforFallbackCountAttribute, 0);
+        for (const char* count : { mcdn::kNforFallbackCountAttribute,
+                                   mcdn::kSureFallbackCountAttribute,
+                                   mcdn::kSureWorseCountAttribute })
+            fell_back.attribute(count, fell_back.get_int_attribute(count, 0)
+                                           + band.spec().get_int_attribute(count, 0));
         if (bands++ == 0) {
             OIIO::ImageSpec frame = band.spec();
             frame.y = input.spec().y;

@@ -265,11 +265,12 @@ PYBIND11_MODULE(_mcdenoise, m)
     m.def("sure",
           [](const ImageBuf& src, py::object denoiser, const std::string& preset,
              const std::map<std::string, std::string>& aovs, const std::string& colorspace,
-             int probes, float eps, bool skip, float converged,
+             int probes, float eps, bool fallback, bool skip, float converged,
               int nthreads) {
               auto o = stage_options<mcdn::SureOptions>(
                   "sure", aov_spec(preset, aovs, colorspace),
-                  { { "probes", text(probes) }, { "eps", text(eps) }, { "skip", text(skip) },
+                  { { "probes", text(probes) }, { "eps", text(eps) },
+                    { "fallback", text(fallback) }, { "skip", text(skip) },
                     { "converged", text(converged) } });
               mcdn::Denoiser f;
               if (py::isinstance<py::str>(denoiser))
@@ -295,11 +296,14 @@ PYBIND11_MODULE(_mcdenoise, m)
           },
           py::arg("image"), py::arg("denoiser") = "nfor", py::arg("preset") = "",
           py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
-          py::arg("probes") = 1, py::arg("eps") = 1e-3f, py::arg("skip") = true,
+          py::arg("probes") = 1, py::arg("eps") = 1e-3f,
+          py::arg("fallback") = mcdn::SureOptions().fallback, py::arg("skip") = true,
           py::arg("converged") = mcdn::SkipOptions().max_relative_error, py::arg("nthreads") = 0,
           "Monte-Carlo SURE (PD §3.2) of a denoiser: 'nfor' or a callable ImageBuf -> "
           "ImageBuf. Returns the denoised image with noisy.*, sure.*, sure.divergence.*, "
-          "sure.residual.* channels.");
+          "sure.residual.* channels. fallback: 32x32 tiles where SURE finds the denoiser worse "
+          "than the render are the render (off by default: on heavy-tailed renders the render "
+          "is the worse one).");
 
     m.def("mix",
           [](const ImageBuf& src, const std::string& model, const std::string& weights,

@@ -1,4 +1,4 @@
-// The safety net (lib/src/nfor/fallback.h): tiles where NFOR's own MSE estimate is above the
+// The safety net (lib/src/skip/worse_tiles.h): tiles where NFOR's own MSE estimate is above the
 // render's variance are the render. The decision on planes; on the box16 fixture a render
 // whose variance files claim a hundredth of its noise (no filter can beat so clean a render,
 // by its own estimate) comes out as the render everywhere, and as the filter with the net
@@ -7,7 +7,7 @@
 
 #include "fixtures.h"
 #include "mcdn/nfor.h"
-#include "nfor/fallback.h"
+#include "skip/worse_tiles.h"
 
 using namespace mcdn;
 using namespace mcdn_test;

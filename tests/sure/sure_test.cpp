@@ -157,6 +157,48 @@ TEST(Sure, DeterministicAndFiniteOnBadPixels)
         EXPECT_EQ(n, 0u);
 }
 
+TEST(Sure, SafetyNetFindsTheTileTheDenoiserMadeWorse)
+{
+    // A box blur that also adds 1 (ten standard deviations) to tile (1, 0): SURE finds that
+    // tile worse than the render; with the net on it is the render there, SURE = sigma^2.
+    const float variance = 0.01f;
+    ImageBuf src = noisy_render(64, 64, gradient, variance, 21);
+    const Denoiser blur = box_denoiser(1);
+    const Denoiser biased = [&](ImageBuf& dst, const ImageBuf& in) {
+        if (!blur(dst, in))
+            return false;
+        const ROI tile(32, 64, 0, 32, 0, 1, 0, 3);
+        return OIIO::ImageBufAlgo::add(dst, dst, 1.0f, tile);
+    };
+    SureOptions options;
+    options.aovs = generic_spec();
+    options.output_fallback = true;
+    const ImageBuf kept = sure(src, biased, options);
+    ASSERT_FALSE(kept.has_error()) << kept.geterror();
+    EXPECT_EQ(kept.spec().get_int_attribute(kSureWorseCountAttribute), 1);
+    EXPECT_EQ(kept.spec().get_int_attribute(kSureFallbackCountAttribute), 0);
+    options.fallback = true;
+    const ImageBuf net = sure(src, biased, options);
+    ASSERT_FALSE(net.has_error()) << net.geterror();
+    EXPECT_EQ(net.spec().get_int_attribute(kSureFallbackCountAttribute), 1);
+    const int flag = channel(net, sure_channels::kFallback);
+    const int estimate = channel(net, "sure.G");
+    for (int y : { 5, 40 })
+        for (int x : { 5, 40 }) {
+            const bool worse = x >= 32 && y < 32;
+            EXPECT_EQ(net.getchannel(x, y, 0, flag), worse ? 1.0f : 0.0f) << x << "," << y;
+            EXPECT_EQ(kept.getchannel(x, y, 0, flag), worse ? 1.0f : 0.0f) << x << "," << y;
+            if (worse) {
+                EXPECT_EQ(net.getchannel(x, y, 0, 1), src.getchannel(x, y, 0, 1));
+                EXPECT_FLOAT_EQ(net.getchannel(x, y, 0, estimate), variance);
+                EXPECT_NEAR(kept.getchannel(x, y, 0, 1), src.getchannel(x, y, 0, 1), 2.0f);
+                EXPECT_GT(kept.getchannel(x, y, 0, 1) - src.getchannel(x, y, 0, 1), 0.5f);
+            } else {
+                EXPECT_EQ(net.getchannel(x, y, 0, 1), kept.getchannel(x, y, 0, 1));
+            }
+        }
+}
+
 TEST(Sure, NeedsTheVariance)
 {
     ImageBuf src = make_image(8, 8, { "R", "G", "B" }, [](int, int, int) { return 0.5f; });

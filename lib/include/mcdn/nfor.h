@@ -91,7 +91,7 @@ struct NforOptions {
     /// over the tile of their difference, weighted by relMSE's 1 / (ŷ² + 0.01), so that a
     /// few pixels (garbage, a heavy-tailed sample) do not decide it — is the render there
     /// (with outliers dropped, the render with their medians), since by the filter's own
-    /// estimate it made the tile worse (lib/src/nfor/fallback.h). The count is the
+    /// estimate it made the tile worse (lib/src/skip/worse_tiles.h). The count is the
     /// attribute kNforFallbackCountAttribute of the output (mcdntool -v prints it).
     bool fallback = true;
     /// Add channel nfor.fallback: 1 on the tiles that fell back, else 0.

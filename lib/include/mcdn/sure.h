@@ -63,7 +63,28 @@ struct SureOptions {
     int64_t band_pixels = int64_t(1) << 21;
     /// Called as the stage advances (mcdn/progress.h); empty: nothing is reported.
     ProgressCallback progress;
+    /// The safety net, for any denoiser (the CNN's, which has no error estimate of its own):
+    /// a tile of kConvergedTileSize² pixels where SURE says y is worse than the render —
+    /// the trimmed sum over the tile of (SURE − σ²) / (y² + 0.01) above 0, so that a few
+    /// pixels (a firefly, a probe's noise) do not decide it (lib/src/skip/worse_tiles.h) —
+    /// is the render there: colour and RGB extras y = x, and SURE = σ²f'(x) = σ², the
+    /// render's own error, as on a tile passed through; a mix after it keeps the render
+    /// there. Off by default: on a heavy-tailed render the variance of the mean misses the
+    /// rare paths that the tile's fireflies hold, SURE finds the denoiser worse than that
+    /// variance, and the render it falls back to is far worse than the denoiser
+    /// (docs/accuracy.md). The tiles are found and counted either way: the count is the
+    /// attribute kSureFallbackCountAttribute when they fell back, kSureWorseCountAttribute
+    /// when not (mcdntool -v prints it).
+    bool fallback = false;
+    /// Add channel sure.fallback: 1 on the tiles SURE finds worse (that fell back, with
+    /// fallback), else 0.
+    bool output_fallback = false;
 };
+
+/// Int attributes of sure's output: how many tiles SURE found worse than the render
+/// (SureOptions::fallback) and sent back to it, or left as they were; absent when none.
+constexpr const char* kSureFallbackCountAttribute = "mcdn:sure_fallback_count";
+constexpr const char* kSureWorseCountAttribute = "mcdn:sure_worse_count";
 
 /// Channel names the op writes (besides replacing the colour role by y = F(x)).
 namespace sure_channels {
@@ -73,6 +94,7 @@ constexpr const char* kDivergence[3] = { "sure.divergence.R", "sure.divergence.G
                                          "sure.divergence.B" };  // sigma^2 f'(x)
 constexpr const char* kResidual[3] = { "sure.residual.R", "sure.residual.G",
                                        "sure.residual.B" };      // ||y - x||^2
+constexpr const char* kFallback = "sure.fallback";  // SureOptions::output_fallback
 /// x of an extra AOV's channel (light groups; see NforOptions::denoise_extras), for --mix.
 inline std::string noisy_extra(const std::string& channel) { return "noisy." + channel; }
 }  // namespace sure_channels

@@ -174,7 +174,7 @@ const std::vector<std::string>& setting_keys(const std::string& stage)
                     "halves", "extras", "outliers", "fallback", "fallback-aov", "skip",
                     "converged" } },
         { "cnn", { "weights", "tile", "extras", "skip", "converged" } },
-        { "sure", { "probes", "eps", "seed", "skip", "converged" } },
+        { "sure", { "probes", "eps", "seed", "fallback", "fallback-aov", "skip", "converged" } },
         { "mix", { "model", "weights", "ttest", "alpha", "afloor", "outlier", "drop", "skip", "converged" } },
     };
     static const std::vector<std::string> none;
@@ -256,6 +256,8 @@ bool apply_settings(SureOptions& o, const Settings& s, std::string& error)
                 })
         .custom("seed", "is not a whole number below 10^19",
                 [&](const std::string& v) { return parse_seed(v, o.seed); })
+        .flag("fallback", o.fallback)
+        .flag("fallback-aov", o.output_fallback)
         .skip(o.skip)
         .ok();
 }

@@ -19,7 +19,7 @@ constexpr const char* kProbeAttribute = "mcdn:sure_probe";
 constexpr const char* kColourOnlyAttribute = "mcdn:colour_only";
 
 /// A tile map (skip/converged_tiles.h's encoding) a denoiser decided from its input and set
-/// on its output (nfor's safety net, nfor/fallback.h). sure sets it on its probes' input,
+/// on its output (nfor's safety net, skip/worse_tiles.h). sure sets it on its probes' input,
 /// where the denoiser uses it instead of deciding anew: a probe then differs from the
 /// unprobed run only by the probe (PD §2.3's finite difference would jump where a tile's
 /// decision flipped). Not written to files.

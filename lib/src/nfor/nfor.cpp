@@ -28,7 +28,7 @@
 #include "core/trace.h"
 #include "mcdn/color.h"
 #include "nfor/extras_regression.h"
-#include "nfor/fallback.h"
+#include "skip/worse_tiles.h"
 #include "nfor/mse_estimate.h"
 #include "nfor/neighbour_frames.h"
 #include "nfor/outliers.h"
@@ -307,10 +307,10 @@ FirstPass first_pass_one_buffer(const ColorPlanes& color, std::vector<FeaturePla
 struct Selected {
     Plane combined[3], combined_variance[3];
     std::vector<Plane> mse, selection;
-    ConvergedTiles fallback;  // the safety net's tiles (nfor/fallback.h)
+    ConvergedTiles fallback;  // the safety net's tiles (skip/worse_tiles.h)
 };
 
-/// The safety net's map: the one attached to src (a probe of sure's, nfor/fallback.h) when
+/// The safety net's map: the one attached to src (a probe of sure's, skip/worse_tiles.h) when
 /// it has one of the frame's size, else decided from the blended estimate.
 ConvergedTiles fallback_tiles(const ImageBuf& src, const Plane mse[3], const Plane variance[3],
                               const Plane result[3], const NforOptions& options,
@@ -344,7 +344,7 @@ Selected select_bandwidths(const ImageBuf& src, ColorPlanes& color, std::vector<
     std::vector<Plane> filtered_mse = nl_means(noisy, map_guide, map_variance, map_params,
                                                nthreads, &converged);
     // The safety net decides on the estimates as they were, before the map filter spread a
-    // garbage pixel's estimate over its window (nfor/fallback.h).
+    // garbage pixel's estimate over its window (skip/worse_tiles.h).
     if (!options.fallback)
         for (int j = 0; j < 2; ++j)
             mse[j].clear();

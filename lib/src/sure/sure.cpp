@@ -69,6 +69,7 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
     frame.index_origin = facts.ybegin;
     // eps such that eps * mean(sqrt(Var)) = epsilon_relative * mean|x| over the frame.
     frame.eps = relative_probe_step(facts.colour, options.epsilon_relative);
+    frame.fallback_channel = options.output_fallback;
     frame.nthreads = nthreads;
     StageTrace trace("sure");
 
@@ -98,6 +99,8 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
     }
     if (!band_of_frame)
         out.specmod().erase_attribute(kFrameFactsAttribute);
+    if (options.output_fallback)  // asked for, so written (core/channels.h)
+        add_channels(out, { sure_channels::kFallback });
     dst = std::move(out);
     return true;
 }

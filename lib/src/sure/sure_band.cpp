@@ -8,8 +8,9 @@
 #include "core/op_prepare.h"
 #include "core/planar.h"
 #include "core/random.h"
-#include "skip/converged_tiles.h"
 #include "core/trace.h"
+#include "skip/converged_tiles.h"
+#include "skip/worse_tiles.h"
 #include "sure/sure_steps.h"
 
 namespace mcdn {
@@ -146,6 +147,23 @@ bool is_whole_output(const ImageBuf& denoised, const Band& band, const SureFrame
     return true;
 }
 
+// Adds the tiles of `worse` that start in the band's own rows to dst's int `attribute`.
+void add_count(ImageBuf& dst, const char* attribute, const ConvergedTiles& worse,
+               const Band& band, int band_y)
+{
+    if (!worse.any())
+        return;
+    int count = 0;
+    for (int ty = 0; ty < worse.tiles_y; ++ty) {
+        const int top = band_y + ty * kConvergedTileSize;
+        if (top >= band.own_begin && top < band.own_end)
+            for (int tx = 0; tx < worse.tiles_x; ++tx)
+                count += worse.tile(tx, ty) ? 1 : 0;
+    }
+    if (count > 0)
+        dst.specmod().attribute(attribute, dst.spec().get_int_attribute(attribute, 0) + count);
+}
+
 }  // namespace
 
 std::vector<std::string> sure_channel_names(const SureFrame& frame)
@@ -156,6 +174,8 @@ std::vector<std::string> sure_channel_names(const SureFrame& frame)
         names.insert(names.end(), group, group + 3);
     for (const std::string& name : frame.extra_names)
         names.push_back(sure_channels::noisy_extra(name));
+    if (frame.fallback_channel)
+        names.push_back(sure_channels::kFallback);
     return names;
 }
 
@@ -301,16 +321,51 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
             }
         });
     }
-    // All of sure's channels in one pass over the output's rows.
+    std::vector<Plane> extras;
+    for (size_t e = 0; e < frame.extras.size(); ++e)
+        extras.push_back(read_plane(noisy, frame.extras[e]));
+
+    // The safety net (skip/worse_tiles.h): where SURE says y is worse than x, y = x and SURE
+    // is the render's own error, as on a tile passed through.
+    const ConvergedTiles worse = tiles_worse_than_render(estimate, variance, y, passed);
+    Plane fell_back;
+    if (frame.fallback_channel) {
+        fell_back = Plane(w, h);
+        pass_through_converged(fell_back, Plane(w, h, 1.0f), worse);
+    }
+    add_count(dst, options.fallback ? kSureFallbackCountAttribute : kSureWorseCountAttribute,
+              worse, band, band_y);
+    const bool fall_back = options.fallback && worse.any();
+    if (fall_back) {
+        const Plane zero(w, h);
+        for (int c = 0; c < 3; ++c) {
+            pass_through_converged(y[c], x[c], worse);
+            pass_through_converged(estimate[c], variance[c], worse);
+            pass_through_converged(divergence[c], variance[c], worse);
+            pass_through_converged(residual[c], zero, worse);
+        }
+    }
+
+    // All of sure's channels in one pass over the output's rows (and, where the net fell
+    // back, the colour and the extras).
     std::vector<const Plane*> planes;
     for (const Plane* group : { x, estimate, divergence, residual })
         for (int c = 0; c < 3; ++c)
             planes.push_back(&group[c]);
-    std::vector<Plane> extras;
-    for (size_t e = 0; e < frame.extras.size(); ++e)
-        extras.push_back(read_plane(noisy, frame.extras[e]));
     for (const Plane& e : extras)
         planes.push_back(&e);
+    if (frame.fallback_channel)
+        planes.push_back(&fell_back);
+    if (fall_back) {
+        for (int c = 0; c < 3; ++c) {
+            out.push_back(dst.spec().channelindex(noisy.spec().channel_name(frame.color[c])));
+            planes.push_back(&y[c]);
+        }
+        for (size_t e = 0; e < frame.extras.size(); ++e) {
+            out.push_back(dst.spec().channelindex(noisy.spec().channel_name(frame.extras[e])));
+            planes.push_back(&extras[e]);
+        }
+    }
     write_rows(dst, out, planes, band_y, where);
     trace.mark("eq. 1, sure.* channels");
     return true;

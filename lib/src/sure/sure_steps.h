@@ -27,11 +27,12 @@ struct SureFrame {
     std::vector<int> extras;     // x of the RGB extra AOVs, recorded as noisy.<name>
     std::vector<std::string> extra_names;
     double eps = 0;              // the probe step (core/frame_facts.h relative_probe_step)
+    bool fallback_channel = false;  // sure.fallback (SureOptions::output_fallback)
     int nthreads = 0;            // for SURE's own per-pixel work (the op's nthreads)
 };
 
 /// The channels sure adds, in the order it writes them: noisy.*, sure.*, sure.divergence.*,
-/// sure.residual.*, then noisy.<extra>.
+/// sure.residual.*, then noisy.<extra>, then sure.fallback when asked for.
 std::vector<std::string> sure_channel_names(const SureFrame& frame);
 
 /// Runs the denoiser on `noisy` (one band of the frame, its own float copy: probed in place)

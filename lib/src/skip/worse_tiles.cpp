@@ -1,5 +1,5 @@
-// The safety net's decision (nfor/fallback.h).
-#include "nfor/fallback.h"
+// The safety net's decision (skip/worse_tiles.h).
+#include "skip/worse_tiles.h"
 
 #include <algorithm>
 #include <cmath>
@@ -8,7 +8,7 @@
 namespace mcdn {
 
 ConvergedTiles tiles_worse_than_render(const Plane mse[3], const Plane variance[3],
-                                       const Plane result[3], const ConvergedTiles& converged)
+                                       const Plane result[3], const ConvergedTiles& skipped)
 {
     const int w = result[0].width, h = result[0].height, t = kConvergedTileSize;
     ConvergedTiles m = empty_tile_map(w, h);
@@ -16,7 +16,7 @@ ConvergedTiles tiles_worse_than_render(const Plane mse[3], const Plane variance[
     std::vector<double> terms;
     for (int ty = 0; ty < m.tiles_y; ++ty)
         for (int tx = 0; tx < m.tiles_x; ++tx) {
-            if (converged.tile(tx, ty))
+            if (skipped.tile(tx, ty))
                 continue;
             terms.clear();
             for (int y = ty * t; y < std::min(h, (ty + 1) * t); ++y)
