@@ -67,7 +67,7 @@ TEST(NforFallback, TilesWhereTheEstimateIsAboveTheVariance)
     // Tile (1, 0): the filter's estimate above the render's on average, not at every pixel.
     for (int y = 0; y < kTile; ++y)
         for (int x = kTile; x < 2 * kTile; ++x)
-            mse[1](x, y) = (x + y) % 2 ? 10.0f : 0.0f;
+            mse[1](x, y) = (x + y) % 2 ? 14.0f : 0.0f;
     // Tile (2, 1) likewise, but converged: it is the render already.
     ConvergedTiles converged;
     converged.width = w;
@@ -109,14 +109,16 @@ TEST(NforFallback, AFewPixelsDoNotDecideATileABlotchDoes)
     EXPECT_TRUE(worse.tile(1, 0));
 }
 
-TEST(NforFallback, TrimmedSumDropsTheShareAtEachEnd)
+TEST(NforFallback, TopTrimmedSumDropsTheLargestShare)
 {
     std::vector<double> terms(100, 1.0);
     terms[3] = 1e30;
     terms[7] = -1e30;
-    EXPECT_EQ(trimmed_sum(terms), 90.0);  // 5 dropped at each end, the two extremes among them
+    terms[9] = 1e20;
+    // The 5 largest dropped (the two huge ones among them), the negative one kept.
+    EXPECT_EQ(top_trimmed_sum(terms), 94.0 - 1e30);
     std::vector<double> none;
-    EXPECT_EQ(trimmed_sum(none), 0.0);
+    EXPECT_EQ(top_trimmed_sum(none), 0.0);
 }
 
 TEST(NforFallback, OverCleanRenderFallsBackEverywhere)

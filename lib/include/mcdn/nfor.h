@@ -87,12 +87,13 @@ struct NforOptions {
     float outlier_level_ratio = 64.0f;
 
     /// The safety net: a tile of kConvergedTileSize² pixels where NFOR's own per-pixel §5.3
-    /// MSE estimate is above the render's variance of the mean — compared by the trimmed sum
-    /// over the tile of their difference, weighted by relMSE's 1 / (ŷ² + 0.01), so that a
-    /// few pixels (garbage, a heavy-tailed sample) do not decide it — is the render there
-    /// (with outliers dropped, the render with their medians), since by the filter's own
-    /// estimate it made the tile worse (lib/src/skip/worse_tiles.h). The count is the
-    /// attribute kNforFallbackCountAttribute of the output (mcdntool -v prints it).
+    /// MSE estimate is above the render's variance of the mean — the sum over the tile of
+    /// the estimates without their largest 5% against the sum of the variances, both
+    /// weighted by relMSE's 1 / (ŷ² + 0.01), so that a few pixels (garbage, a heavy-tailed
+    /// sample) do not decide it — is the render there (with outliers dropped, the render
+    /// with their medians), since by the filter's own estimate it made the tile worse
+    /// (lib/src/skip/worse_tiles.h). The count is the attribute kNforFallbackCountAttribute
+    /// of the output (mcdntool -v prints it).
     bool fallback = true;
     /// Add channel nfor.fallback: 1 on the tiles that fell back, else 0.
     bool output_fallback = false;

@@ -65,16 +65,15 @@ struct SureOptions {
     ProgressCallback progress;
     /// The safety net, for any denoiser (the CNN's, which has no error estimate of its own):
     /// a tile of kConvergedTileSize² pixels where SURE says y is worse than the render —
-    /// the trimmed sum over the tile of (SURE − σ²) / (y² + 0.01) above 0, so that a few
-    /// pixels (a firefly, a probe's noise) do not decide it (lib/src/skip/worse_tiles.h) —
-    /// is the render there: colour and RGB extras y = x, and SURE = σ²f'(x) = σ², the
-    /// render's own error, as on a tile passed through; a mix after it keeps the render
-    /// there. Off by default: on a heavy-tailed render the variance of the mean misses the
-    /// rare paths that the tile's fireflies hold, SURE finds the denoiser worse than that
-    /// variance, and the render it falls back to is far worse than the denoiser
-    /// (docs/accuracy.md). The tiles are found and counted either way: the count is the
-    /// attribute kSureFallbackCountAttribute when they fell back, kSureWorseCountAttribute
-    /// when not (mcdntool -v prints it).
+    /// the sum over the tile of SURE / (y² + 0.01) without its largest 5% above that of
+    /// σ² / (y² + 0.01), so that a few pixels (a firefly, a probe's noise) do not decide it
+    /// (lib/src/skip/worse_tiles.h) — is the render there: colour and RGB extras y = x, and
+    /// SURE = σ²f'(x) = σ², the render's own error, as on a tile passed through; a mix after
+    /// it keeps the render there. Off by default: at a few samples per pixel a pixel's SURE
+    /// is its one-probe divergence's noise and a variance that misses rare paths, and the
+    /// per-pixel mix does better than falling back (docs/accuracy.md). The tiles are found
+    /// and counted either way: the count is the attribute kSureFallbackCountAttribute when
+    /// they fell back, kSureWorseCountAttribute when not (mcdntool -v prints it).
     bool fallback = false;
     /// Add channel sure.fallback: 1 on the tiles SURE finds worse (that fell back, with
     /// fallback), else 0.

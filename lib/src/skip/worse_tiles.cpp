@@ -13,34 +13,35 @@ ConvergedTiles tiles_worse_than_render(const Plane mse[3], const Plane variance[
     const int w = result[0].width, h = result[0].height, t = kConvergedTileSize;
     ConvergedTiles m = empty_tile_map(w, h);
     m.converged.assign(size_t(m.tiles_x) * m.tiles_y, 0);
-    std::vector<double> terms;
+    std::vector<double> terms;  // the filter's, weighted
     for (int ty = 0; ty < m.tiles_y; ++ty)
         for (int tx = 0; tx < m.tiles_x; ++tx) {
             if (skipped.tile(tx, ty))
                 continue;
             terms.clear();
+            double render = 0;
             for (int y = ty * t; y < std::min(h, (ty + 1) * t); ++y)
                 for (int x = tx * t; x < std::min(w, (tx + 1) * t); ++x)
                     for (int c = 0; c < 3; ++c) {
                         const double r = result[c](x, y);
-                        terms.push_back((double(mse[c](x, y)) - variance[c](x, y))
-                                        / (r * r + 0.01));
+                        const double weight = 1.0 / (r * r + 0.01);
+                        terms.push_back(double(mse[c](x, y)) * weight);
+                        render += double(variance[c](x, y)) * weight;
                     }
-            m.converged[size_t(ty) * m.tiles_x + tx] = trimmed_sum(terms) > 0;
+            const double filter = top_trimmed_sum(terms);
+            m.converged[size_t(ty) * m.tiles_x + tx] = filter > render;
         }
     if (!m.any())
         m.converged.clear();
     return m;
 }
 
-double trimmed_sum(std::vector<double>& terms)
+double top_trimmed_sum(std::vector<double>& terms)
 {
     const size_t n = terms.size(), cut = size_t(double(n) * kFallbackTrim);
-    if (n == 0)
-        return 0;
-    std::sort(terms.begin(), terms.end());
+    std::nth_element(terms.begin(), terms.begin() + (n - cut), terms.end());
     double sum = 0;
-    for (size_t i = cut; i + cut < n; ++i)
+    for (size_t i = 0; i + cut < n; ++i)
         sum += terms[i];
     return sum;
 }
