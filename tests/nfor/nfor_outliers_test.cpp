@@ -126,6 +126,39 @@ TEST(NforOutliers, RendersWithoutHeavyTailsComeOutAsWithTheDetectionOff)
     }
 }
 
+TEST(NforOutliers, ASparselySampledDimLightIsNotAnOutlier)
+{
+    // A dim light that few paths reach, at low sample counts: most pixels drew nothing
+    // (black, or nearly, with no variance to speak of), and every other pixel of every other
+    // row one sample in one half. Each such pixel towers over its neighbourhood's median,
+    // but the light is those samples: the neighbours' mean holds it, and NFOR averages them.
+    for (const float background : { 0.0f, 1e-4f }) {
+        ImageBuf src;
+        src.copy(box16());
+        AovSpec spec;
+        spec.preset = "cycles";
+        const ColourChannels ch = colour_channels(src, spec);
+        std::vector<float> px(size_t(src.nchannels()));
+        for (int y = 8; y < 40; ++y)
+            for (int x = 8; x < 40; ++x) {
+                src.getpixel(x, y, 0, px.data(), src.nchannels());
+                const bool sample = x % 2 == 0 && y % 2 == 0;
+                for (int c = 0; c < 3; ++c) {
+                    const float excess = sample ? 2.0f : 0.0f;
+                    px[size_t(ch.mean[c])] = background + excess;
+                    px[size_t(ch.half_a[c])] = background + 2.0f * excess;
+                    px[size_t(ch.half_b[c])] = background;
+                    px[size_t(ch.variance[c])] = background * background + excess * excess;
+                }
+                src.setpixel(x, y, 0, px.data(), src.nchannels());
+            }
+        const ImageBuf keep = nfor(src, options(NforOptions::Outliers::Keep));
+        const ImageBuf off = nfor(src, options(NforOptions::Outliers::Off));
+        ASSERT_FALSE(keep.has_error()) << keep.geterror();
+        EXPECT_TRUE(same_pixels(keep, off)) << "background " << background;
+    }
+}
+
 TEST(NforOutliers, InBandsAsOnTheWholeFrame)
 {
     // The firefly sits a few rows from a band's edge: the halo covers its detection too.

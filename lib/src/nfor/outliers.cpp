@@ -34,6 +34,20 @@ struct Found {
     std::array<float, 3> mean, variance, half_a, half_b;
 };
 
+/// The mean of `values` without their `drop` largest (all of them when there are fewer);
+/// reorders `values`.
+float mean_without_largest(std::vector<float>& values, size_t drop)
+{
+    if (values.size() <= drop)
+        return 0.0f;
+    const auto end = values.end() - std::ptrdiff_t(drop);
+    std::nth_element(values.begin(), end, values.end());
+    double sum = 0;
+    for (auto v = values.begin(); v != end; ++v)
+        sum += *v;
+    return float(sum / double(end - values.begin()));
+}
+
 }  // namespace
 
 OutlierPixels take_out_outliers(Plane mean[3], Plane variance[3], Plane* half_a, Plane* half_b,
@@ -61,7 +75,7 @@ OutlierPixels take_out_outliers(Plane mean[3], Plane variance[3], Plane* half_a,
                      > rule.variance_ratio * *std::min_element(scratch.begin(), scratch.end())))
                 continue;
             const float typical_variance = median(scratch);
-            if (!(own_variance > rule.variance_ratio * typical_variance))
+            if (!(typical_variance > 0.0f && own_variance > rule.variance_ratio * typical_variance))
                 continue;
             auto median_of = [&](auto value) {
                 gather_neighbourhood(x, y, width, height, r, value, scratch);
@@ -69,8 +83,13 @@ OutlierPixels take_out_outliers(Plane mean[3], Plane variance[3], Plane* half_a,
             };
             const float typical = median_of([&](size_t j) { return sum3(mean, j); });
             const float excess = sum3(mean, i) - typical;
+            // The level against the neighbours' mean too (without their three largest, which
+            // may be outliers of the same caustic): where most neighbours drew no sample of
+            // a dim light (a sparse render), the median is near 0 while the mean is the
+            // light, and the pixel is one of its samples.
+            const float level = std::max(typical, mean_without_largest(scratch, 3));
             if (!(excess > rule.sigma * std::sqrt(typical_variance))
-                || !(excess > rule.level_ratio * (typical + rule.level_floor)))
+                || !(excess > rule.level_ratio * (level + rule.level_floor)))
                 continue;
             if (half_a && half_b) {
                 const float excess_a = sum3(half_a, i) - typical;

@@ -13,10 +13,16 @@
 //
 // A pixel is such an outlier when, against the 24 others of its 5×5 neighbourhood
 // (medians, so that one outlier does not hide another):
-//   - its variance of the mean is more than `variance_ratio` times theirs, and
+//   - its variance of the mean is more than `variance_ratio` times theirs, theirs above 0,
+//     and
 //   - its mean exceeds theirs by more than `sigma` of their standard deviations, and by
 //     more than `level_ratio` times their value (plus a floor: 1% of the frame's mean): a
 //     regression window of some 300 pixels absorbs a lesser excess as the noise it is;
+//     their value is the larger of their median and their mean without their three
+//     largest (which may be outliers of the same caustic). A sparse render — a dim light
+//     that few paths reach, most pixels without a sample (no variance) or nearly black, a
+//     few with one — has a median near 0 while the mean is the light: its samples are the
+//     signal, and dropping them took a metal's highlights away;
 //   - with half buffers, one half carries the excess: the other half's is at most half of
 //     it (a bright feature both halves see is signal, however noisy).
 // A pixel on a converged tile (mcdn/skip.h) is never one.
