@@ -2,6 +2,7 @@
 // with the diffuse/specular split (Cycles passes) and without it (Tungsten buffers).
 #include "fixtures.h"
 #include "mcdn/cnn.h"
+#include "mcdn/io.h"
 #include "partition.h"
 
 using namespace mcdn;
@@ -35,4 +36,38 @@ TEST(CnnExtras, LightGroupsAddUpToTheDenoisedBeauty)
         }
         EXPECT_EQ(alone.getchannel(7, 9, 0, p.key[0]), p.image.getchannel(7, 9, 0, p.key[0]));
     }
+}
+
+TEST(CnnExtras, ReadingTheRolesOnlyDenoisesAsReadingEveryChannel)
+{
+    // A Blender file with transmission passes (no role: the CNN reads them by name beside
+    // DiffCol for its specular variance): mcdntool reads only the roles' faces unless a
+    // command names channels, and both must give the same CNN result.
+    const std::string base = test_data("generated/0000_interior/0000_interior_0016spp");
+    const std::vector<InputFile> files = { { base + ".exr", InputKind::Mean },
+                                           { base + "_var.exr", InputKind::Variance } };
+    ImageBuf denoised[2];
+    for (bool only_roles : { false, true }) {
+        InputSelection selection;
+        selection.only_roles = only_roles;
+        selection.halves = false;
+        selection.aovs.preset = "cycles";
+        ImageBuf merged;
+        ASSERT_TRUE(read_inputs(merged, files, selection)) << merged.geterror();
+        ASSERT_GE(merged.spec().channelindex("variance.ViewLayer.TransDir.R"), 0) << only_roles;
+        CnnOptions o;
+        o.aovs.preset = "cycles";
+        denoised[only_roles] = cnn(merged, o);
+        ASSERT_FALSE(denoised[only_roles].has_error()) << denoised[only_roles].geterror();
+    }
+    const int r = denoised[0].spec().channelindex("ViewLayer.Combined.R");
+    ASSERT_GE(r, 0);
+    for (int y = 0; y < denoised[0].spec().height; ++y)
+        for (int x = 0; x < denoised[0].spec().width; ++x)
+            for (int c = 0; c < 3; ++c)
+                ASSERT_EQ(denoised[0].getchannel(x, y, 0, r + c),
+                          denoised[1].getchannel(x, y, 0,
+                                                 denoised[1].spec().channelindex(
+                                                     denoised[0].spec().channelnames[r + c])))
+                    << x << "," << y;
 }
