@@ -94,9 +94,20 @@ def cell(value):
     return str(value)
 
 
-def markdown(rows, baseline_note):
-    """summary.md: both tables as GitHub markdown (the best denoiser of a line in bold)."""
-    out = []
+def measured_on(meta):
+    """The line saying when, on what and from which commit the tables were measured."""
+    parts = [meta.get("date", "date unknown"), meta.get("machine", "machine unknown")]
+    if "threads per run" in meta:
+        parts.append(f"{meta['threads per run']} threads per run")
+    if "commit" in meta:
+        parts.append(f"commit {meta['commit']}")
+    return "Measured " + ", ".join(str(p) for p in parts) + " (bench/report).\n"
+
+
+def markdown(rows, baseline_note, meta=None):
+    """summary.md: both tables as GitHub markdown (the best denoiser of a line in bold), after
+    a line saying where they were measured (meta.json's date, machine, threads, commit)."""
+    out = [measured_on(meta or {})]
     for title, metric in (("relMSE", "relmse"), ("SSIM", "ssim")):
         header, body, best = error_table(rows, metric)
         out.append(f"{title} (best denoiser of each line in bold)\n")
