@@ -18,6 +18,7 @@
 #include "mcdn/denoise.h"
 #include "mcdn/metrics.h"
 #include "mcdn/nfor.h"
+#include "mcdn/sure.h"
 #include "mcdn/settings.h"
 #include "mcdn/skip.h"
 
@@ -119,6 +120,21 @@ bool Session::take_denoiser_chain(mcdn::Denoiser& chain, int& chain_radius,
         });
     chain = mcdn::compose(std::move(denoisers));
     return true;
+}
+
+namespace {
+
+// The safety nets' tile counts on a stage's result (mcdn/nfor.h, mcdn/sure.h).
+constexpr const char* kFallbackCounts[] = { mcdn::kNforFallbackCountAttribute,
+                                            mcdn::kSureFallbackCountAttribute,
+                                            mcdn::kSureWorseCountAttribute };
+
+}  // namespace
+
+void add_fallback_counts(OIIO::ImageSpec& sum, const OIIO::ImageSpec& band)
+{
+    for (const char* count : kFallbackCounts)
+        sum.attribute(count, sum.get_int_attribute(count, 0) + band.get_int_attribute(count, 0));
 }
 
 void report_fallback(const OIIO::ImageSpec& result)

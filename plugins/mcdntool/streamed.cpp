@@ -10,8 +10,6 @@
 
 #include "mcdn/chain.h"
 #include "mcdn/denoise.h"
-#include "mcdn/nfor.h"
-#include "mcdn/sure.h"
 #include "mcdn/skip.h"
 
 #include "session.h"
@@ -127,11 +125,7 @@ bool run_streamed_chain(Session& s, const std::vector<Command>& commands, size_t
     int bands = 0;
     OIIO::ImageSpec fell_back;  // the safety nets' counts, summed over the bands
     auto sink = [&](const ImageBuf& band, const OIIO::ROI& own, std::string& sink_error) {
-        for (const char* count : { mcdn::kNforFallbackCountAttribute,
-                                   mcdn::kSureFallbackCountAttribute,
-                                   mcdn::kSureWorseCountAttribute })
-            fell_back.attribute(count, fell_back.get_int_attribute(count, 0)
-                                           + band.spec().get_int_attribute(count, 0));
+        add_fallback_counts(fell_back, band.spec());
         if (bands++ == 0) {
             OIIO::ImageSpec frame = band.spec();
             frame.y = input.spec().y;

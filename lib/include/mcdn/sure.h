@@ -34,7 +34,8 @@ struct SureOptions {
     int probes = 1;
     /// The probe step: eps is chosen so that eps times the mean standard deviation sqrt(Var)
     /// is this fraction of the mean |x| of the image (the mean, not the RMS: a heavy tail's
-    /// few huge variances would set the step of every pixel). Scale-free (a 100x brighter render gets the same relative step);
+    /// few huge variances would set the step of every pixel). Scale-free (a 100x brighter
+    /// render gets the same relative step);
     /// 1e-3 sits between float round-off in the denoiser (~1e-6 relative) and the
     /// nonlinearity of NL-means weights (tested in tests/sure).
     float epsilon_relative = 1e-3f;  // (0, kMaxEpsilonRelative]

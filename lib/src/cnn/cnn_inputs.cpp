@@ -7,6 +7,7 @@
 
 #include <OpenImageIO/strutil.h>
 
+#include "aov/transmission.h"
 #include "cnn/cnn_steps.h"
 
 namespace mcdn {
@@ -98,15 +99,6 @@ bool read_pass(const WindowReader& src, const std::vector<std::string>& names, P
             variance[c] = src.plane(v, true);
     }
     return true;
-}
-
-std::vector<std::string> renamed(const std::vector<std::string>& names, const std::string& from,
-                                 const std::string& to)
-{
-    std::vector<std::string> out;
-    for (const auto& n : names)
-        out.push_back(OIIO::Strutil::replace(n, from, to));
-    return out;
 }
 
 /// Adds the value and delta-method variance of colour·(direct + indirect) to the sums:
@@ -232,11 +224,12 @@ bool read_raw_planes(RawPlanes& raw, const ImageBuf& src, const AovSet& aovs, st
                                                          aovs.names(Role::GlossyIndirect) };
             add_product(reader, glossy, unused, raw.specular_var, specular_var_complete);
         }
-        // Cycles' transmission passes have no role; they sit beside DiffCol in the same layer.
-        const auto& diffcol = diffuse[0];
-        const std::vector<std::string> trans[3] = { renamed(diffcol, "DiffCol", "TransCol"),
-                                                    renamed(diffcol, "DiffCol", "TransDir"),
-                                                    renamed(diffcol, "DiffCol", "TransInd") };
+        // Cycles' transmission passes have no role; they sit beside DiffCol (aov/transmission.h).
+        const std::vector<std::string> trans[3] = {
+            transmission_channels(diffuse[0], kTransmissionPasses[0]),
+            transmission_channels(diffuse[0], kTransmissionPasses[1]),
+            transmission_channels(diffuse[0], kTransmissionPasses[2])
+        };
         add_product(reader, trans, unused, raw.specular_var, specular_var_complete);
         for (Role added : { Role::Emission, Role::Environment }) {
             if (!aovs.has(added))

@@ -24,6 +24,7 @@
 #include <OpenImageIO/imageio.h>
 #include <OpenImageIO/strutil.h>
 
+#include "aov/transmission.h"
 #include "core/attributes.h"
 #include "core/op_prepare.h"
 #include "core/planar.h"
@@ -409,16 +410,13 @@ std::set<std::string> selected_faces(const ImageSpec& spec, const InputSelection
         add(aovs.channels(Role(r)));
     for (const AovSet::Extra& e : aovs.extras())
         add(e.channels);
-    // Cycles' transmission passes have no role: the CNN's specular variance reads them by
-    // name beside DiffCol (cnn/cnn_inputs.cpp). Without their faces here it would see an
-    // incomplete split, and a run would denoise differently from one that reads every
-    // channel (a --ch of the variance file's).
-    for (const std::string& diffcol : aovs.names(Role::DiffuseColor))
-        for (const char* pass : { "TransCol", "TransDir", "TransInd" }) {
-            const std::string name = Strutil::replace(diffcol, "DiffCol", pass);
-            if (name != diffcol && spec.channelindex(name) >= 0)
+    // Cycles' transmission passes, which the CNN reads by name (aov/transmission.h): without
+    // their faces it would see an incomplete split, and a run would denoise differently from
+    // one that reads every channel (a --ch of the variance file's).
+    for (const char* pass : kTransmissionPasses)
+        for (const std::string& name : transmission_channels(aovs.names(Role::DiffuseColor), pass))
+            if (spec.channelindex(name) >= 0)
                 wanted.insert(name);
-        }
     // Every face of each of them: roles without faces of their own (Blender's DiffCol,
     // GlossDir, ...) have their variance read by name too (the CNN's delta method).
     std::vector<std::string> means(selection.extra_features);

@@ -310,19 +310,6 @@ struct Selected {
     ConvergedTiles fallback;  // the safety net's tiles (skip/worse_tiles.h)
 };
 
-/// The safety net's map: the one attached to src (a probe of sure's, skip/worse_tiles.h) when
-/// it has one of the frame's size, else decided from the blended estimate.
-ConvergedTiles fallback_tiles(const ImageBuf& src, const Plane mse[3], const Plane variance[3],
-                              const Plane result[3], const NforOptions& options,
-                              const ConvergedTiles& converged)
-{
-    ConvergedTiles m;
-    if (!options.fallback
-        || attached_tiles(m, src, kDenoiserTilesAttribute, result[0].width, result[0].height))
-        return m;
-    return tiles_worse_than_render(mse, variance, result, converged);
-}
-
 /// §5.3: each candidate's MSE estimate NL-means filtered on the mean colour; the lower one
 /// picked per pixel; that selection map filtered the same way and the candidates blended
 /// with it (both halves' fits, or the render's alone on the one-buffer path). Consumes the
@@ -343,9 +330,15 @@ Selected select_bandwidths(const ImageBuf& src, ColorPlanes& color, std::vector<
             noisy.push_back(&mse[j][c]);
     std::vector<Plane> filtered_mse = nl_means(noisy, map_guide, map_variance, map_params,
                                                nthreads, &converged);
-    // The safety net decides on the estimates as they were, before the map filter spread a
-    // garbage pixel's estimate over its window (skip/worse_tiles.h).
-    if (!options.fallback)
+    // The safety net's map (skip/worse_tiles.h): the one attached to src (a probe of sure's)
+    // when it has one of the frame's size; else decided on the estimates as they were,
+    // before the map filter spread a garbage pixel's estimate over its window, so those
+    // are kept until the blend.
+    Selected out;
+    const int w = color.mean[0].width, h = color.mean[0].height;
+    const bool decide = options.fallback
+                        && !attached_tiles(out.fallback, src, kDenoiserTilesAttribute, w, h);
+    if (!decide)
         for (int j = 0; j < 2; ++j)
             mse[j].clear();
     std::vector<Plane> mse0(std::make_move_iterator(filtered_mse.begin()),
@@ -357,7 +350,6 @@ Selected select_bandwidths(const ImageBuf& src, ColorPlanes& color, std::vector<
     noisy.clear();
     for (int c = 0; c < 3; ++c)
         noisy.push_back(&selection_noisy[c]);
-    Selected out;
     out.selection = nl_means(noisy, map_guide, map_variance, map_params, nthreads, &converged);
     selection_noisy.clear();
 
@@ -374,15 +366,16 @@ Selected select_bandwidths(const ImageBuf& src, ColorPlanes& color, std::vector<
             out.combined[c].px[i] = 0.5f * (a + b);
             out.combined_variance[c].px[i] = sanitize_variance(0.25f * (b - a) * (b - a));
             mse0[c].px[i] = mse0[c].px[i] + s * (mse1[c].px[i] - mse0[c].px[i]);
-            if (!mse[0].empty())
+            if (decide)
                 mse[0][c].px[i] += s * (mse[1][c].px[i] - mse[0][c].px[i]);
         }
     }
-    if (!mse[0].empty())
-        out.fallback = fallback_tiles(src, mse[0].data(), color.variance, out.combined, options,
-                                      converged);
-    for (int j = 0; j < 2; ++j)
-        mse[j].clear();
+    if (decide) {
+        out.fallback = tiles_worse_than_render(mse[0].data(), color.variance, out.combined,
+                                               converged);
+        for (int j = 0; j < 2; ++j)
+            mse[j].clear();
+    }
     for (int c = 0; c < 3; ++c)
         color.variance[c] = Plane();
     extras.blend(selection);
@@ -456,14 +449,9 @@ bool write_maps(ImageBuf& dst, Selected& selected, const NforOptions& options,
     }
     for (int c = 0; c < int(selected.selection.size()); ++c, ++n)
         write_plane(dst, new_index[n], selected.selection[c], roi);
-    if (options.output_fallback) {
-        Plane fell_back(like.width, like.height);
-        if (selected.fallback.any())
-            for (int y = 0; y < fell_back.height; ++y)
-                for (int x = 0; x < fell_back.width; ++x)
-                    fell_back(x, y) = selected.fallback.pixel(x, y) ? 1.0f : 0.0f;
-        write_plane(dst, new_index[n], fell_back, roi);
-    }
+    if (options.output_fallback)
+        write_plane(dst, new_index[n], tile_flags(selected.fallback, like.width, like.height),
+                    roi);
     return true;
 }
 

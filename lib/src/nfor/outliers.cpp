@@ -86,7 +86,8 @@ OutlierPixels take_out_outliers(Plane mean[3], Plane variance[3], Plane* half_a,
             // The level against the neighbours' mean too (without their three largest, which
             // may be outliers of the same caustic): where most neighbours drew no sample of
             // a dim light (a sparse render), the median is near 0 while the mean is the
-            // light, and the pixel is one of its samples.
+            // light, and the pixel is one of its samples. (scratch still holds the
+            // neighbours' means that median_of gathered.)
             const float level = std::max(typical, mean_without_largest(scratch, 3));
             if (!(excess > rule.sigma * std::sqrt(typical_variance))
                 || !(excess > rule.level_ratio * (level + rule.level_floor)))

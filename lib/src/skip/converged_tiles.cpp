@@ -264,6 +264,13 @@ void pass_through_converged(Plane& out, const Plane& render, const ConvergedTile
         }
 }
 
+Plane tile_flags(const ConvergedTiles& m, int width, int height)
+{
+    Plane flags(width, height);
+    pass_through_converged(flags, Plane(width, height, 1.0f), m);
+    return flags;
+}
+
 std::vector<Rect> unconverged_rects(const ConvergedTiles& m, int max_side, int alignment)
 {
     std::vector<Rect> rects;

@@ -71,6 +71,8 @@ bool decode_converged_tiles(ConvergedTiles& tiles, const std::string& text, int 
 
 /// out = render on the converged tiles.
 void pass_through_converged(Plane& out, const Plane& render, const ConvergedTiles& tiles);
+/// A width × height plane, 1 on the map's tiles and 0 elsewhere (an AOV of the tiles).
+Plane tile_flags(const ConvergedTiles& tiles, int width, int height);
 
 /// Rectangles covering every non-converged pixel, each at most max_side on a side and
 /// starting at a multiple of `alignment` (which must divide kConvergedTileSize): runs of

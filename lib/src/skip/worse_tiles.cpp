@@ -2,7 +2,6 @@
 #include "skip/worse_tiles.h"
 
 #include <algorithm>
-#include <cmath>
 #include <vector>
 
 namespace mcdn {

@@ -328,11 +328,7 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
     // The safety net (skip/worse_tiles.h): where SURE says y is worse than x, y = x and SURE
     // is the render's own error, as on a tile passed through.
     const ConvergedTiles worse = tiles_worse_than_render(estimate, variance, y, passed);
-    Plane fell_back;
-    if (frame.fallback_channel) {
-        fell_back = Plane(w, h);
-        pass_through_converged(fell_back, Plane(w, h, 1.0f), worse);
-    }
+    const Plane fell_back = frame.fallback_channel ? tile_flags(worse, w, h) : Plane();
     add_count(dst, options.fallback ? kSureFallbackCountAttribute : kSureWorseCountAttribute,
               worse, band, band_y);
     const bool fall_back = options.fallback && worse.any();
