@@ -217,21 +217,31 @@ bool Session::load_inputs(std::string& error)
 {
     if (m_loaded)
         return true;
+    mcdn::InputRows rows;
     ImageBuf merged;
-    mcdn::InputSelection select = selection;
-    select.aovs = aov_spec;
-    if (!mcdn::read_inputs(merged, inputs, select)) {
-        error = merged.geterror();
-        return false;
-    }
-    if (!mcdn::resolve_aovs(m_aovs, aov_spec, merged.spec(), error))
-        return false;
-    if (!m_aovs.require({ Role::Color }, merged.spec(), error))
+    if (!open_rows(rows, error)
+        || !rows.read(merged, rows.spec().y, rows.spec().y + rows.spec().height, error))
         return false;
     if (!mcdn::validate_inputs(merged, m_aovs, error))
         return false;
+    m_image = std::move(merged);
+    m_loaded = true;
+    return true;
+}
+
+bool Session::open_rows(mcdn::InputRows& rows, std::string& error)
+{
+    mcdn::InputSelection select = selection;
+    select.aovs = aov_spec;
+    if (!rows.open(inputs, select, error))
+        return false;
+    const OIIO::ImageSpec& spec = rows.spec();
+    if (!mcdn::resolve_aovs(m_aovs, aov_spec, spec, error))
+        return false;
+    if (!m_aovs.require({ Role::Color }, spec, error))
+        return false;
     std::string colorspace, colorspace_why;
-    if (!mcdn::input_colorspace(colorspace, colorspace_why, aov_spec, merged.spec(), error)) {
+    if (!mcdn::input_colorspace(colorspace, colorspace_why, aov_spec, spec, error)) {
         error = inputs[0].path + ": " + error;
         return false;
     }
@@ -257,8 +267,6 @@ bool Session::load_inputs(std::string& error)
                             missing.empty() ? "" : " (nfor and prefilter leave them out, the "
                                                    "cnn reads them as zeros)");
     }
-    m_image = std::move(merged);
-    m_loaded = true;
     return true;
 }
 

@@ -50,6 +50,10 @@ public:
     /// Reads and checks the inputs if not done yet, then runs any queued denoisers:
     /// afterwards image() is the current result.
     bool load(std::string& error);
+    /// What load() checks of the inputs from their headers, with `rows` opened on them to
+    /// read the merged frame a band at a time (the values are checked as each band is read:
+    /// mcdn::validate_inputs); aovs() resolved on its spec.
+    bool open_rows(mcdn::InputRows& rows, std::string& error);
 
     /// Queues a denoiser (--prefilter, --nfor) to run at the next load(); `reach`: how far
     /// it reaches (unknown by default), for SURE's bands.

@@ -80,11 +80,16 @@ bool run_streamed_chain(Session& s, const std::vector<Command>& commands, size_t
         if (info->run && !info->run(s, commands[i], error))
             return false;
     }
-    if (!s.load(error))
+    // The inputs are read a band at a time (the frame is never in memory whole), each band's
+    // values checked as it is read.
+    mcdn::InputRows rows;
+    if (!s.open_rows(rows, error))
         return false;
+    const OIIO::ImageSpec& input = rows.spec();
+    const mcdn::AovSet aovs = s.aovs();
     const Command& output = commands.back();
     // A multi-part render is written back in its parts, each whole (mcdn::write_image).
-    if (!s.image().spec().get_string_attribute("mcdn:parts").empty()
+    if (!input.get_string_attribute("mcdn:parts").empty()
         && Strutil::iends_with(output.args[0], ".exr")) {
         if (s.verbose)
             std::cerr << "mcdntool: a multi-part output is written whole: the stages run "
@@ -108,18 +113,29 @@ bool run_streamed_chain(Session& s, const std::vector<Command>& commands, size_t
         for (const auto& [key, value] : commands[i].modifiers)
             chain.settings[stage + "." + key] = value;
     }
-    const ImageBuf& input = s.image();
     if (s.verbose && chain.stages == std::vector<std::string> { "denoise" }) {
         mcdn::DenoisePlan plan;
-        if (mcdn::plan_denoise(plan, input.spec(), s.aov_spec, error))
+        if (mcdn::plan_denoise(plan, input, s.aov_spec, error))
             std::cerr << "mcdntool: --denoise runs " << plan.describe() << "\n";
     }
-    if (s.verbose && s.aovs().has(mcdn::Role::ColorVariance)) {
-        const mcdn::ConvergedCount converged = mcdn::count_converged_tiles(input, s.aovs());
-        std::cerr << format("mcdntool: {} of {} tiles converged (docs/skipping.md), passed through "
-                            "unless a stage has :skip=0\n",
-                            converged.converged, converged.tiles);
-    }
+    // Converged tiles are counted on the rows as the chain reads them: each band's own rows
+    // once (bands start on the tile grid, mcdn/skip.h), through the light pass's reads.
+    mcdn::ConvergedCount converged;
+    const bool count = s.verbose && aovs.has(mcdn::Role::ColorVariance);
+    int counted_until = input.y;
+    auto read = [&](ImageBuf& band, int y0, int y1, const std::vector<bool>& channels,
+                    std::string& read_error) {
+        if (!rows.read(band, y0, y1, read_error, channels)
+            || !mcdn::validate_inputs(band, aovs, read_error))
+            return false;
+        if (count && y0 == counted_until) {
+            const mcdn::ConvergedCount c = mcdn::count_converged_tiles(band, aovs);
+            converged.converged += c.converged;
+            converged.tiles += c.tiles;
+            counted_until = y1;
+        }
+        return true;
+    };
     OIIO::Timer timer;
     mcdn::RowWriter writer;
     int bands = 0;
@@ -128,15 +144,19 @@ bool run_streamed_chain(Session& s, const std::vector<Command>& commands, size_t
         add_fallback_counts(fell_back, band.spec());
         if (bands++ == 0) {
             OIIO::ImageSpec frame = band.spec();
-            frame.y = input.spec().y;
-            frame.height = input.spec().height;
+            frame.y = input.y;
+            frame.height = input.height;
             if (!writer.open(frame, output.args[0], write, sink_error))
                 return false;
         }
         return writer.write_rows(band, own, sink_error);
     };
-    if (!mcdn::run_chain(input, chain, sink, error, s.nthreads))
+    if (!mcdn::run_chain(input, read, chain, sink, error, s.nthreads))
         return false;
+    if (count)
+        std::cerr << format("mcdntool: {} of {} tiles converged (docs/skipping.md), passed "
+                            "through unless a stage has :skip=0\n",
+                            converged.converged, converged.tiles);
     std::vector<std::string> warnings;
     if (!writer.close(error, &warnings))
         return false;
@@ -144,8 +164,8 @@ bool run_streamed_chain(Session& s, const std::vector<Command>& commands, size_t
         std::cerr << "mcdntool: warning: " << w << "\n";
     if (s.verbose)
         std::cerr << format("mcdntool: {} {}x{} in {} band(s) of rows, written to {}: {:.2f} s\n",
-                            Strutil::join(chain.stages, " "), input.spec().width,
-                            input.spec().height, bands, output.args[0], timer());
+                            Strutil::join(chain.stages, " "), input.width, input.height,
+                            bands, output.args[0], timer());
     if (s.verbose)
         report_fallback(fell_back);
     return true;

@@ -1,5 +1,6 @@
 // What a TD meets in a pipeline: the silent cases of issue 20 are each an error, a warning or
 // a documented choice.
+#include <cmath>
 #include <map>
 
 #include <OpenImageIO/imagebuf.h>
@@ -296,6 +297,48 @@ TEST(Pipeline, StagesAndOneOutputStreamInBands)
     OIIO::Filesystem::get_directory_entries(dir, files);
     for (const auto& f : files)
         EXPECT_EQ(f.find("f.exr"), std::string::npos) << f;
+}
+
+// A streamed chain reads its inputs a band at a time and checks each band's values as it
+// reads them: a bad value in a later band still stops the run with the one-line error (file,
+// channel, pixel), and neither the output nor a temporary is left.
+TEST(Pipeline, StreamedChainChecksEveryBandsValues)
+{
+    const std::string dir = mcdn_test::temp_dir("pipeline_streamed_bad");
+    OIIO::ImageBuf variance(mcdn_test::test_data("box16/box_0016spp_var.exr"));
+    ASSERT_TRUE(variance.read(0, 0, true, OIIO::TypeDesc::FLOAT));
+    const int r = variance.spec().channelindex("ViewLayer.Combined.R");
+    ASSERT_GE(r, 0);
+    variance.setpixel(7, 50, std::vector<float>(size_t(variance.nchannels()), -1.0f).data());
+    const std::string bad = dir + "/bad_var.exr";
+    ASSERT_TRUE(variance.write(bad));
+    const std::string out = dir + "/out.exr";
+    auto run = run_mcdntool("-i " + box("box_0016spp.exr") + " -i:as=variance " + quote(bad)
+                                + " --cnn -o " + quote(out),
+                            "MCDN_BAND_PIXELS=1024");
+    EXPECT_EQ(run.exit_code, 1) << run.output;
+    EXPECT_NE(run.output.find("bad_var.exr"), std::string::npos) << run.output;
+    EXPECT_NE(run.output.find("negative variance"), std::string::npos) << run.output;
+    EXPECT_NE(run.output.find("(7, 50)"), std::string::npos) << run.output;
+    // A half buffer's NaN: the light pass does not read the halves, the band that holds it
+    // does, with the output already open.
+    OIIO::ImageBuf half(mcdn_test::test_data("box16/box_0016spp_A.exr"));
+    ASSERT_TRUE(half.read(0, 0, true, OIIO::TypeDesc::FLOAT));
+    half.setpixel(9, 60, std::vector<float>(size_t(half.nchannels()), NAN).data());
+    const std::string bad_half = dir + "/bad_A.exr";
+    ASSERT_TRUE(half.write(bad_half));
+    run = run_mcdntool("-v -i " + box("box_0016spp.exr") + " -i:as=variance "
+                           + box("box_0016spp_var.exr") + " -i:as=halfA " + quote(bad_half)
+                           + " -i:as=halfB " + box("box_0016spp_B.exr") + " --nfor -o "
+                           + quote(out),
+                       "MCDN_BAND_PIXELS=1024");
+    EXPECT_EQ(run.exit_code, 1) << run.output;
+    EXPECT_NE(run.output.find("bad_A.exr"), std::string::npos) << run.output;
+    EXPECT_NE(run.output.find("NaN at pixel (9, 60)"), std::string::npos) << run.output;
+    std::vector<std::string> files;
+    OIIO::Filesystem::get_directory_entries(dir, files);
+    for (const auto& f : files)
+        EXPECT_EQ(f.find("out.exr"), std::string::npos) << f;
 }
 
 // --nfor:frames=N (cross-frame NFOR, §8): each frame reads its neighbours' files, also

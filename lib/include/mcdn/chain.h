@@ -63,6 +63,19 @@ bool run_chain(ImageBuf& dst, const ImageBuf& src, const ChainOptions& options, 
 bool run_chain(const ImageBuf& src, const ChainOptions& options, const BandSink& sink,
                std::string& error, int nthreads = 0);
 
+/// Rows [ybegin, yend) of a frame, every channel of its spec, as a float buffer of those
+/// rows (mcdn::InputRows::read); `channels`, when not empty, marks the ones the caller looks
+/// at (the others may be left zero). false with `error` stops the chain.
+using RowReader = std::function<bool(ImageBuf& rows, int ybegin, int yend,
+                                     const std::vector<bool>& channels, std::string& error)>;
+
+/// The same on a frame never in memory whole: `frame` is its spec (no pixels), `read` gives
+/// its rows. The light pass reads the frame once (only the channels it needs), then every band
+/// is read with its halo: peak memory follows the band. A frame of one band is read whole.
+/// The result is that of the chain on the frame read whole.
+bool run_chain(const ImageSpec& frame, const RowReader& read, const ChainOptions& options,
+               const BandSink& sink, std::string& error, int nthreads = 0);
+
 /// How far a pixel of the chain's result reaches into its input: the sum of its stages'
 /// receptive radii (the halo of its bands); -1 when one is unknown.
 int chain_reach(const ImageSpec& spec, const ChainOptions& options);

@@ -62,6 +62,35 @@ struct InputSelection {
 bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs,
                  const InputSelection& selection);
 
+/// The merged frame read_inputs makes, a band of rows at a time: open() reads and checks
+/// every header (names, windows, the selection), read() the pixels of some rows, so that a
+/// chain in bands (mcdn/chain.h) holds one band of the inputs, never the frame.
+class InputRows {
+public:
+    InputRows();
+    ~InputRows();
+    InputRows(InputRows&&) noexcept;
+    InputRows& operator=(InputRows&&) noexcept;
+
+    /// false with `error` (naming the file) on what read_inputs would refuse from headers.
+    bool open(const std::vector<InputFile>& inputs, const InputSelection& selection,
+              std::string& error);
+    /// read_inputs's spec: every channel, the whole window (no pixels).
+    const ImageSpec& spec() const { return m_spec; }
+    /// Rows [ybegin, yend) of the frame, every channel, into a float buffer of those rows.
+    /// `channels` (one per channel of spec()), when given: only the files holding one that
+    /// is true are decoded; the other channels are zero, or what an earlier read left in
+    /// `dst`: a dst of the same shape is read into again. Not thread-safe (one file handle
+    /// per input, kept open between reads).
+    bool read(ImageBuf& dst, int ybegin, int yend, std::string& error,
+              const std::vector<bool>& channels = {}) const;
+
+private:
+    struct Files;
+    std::unique_ptr<Files> m_files;
+    ImageSpec m_spec;
+};
+
 /// The files a merged buffer was read from, in order: its "mcdn:inputs" attribute, one
 /// "kind=path" line per file (read_inputs sets it; ops keep it on their results).
 std::vector<InputFile> merged_input_files(const ImageSpec& merged);

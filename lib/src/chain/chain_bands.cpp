@@ -41,83 +41,144 @@ bool resolved_stages(std::vector<std::string>& stages, const ImageSpec& spec,
     return true;
 }
 
-// Which feature channels (every face of albedo, normal, depth, visibility, and any channel a
-// stage's features= names) and extra AOV channels hold one sanitized value over the frame:
-// one pass over the frame's rows, every channel at once (a channel at a time would stride
-// through all of them once per channel).
-std::map<std::string, float> constant_features(const ImageBuf& src, const AovSet& aovs,
-                                               const ChainOptions& o)
-{
-    const ImageSpec& spec = src.spec();
-    std::vector<std::string> names = feature_channel_names(aovs, spec);
-    // The extras' means and halves too: an empty one is left out (core/extra_aovs.h).
-    for (const AovSet::Extra& extra : aovs.extras())
-        for (const std::vector<int>* channels : { &extra.channels, &extra.half_a, &extra.half_b })
-            for (int ch : *channels)
-                names.push_back(spec.channel_name(ch));
-    for (const char* key : { "prefilter.features", "nfor.features" })
-        if (auto it = o.settings.find(key); it != o.settings.end())
-            for (const std::string& name : OIIO::Strutil::splits(it->second, ","))
-                for (const std::string& face : { name, "variance." + name, "A." + name, "B." + name })
-                    if (spec.channelindex(face) >= 0)
-                        names.push_back(face);
-    std::vector<int> channels;
-    for (const std::string& name : names)
-        channels.push_back(spec.channelindex(name));
-    const ROI whole = src.roi();
-    const int nch = spec.nchannels, nf = int(channels.size());
-    std::vector<float> first(nf);
-    std::vector<char> constant(nf, 1);
-    std::vector<float> rows;
-    const int rows_per_read
-        = std::max(1, int((int64_t(1) << 22) / std::max<int64_t>(1, int64_t(whole.width()) * nch)));
-    for (int y = whole.ybegin; y < whole.yend && nf > 0; y += rows_per_read) {
-        ROI r = whole;
-        r.ybegin = y;
-        r.yend = std::min(y + rows_per_read, whole.yend);
-        r.chbegin = 0;
-        r.chend = nch;
-        rows.resize(size_t(r.npixels()) * nch);
-        src.get_pixels(r, OIIO::TypeDesc::FLOAT, rows.data());
-        if (y == whole.ybegin)
-            for (int f = 0; f < nf; ++f)
-                first[f] = sanitize(rows[size_t(channels[f])]);
-        for (int f = 0; f < nf; ++f) {
-            if (!constant[f])
-                continue;
-            const float* v = rows.data() + channels[f];
-            const float value = first[f];
-            bool same = true;
-            for (size_t p = 0; p < size_t(r.npixels()) && same; ++p)
-                same = sanitize(v[p * nch]) == value;
-            constant[f] = same;
+// The frame's facts (core/frame_facts.h), from its rows read top to bottom: the whole
+// frame at once or a band at a time gives the same facts. Only those the chain's stages
+// read: the colour's sums (nfor's probe step and outlier rule, sure's probe step, the
+// t-test's sigma_s), the depth range (cnn), the constant features and extras (prefilter,
+// nfor), so that a cnn chain's pass need not decode the half files.
+class LightPass {
+public:
+    LightPass(const ImageSpec& spec, const AovSet& aovs, const ChainOptions& o,
+              const std::vector<std::string>& stages)
+        : m_aovs(aovs), m_ybegin(spec.y), m_yend(spec.y + spec.height)
+    {
+        auto has = [&](std::initializer_list<const char*> names) {
+            for (const char* name : names)
+                if (std::find(stages.begin(), stages.end(), name) != stages.end())
+                    return true;
+            return false;
+        };
+        m_needs_colour = has({ "nfor", "sure", "mix" }) && aovs.channels(Role::Color).size() == 3;
+        m_needs_depth = has({ "cnn" });
+        m_needs_constants = has({ "prefilter", "nfor" });
+        m_reads.assign(size_t(spec.nchannels), false);
+        if (m_needs_colour)
+            for (Role r : { Role::Color, Role::ColorVariance })
+                for (int c : aovs.channels(r))
+                    m_reads[size_t(c)] = true;
+        if (m_needs_depth)
+            for (int c : aovs.channels(Role::Depth))
+                m_reads[size_t(c)] = true;
+        if (!m_needs_constants)
+            return;
+        // Which feature channels (every face of albedo, normal, depth, visibility, and any
+        // channel a stage's features= names) and extra AOV channels hold one sanitized value
+        // over the frame.
+        m_names = feature_channel_names(aovs, spec);
+        // The extras' means and halves too: an empty one is left out (core/extra_aovs.h).
+        for (const AovSet::Extra& extra : aovs.extras())
+            for (const std::vector<int>* channels : { &extra.channels, &extra.half_a, &extra.half_b })
+                for (int ch : *channels)
+                    m_names.push_back(spec.channel_name(ch));
+        for (const char* key : { "prefilter.features", "nfor.features" })
+            if (auto it = o.settings.find(key); it != o.settings.end())
+                for (const std::string& name : OIIO::Strutil::splits(it->second, ","))
+                    for (const std::string& face : { name, "variance." + name, "A." + name, "B." + name })
+                        if (spec.channelindex(face) >= 0)
+                            m_names.push_back(face);
+        for (const std::string& name : m_names)
+            m_channels.push_back(spec.channelindex(name));
+        m_first.resize(m_names.size());
+        m_constant.assign(m_names.size(), 1);
+        for (int c : m_channels)
+            m_reads[size_t(c)] = true;
+    }
+
+    /// The channels add() looks at (InputRows::read's `channels`).
+    const std::vector<bool>& channels() const { return m_reads; }
+
+    /// The next rows of the frame, in the working space.
+    void add(const ImageBuf& rows)
+    {
+        const std::vector<int>& variance = m_aovs.channels(Role::ColorVariance);
+        if (m_needs_colour)
+            add_colour_sums(m_colour, rows, m_aovs.channels(Role::Color).data(),
+                            variance.size() == 3 ? variance.data() : nullptr);
+        if (m_needs_depth && m_aovs.has(Role::Depth)) {
+            const kpcn::DepthRange depth = kpcn::depth_range(rows, m_aovs);
+            m_depth_lo = std::min(m_depth_lo, depth.lo);
+            m_depth_hi = std::max(m_depth_hi, depth.hi);
+        }
+        if (m_needs_constants)
+            add_constants(rows);
+        m_started = true;
+    }
+
+    FrameFacts facts() const
+    {
+        FrameFacts facts;
+        facts.ybegin = m_ybegin;
+        facts.yend = m_yend;
+        if (m_needs_colour)
+            facts.colour = combined(m_colour);
+        facts.has_depth = m_needs_depth;
+        if (m_needs_depth && m_aovs.has(Role::Depth)) {
+            facts.depth_lo = m_depth_lo;
+            facts.depth_span = m_depth_hi - m_depth_lo;
+        }
+        facts.has_constant = m_needs_constants;
+        for (size_t f = 0; f < m_names.size(); ++f)
+            if (m_constant[f])
+                facts.constant[m_names[f]] = m_first[f];
+        return facts;
+    }
+
+private:
+    // One pass over the rows, every channel at once (a channel at a time would stride
+    // through all of them once per channel).
+    void add_constants(const ImageBuf& src)
+    {
+        const ROI whole = src.roi();
+        const int nch = src.spec().nchannels, nf = int(m_channels.size());
+        std::vector<float> rows;
+        const int rows_per_read = std::max(
+            1, int((int64_t(1) << 22) / std::max<int64_t>(1, int64_t(whole.width()) * nch)));
+        for (int y = whole.ybegin; y < whole.yend && nf > 0; y += rows_per_read) {
+            ROI r = whole;
+            r.ybegin = y;
+            r.yend = std::min(y + rows_per_read, whole.yend);
+            r.chbegin = 0;
+            r.chend = nch;
+            rows.resize(size_t(r.npixels()) * nch);
+            src.get_pixels(r, OIIO::TypeDesc::FLOAT, rows.data());
+            if (!m_started && y == whole.ybegin)
+                for (int f = 0; f < nf; ++f)
+                    m_first[f] = sanitize(rows[size_t(m_channels[f])]);
+            for (int f = 0; f < nf; ++f) {
+                if (!m_constant[f])
+                    continue;
+                const float* v = rows.data() + m_channels[f];
+                const float value = m_first[f];
+                bool same = true;
+                for (size_t p = 0; p < size_t(r.npixels()) && same; ++p)
+                    same = sanitize(v[p * nch]) == value;
+                m_constant[f] = same;
+            }
         }
     }
-    std::map<std::string, float> out;
-    for (int f = 0; f < nf; ++f)
-        if (constant[f])
-            out[names[f]] = first[f];
-    return out;
-}
 
-FrameFacts light_pass(const ImageBuf& src, const AovSet& aovs, const ChainOptions& o)
-{
-    FrameFacts facts;
-    facts.ybegin = src.roi().ybegin;
-    facts.yend = src.roi().yend;
-    const std::vector<int>& colour = aovs.channels(Role::Color);
-    const std::vector<int>& variance = aovs.channels(Role::ColorVariance);
-    if (colour.size() == 3)
-        facts.colour = colour_sums(src, colour.data(), variance.size() == 3 ? variance.data()
-                                                                            : nullptr);
-    const kpcn::DepthRange depth = kpcn::depth_range(src, aovs);
-    facts.has_depth = true;
-    facts.depth_lo = depth.lo;
-    facts.depth_span = depth.span;
-    facts.has_constant = true;
-    facts.constant = constant_features(src, aovs, o);
-    return facts;
-}
+    const AovSet& m_aovs;
+    int m_ybegin, m_yend;
+    std::vector<std::string> m_names;
+    std::vector<int> m_channels;
+    std::vector<float> m_first;
+    std::vector<char> m_constant;
+    std::vector<bool> m_reads;
+    ColourSums m_colour[3];
+    float m_depth_lo = INFINITY, m_depth_hi = -INFINITY;
+    bool m_needs_colour = false, m_needs_depth = false, m_needs_constants = false;
+    bool m_started = false;
+};
 
 }  // namespace
 
@@ -154,49 +215,17 @@ int chain_reach(const ImageSpec& spec, const ChainOptions& o)
     return chain_radius(reaches);
 }
 
-bool run_chain(const ImageBuf& input, const ChainOptions& o, const BandSink& sink,
+namespace {
+
+// The bands of a frame through the chain, once the frame's facts are known: `rows` gives a
+// band's rows (its cut), every channel, in the working space.
+bool run_bands(const std::vector<Band>& bands, const ROI& whole, const FrameFacts& facts,
+               const std::function<bool(ImageBuf&, const Band&, std::string&)>& rows,
+               const std::string& from, const ChainOptions& o, const BandSink& sink,
                std::string& error, int nthreads)
 {
-    const ROI whole = input.roi();
-    const int reach = chain_reach(input.spec(), o);
-    // A band of a larger frame (it carries the frame's facts) is never cut again.
-    const bool is_band = is_frame_band(input.spec());
-    const std::vector<Band> bands = reach >= 0 && !is_band
-                                        ? plan_bands(whole, reach, o.band_pixels)
-                                        : plan_bands(whole, 0, 0);
-    if (bands.size() == 1) {
-        ImageBuf result;
-        ChainOptions whole_frame = o;
-        whole_frame.band_pixels = 0;
-        if (!run_chain(result, input, whole_frame, {}, nthreads)) {
-            error = result.geterror();
-            return false;
-        }
-        return sink(result, whole, error);
-    }
-    // The light pass and the bands in the working space (the stages then convert nothing);
-    // each band's result back in the input's space before it is handed on.
-    std::string from, why;
-    if (!input_colorspace(from, why, o.aovs, input.spec(), error)) {
-        error = "chain: " + error;
-        return false;
-    }
-    const bool convert = from != working_colorspace();
-    ImageBuf converted;
-    AovSet aovs;
-    if (!resolve_aovs(aovs, o.aovs, input.spec(), error))
-        return false;
-    if (convert) {
-        converted = input.copy(OIIO::TypeDesc::FLOAT);
-        if (!convert_color_channels(converted, aovs, from, working_colorspace(), error))
-            return false;
-        converted.specmod().attribute("mcdn:in_working_space", 1);
-    }
-    const ImageBuf& src = convert ? converted : input;
     StageTrace trace("chain");
-    trace.mark("(before the chain)");
-    const FrameFacts facts = light_pass(src, aovs, o);
-    trace.mark("light pass (frame facts)");
+    const bool convert = from != working_colorspace();
     ChainOptions band_options = o;
     band_options.band_pixels = 0;
     for (size_t b = 0; b < bands.size(); ++b) {
@@ -205,8 +234,9 @@ bool run_chain(const ImageBuf& input, const ChainOptions& o, const BandSink& sin
                                                               float fraction) {
                 o.progress(stage, (float(b) + fraction) / float(n));
             };
-        // Rows of src, every channel, as a float buffer of their own.
-        ImageBuf band = copy_with_channels(src, {}, bands[b].cut, nthreads), result;
+        ImageBuf band, result;
+        if (!rows(band, bands[b], error))
+            return false;
         set_frame_facts(band.specmod(), facts);
         if (!run_chain(result, band, band_options, {}, nthreads)) {
             error = result.geterror();
@@ -232,4 +262,131 @@ bool run_chain(const ImageBuf& input, const ChainOptions& o, const BandSink& sin
     return true;
 }
 
+// The chain's bands of `spec`'s frame; one band: the whole frame at once.
+std::vector<Band> chain_bands(const ImageSpec& spec, const ChainOptions& o)
+{
+    const int reach = chain_reach(spec, o);
+    // A band of a larger frame (it carries the frame's facts) is never cut again.
+    return reach >= 0 && !is_frame_band(spec) ? plan_bands(spec.roi(), reach, o.band_pixels)
+                                              : plan_bands(spec.roi(), 0, 0);
+}
+
+// A frame of one band: the chain on the whole of it, handed on at once.
+bool run_whole(const ImageBuf& input, const ChainOptions& o, const BandSink& sink,
+               std::string& error, int nthreads)
+{
+    ImageBuf result;
+    ChainOptions whole_frame = o;
+    whole_frame.band_pixels = 0;
+    if (!run_chain(result, input, whole_frame, {}, nthreads)) {
+        error = result.geterror();
+        return false;
+    }
+    return sink(result, input.roi(), error);
+}
+
+// The input's colour space and the frame's resolved AOVs, for a chain in bands.
+bool band_setup(std::string& from, AovSet& aovs, const ImageSpec& spec, const ChainOptions& o,
+                std::string& error)
+{
+    std::string why;
+    if (!input_colorspace(from, why, o.aovs, spec, error)) {
+        error = "chain: " + error;
+        return false;
+    }
+    return resolve_aovs(aovs, o.aovs, spec, error);
+}
+
+}  // namespace
+
+bool run_chain(const ImageBuf& input, const ChainOptions& o, const BandSink& sink,
+               std::string& error, int nthreads)
+{
+    const ROI whole = input.roi();
+    const std::vector<Band> bands = chain_bands(input.spec(), o);
+    if (bands.size() == 1)
+        return run_whole(input, o, sink, error, nthreads);
+    // The light pass and the bands in the working space (the stages then convert nothing);
+    // each band's result back in the input's space before it is handed on.
+    std::string from;
+    AovSet aovs;
+    if (!band_setup(from, aovs, input.spec(), o, error))
+        return false;
+    const bool convert = from != working_colorspace();
+    ImageBuf converted;
+    if (convert) {
+        converted = input.copy(OIIO::TypeDesc::FLOAT);
+        if (!convert_color_channels(converted, aovs, from, working_colorspace(), error))
+            return false;
+        converted.specmod().attribute("mcdn:in_working_space", 1);
+    }
+    const ImageBuf& src = convert ? converted : input;
+    StageTrace trace("chain");
+    trace.mark("(before the chain)");
+    std::vector<std::string> stages;
+    if (!resolved_stages(stages, src.spec(), o, error))
+        return false;
+    LightPass light(src.spec(), aovs, o, stages);
+    light.add(src);
+    const FrameFacts facts = light.facts();
+    trace.mark("light pass (frame facts)");
+    // Rows of src, every channel, as a float buffer of their own.
+    auto rows = [&](ImageBuf& band, const Band& cut, std::string&) {
+        band = copy_with_channels(src, {}, cut.cut, nthreads);
+        return true;
+    };
+    return run_bands(bands, whole, facts, rows, from, o, sink, error, nthreads);
+}
+
+bool run_chain(const ImageSpec& frame, const RowReader& read, const ChainOptions& o,
+               const BandSink& sink, std::string& error, int nthreads)
+{
+    const ROI whole = frame.roi();
+    const std::vector<Band> bands = chain_bands(frame, o);
+    if (bands.size() == 1) {  // read whole, run whole
+        ImageBuf input;
+        return read(input, whole.ybegin, whole.yend, {}, error)
+               && run_whole(input, o, sink, error, nthreads);
+    }
+    std::string from;
+    AovSet aovs;
+    if (!band_setup(from, aovs, frame, o, error))
+        return false;
+    const bool convert = from != working_colorspace();
+    // Rows [y0, y1) in the working space: what the chain on a buffer sees.
+    auto read_working = [&](ImageBuf& rows, int y0, int y1, const std::vector<bool>& channels,
+                            std::string& error) {
+        if (!read(rows, y0, y1, channels, error))
+            return false;
+        if (convert) {
+            if (!convert_color_channels(rows, aovs, from, working_colorspace(), error))
+                return false;
+            rows.specmod().attribute("mcdn:in_working_space", 1);
+        }
+        return true;
+    };
+    StageTrace trace("chain");
+    trace.mark("(before the chain)");
+    // The light pass reads the frame a band's own rows at a time, only the channels it
+    // looks at (the files of the others are not decoded).
+    std::vector<std::string> stages;
+    if (!resolved_stages(stages, frame, o, error))
+        return false;
+    LightPass light(frame, aovs, o, stages);
+    ImageBuf light_rows;  // read into again: one band's pages for the pass
+    for (const Band& band : bands) {
+        if (!read_working(light_rows, band.own_begin, band.own_end, light.channels(), error))
+            return false;
+        light.add(light_rows);
+    }
+    light_rows.reset();
+    const FrameFacts facts = light.facts();
+    trace.mark("light pass (frame facts)");
+    auto rows = [&](ImageBuf& band, const Band& cut, std::string& error) {
+        return read_working(band, cut.cut.ybegin, cut.cut.yend, {}, error);
+    };
+    return run_bands(bands, whole, facts, rows, from, o, sink, error, nthreads);
+}
+
 }  // namespace mcdn
+

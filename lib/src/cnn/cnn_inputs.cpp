@@ -301,7 +301,7 @@ DepthRange depth_range(const Plane& depth)
         lo = std::min(lo, d);
         hi = std::max(hi, d);
     }
-    return { lo, hi - lo };
+    return { lo, hi - lo, hi };
 }
 
 DepthRange depth_range(const ImageBuf& src, const AovSet& aovs)
@@ -316,11 +316,12 @@ DepthRange depth_range(const ImageBuf& src, const AovSet& aovs)
         const WindowReader band(src, { 0, y, src.spec().width,
                                        std::min(y + kBandRows, src.spec().height) },
                                 false);
-        const DepthRange r = depth_range(band.plane(channel));
-        lo = std::min(lo, r.lo);
-        hi = std::max(hi, r.lo + r.span);
+        for (float d : band.plane(channel).px) {
+            lo = std::min(lo, d);
+            hi = std::max(hi, d);
+        }
     }
-    return { lo, hi - lo };
+    return { lo, hi - lo, hi };
 }
 
 void scale_depth(RawPlanes& raw, const DepthRange& range)

@@ -54,6 +54,7 @@ void read_demod(Plane demod[3], const ImageBuf& src, const AovSet& aovs, Rect re
 /// whole frame, so it is taken before the tiles. span <= 0: constant depth (scaled to 0).
 struct DepthRange {
     float lo = 0, span = 0;
+    float hi = 0;  // the largest depth (lo + span may round off it): for merging ranges
 };
 /// The range of the (sanitized) depth feature of src; read in bands, no whole-frame plane.
 DepthRange depth_range(const ImageBuf& src, const AovSet& aovs);

@@ -13,16 +13,17 @@ namespace mcdn {
 
 namespace Strutil = OIIO::Strutil;
 
-ColourSums colour_sums(const OIIO::ImageBuf& src, const int colour[3], const int variance[3])
+void add_colour_sums(ColourSums part[3], const OIIO::ImageBuf& src, const int colour[3],
+                     const int variance[3])
 {
     const OIIO::ROI whole = src.roi();
     const int rows_per_read = std::max(1, int((int64_t(1) << 20) / std::max(1, whole.width())));
-    ColourSums s;
     for (int c = 0; c < 3; ++c)
         for (int y = whole.ybegin; y < whole.yend; y += rows_per_read) {
             OIIO::ROI rows = whole;
             rows.ybegin = y;
             rows.yend = std::min(y + rows_per_read, whole.yend);
+            ColourSums& s = part[c];
             const Plane x = read_rows(src, colour[c], rows);
             for (float v : x.px) {
                 s.sum_abs += std::fabs(v);
@@ -34,7 +35,26 @@ ColourSums colour_sums(const OIIO::ImageBuf& src, const int colour[3], const int
                     s.sum_sd += std::sqrt(v);
             s.n += x.size();
         }
+}
+
+ColourSums combined(const ColourSums part[3])
+{
+    ColourSums s;
+    for (int c = 0; c < 3; ++c) {
+        s.sum_abs += part[c].sum_abs;
+        s.sum_sd += part[c].sum_sd;
+        s.sum += part[c].sum;
+        s.sum2 += part[c].sum2;
+        s.n += part[c].n;
+    }
     return s;
+}
+
+ColourSums colour_sums(const OIIO::ImageBuf& src, const int colour[3], const int variance[3])
+{
+    ColourSums part[3];
+    add_colour_sums(part, src, colour, variance);
+    return combined(part);
 }
 
 double relative_probe_step(const ColourSums& s, double relative)

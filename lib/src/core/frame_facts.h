@@ -15,8 +15,9 @@ namespace mcdn {
 /// The attribute a band's spec carries them in (removed from every stage's output).
 constexpr const char* kFrameFactsAttribute = "mcdn:frame";
 
-/// Sums over the colour's three channels and every pixel, each summed channel by channel in
-/// row order (the order the whole-frame computations use, so the doubles are the same).
+/// Sums over the colour's three channels and every pixel: each channel's summed in row
+/// order, then the three added (combined()), whatever reads the rows — the whole frame, or
+/// a chain's light pass a band at a time — so the doubles are the same.
 struct ColourSums {
     double sum_abs = 0;  // |x|
     double sum_sd = 0;   // sqrt of the variance of the mean (sanitized): the probe's scale
@@ -27,6 +28,11 @@ struct ColourSums {
 /// The sums of src's colour channels (and, when given, their variance channels), read a few
 /// rows at a time: the same doubles for any band size.
 ColourSums colour_sums(const OIIO::ImageBuf& src, const int colour[3], const int variance[3]);
+/// Adds src's rows to each channel's sums (part[c]: colour channel c), for a frame read in
+/// bands of rows top to bottom; combined() then gives colour_sums of the whole.
+void add_colour_sums(ColourSums part[3], const OIIO::ImageBuf& src, const int colour[3],
+                     const int variance[3]);
+ColourSums combined(const ColourSums part[3]);
 
 /// eps such that eps * mean(sqrt(Var)) = relative * mean|x| (b = sqrt(Var) n): SURE's probe
 /// step (PD §3.2) and one-buffer NFOR's; 0 when there is nothing to probe. The mean of the

@@ -202,69 +202,69 @@ bool allocated(const ImageBuf& buf, const std::string& path, std::string& error)
     return false;
 }
 
-// Reads the file's channels into dst from channel `first` on: every channel, or those `keep`
-// marks (in the layout's order). Every channel goes straight into dst with strides (no buffer
-// per file, so merging costs the merged frame only); a selection is read in bands of rows,
-// all of a part's channels at once (an EXR block holds every channel: one decode per block),
-// and the kept ones copied out.
-bool read_pixels_into(ImageBuf& dst, int first, const FileLayout& layout,
-                      const std::vector<bool>& keep, std::string& error)
+// Reads rows [y0, y1) of the file's channels into dst (which holds those rows) from channel
+// `first` on: every channel, or those `keep` marks (in the layout's order). A scanline part
+// whose channels are all kept goes straight into dst with strides (no buffer per file, so
+// merging costs the merged rows only); otherwise the part is read in bands of rows, all of its
+// channels at once (an EXR block holds every channel: one decode per block), and the kept ones
+// copied out.
+bool read_pixels_into(ImageBuf& dst, int first, const FileLayout& layout, ImageInput& in,
+                      const std::vector<bool>& keep, int y0, int y1, std::string& error)
 {
-    auto in = ImageInput::open(layout.path);
-    if (!in) {
-        error = format("{}: cannot read: {}", layout.path, OIIO::geterror());
-        return false;
-    }
     auto failed = [&] {
         error = format("{}: cannot read pixels (truncated or corrupt?): {}", layout.path,
-                       in->geterror());
+                       in.geterror());
         return false;
     };
     const int total = dst.nchannels();
     const OIIO::stride_t pixel = OIIO::stride_t(total) * sizeof(float);
     float* out = static_cast<float*>(dst.localpixels()) + first;
-    const bool all = std::find(keep.begin(), keep.end(), false) == keep.end();
     size_t k = 0;  // index into keep over every part's channels
     std::vector<float> rows;
     for (size_t s = 0; s < layout.parts.size(); ++s) {
         const ImageSpec& part = layout.parts[s];
         const int n = part.nchannels;
-        if (all) {
-            if (!in->read_image(layout.subimages[s], 0, 0, n, TypeDesc::FLOAT, out, pixel,
-                                pixel * part.width))
-                return failed();
-            out += n;
-            continue;
-        }
         std::vector<int> kept;
         for (int c = 0; c < n; ++c, ++k)
-            if (keep[k])
+            if (keep.empty() || keep[k])
                 kept.push_back(c);
         if (kept.empty())
             continue;
         // A tiled file (Arnold's and RenderMan's EXRs often are) is read in rows of whole
         // tiles: OIIO reads tiles, not scanlines, from it.
         const bool tiled = part.tile_width > 0 && part.tile_height > 0;
+        if (!tiled && int(kept.size()) == n) {
+            if (!in.read_scanlines(layout.subimages[s], 0, y0, y1, part.z, 0, n, TypeDesc::FLOAT,
+                                   out, pixel, pixel * part.width))
+                return failed();
+            out += n;
+            continue;
+        }
         int band = std::max(1, int((int64_t(1) << 22) / (int64_t(part.width) * n)));
-        if (tiled)
+        int first_row = y0;
+        if (tiled) {
             band = std::max(1, band / part.tile_height) * part.tile_height;
-        for (int y = part.y; y < part.y + part.height; y += band) {
-            const int y1 = std::min(part.y + part.height, y + band);
-            rows.resize(size_t(y1 - y) * part.width * n);
+            first_row = part.y + (y0 - part.y) / part.tile_height * part.tile_height;
+        }
+        for (int y = first_row; y < y1; y += band) {
+            const int end = std::min(part.y + part.height,
+                                     tiled ? y + band : std::min(y1, y + band));
+            rows.resize(size_t(end - y) * part.width * n);
             const bool read
-                = tiled ? in->read_tiles(layout.subimages[s], 0, part.x, part.x + part.width, y, y1,
-                                         part.z, part.z + std::max(part.depth, 1), 0, n,
-                                         TypeDesc::FLOAT, rows.data())
-                        : in->read_scanlines(layout.subimages[s], 0, y, y1, part.z, 0, n,
-                                             TypeDesc::FLOAT, rows.data());
+                = tiled ? in.read_tiles(layout.subimages[s], 0, part.x, part.x + part.width, y,
+                                        end, part.z, part.z + std::max(part.depth, 1), 0, n,
+                                        TypeDesc::FLOAT, rows.data())
+                        : in.read_scanlines(layout.subimages[s], 0, y, end, part.z, 0, n,
+                                            TypeDesc::FLOAT, rows.data());
             if (!read)
                 return failed();
-            for (size_t p = 0; p < size_t(y1 - y) * part.width; ++p) {
-                float* to = out + (size_t(y - part.y) * part.width + p) * total;
-                const float* from = rows.data() + p * n;
-                for (size_t j = 0; j < kept.size(); ++j)
-                    to[j] = from[kept[j]];
-            }
+            for (int row = std::max(y, y0); row < std::min(end, y1); ++row)
+                for (int x = 0; x < part.width; ++x) {
+                    float* to = out + (size_t(row - y0) * part.width + x) * total;
+                    const float* from = rows.data() + (size_t(row - y) * part.width + x) * n;
+                    for (size_t j = 0; j < kept.size(); ++j)
+                        to[j] = from[kept[j]];
+                }
         }
         out += kept.size();
     }
@@ -282,7 +282,14 @@ bool read_image(ImageBuf& dst, const std::string& path)
         return false;
     }
     ImageBuf out(layout.merged_spec());
-    if (!allocated(out, path, error) || !read_pixels_into(out, 0, layout, {}, error)) {
+    auto in = ImageInput::open(path);
+    if (!in) {
+        dst.errorfmt("{}: cannot read: {}", path, OIIO::geterror());
+        return false;
+    }
+    const ROI window = layout.parts[0].roi();
+    if (!allocated(out, path, error)
+        || !read_pixels_into(out, 0, layout, *in, {}, window.ybegin, window.yend, error)) {
         dst.errorfmt("{}", error);
         return false;
     }
@@ -441,52 +448,68 @@ std::set<std::string> selected_faces(const ImageSpec& spec, const InputSelection
 
 }  // namespace
 
-bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs,
-                 const InputSelection& selection)
+struct InputRows::Files {
+    std::vector<InputFile> inputs;
+    std::vector<FileLayout> layouts;
+    std::vector<ImageBuf> directories;  // Tungsten buffer sets, read whole
+    std::vector<std::vector<bool>> keep;
+    std::vector<int> first;  // each file's first channel in the merged frame
+    std::vector<std::unique_ptr<ImageInput>> open;  // each file, opened once
+};
+
+InputRows::InputRows() = default;
+InputRows::~InputRows() = default;
+InputRows::InputRows(InputRows&&) noexcept = default;
+InputRows& InputRows::operator=(InputRows&&) noexcept = default;
+
+bool InputRows::open(const std::vector<InputFile>& inputs, const InputSelection& selection,
+                     std::string& error)
 {
+    m_files.reset();
+    m_spec = ImageSpec();
     if (inputs.empty()) {
-        dst.errorfmt("no input image: give one with -i FILE");
+        error = "no input image: give one with -i FILE";
         return false;
     }
-    // Headers first: every name and window is checked and the merged frame allocated before
-    // any pixel is read; then each file reads straight into it (an 8K frame of 40 channels
-    // peaks at its own 5.3 GB, not twice that).
-    std::vector<FileLayout> layouts(inputs.size());
-    std::vector<ImageBuf> directories(inputs.size());  // Tungsten buffer sets, read whole
+    // Headers only: every name and window is checked before any pixel is read.
+    auto files = std::make_unique<Files>();
+    files->inputs = inputs;
+    std::vector<FileLayout>& layouts = files->layouts;
+    std::vector<ImageBuf>& directories = files->directories;
+    layouts.resize(inputs.size());
+    directories.resize(inputs.size());
     std::vector<std::string> names, provenance, output_channels;
     std::map<std::string, std::string> channel_file;
-    std::string error;
     for (size_t i = 0; i < inputs.size(); ++i) {
         const InputFile& input = inputs[i];
         bool is_dir = Filesystem::is_directory(input.path);
         if (is_dir && input.kind != InputKind::Mean) {
-            dst.errorfmt("{}: a Tungsten buffer directory holds every face itself; give it "
-                         "as a plain -i", input.path);
+            error = format("{}: a Tungsten buffer directory holds every face itself; give it "
+                           "as a plain -i", input.path);
             return false;
         }
         if (is_dir) {
             if (!read_tungsten_directory(directories[i], input.path)) {
-                dst.errorfmt("{}", directories[i].geterror());
+                error = directories[i].geterror();
                 return false;
             }
             const ImageSpec& spec = directories[i].spec();
             layouts[i] = { input.path, { spec }, spec.channelnames, { 0 } };
         } else if (!read_layout(layouts[i], input.path, input.part, error)) {
-            dst.errorfmt("{}", error);
             return false;
         }
         const ROI window = layouts[i].parts[0].roi(), first_window = layouts[0].parts[0].roi();
         if (!same_window(window, first_window)) {
-            dst.errorfmt("{}: data window {} differs from {}'s {}", input.path, roi_text(window),
-                         inputs[0].path, roi_text(first_window));
+            error = format("{}: data window {} differs from {}'s {}", input.path,
+                           roi_text(window), inputs[0].path, roi_text(first_window));
             return false;
         }
         for (const auto& ch : layouts[i].names) {
             std::string name = input_kind_prefix(input.kind) + ch;
             if (channel_file.count(name)) {
-                dst.errorfmt("{}: channel '{}' is also in {}; give each input once, with "
-                             "-i:as=variance|halfA|halfB for the other faces",
-                             input.path, name, channel_file[name]);
+                error = format("{}: channel '{}' is also in {}; give each input once, with "
+                               "-i:as=variance|halfA|halfB for the other faces",
+                               input.path, name, channel_file[name]);
                 return false;
             }
             channel_file[name] = input.path;
@@ -498,7 +521,8 @@ bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs,
     }
 
     // Only the variance and half channels the selection wants (the render's: all of them).
-    std::vector<std::vector<bool>> keep(inputs.size());
+    std::vector<std::vector<bool>>& keep = files->keep;
+    keep.resize(inputs.size());
     for (size_t i = 0; i < inputs.size(); ++i)
         keep[i].assign(layouts[i].names.size(), true);
     if (selection.only_roles) {
@@ -507,10 +531,8 @@ bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs,
         all.nchannels = int(names.size());
         all.attribute("mcdn:inputs", Strutil::join(provenance, "\n"));
         const std::set<std::string> wanted = selected_faces(all, selection, error);
-        if (!error.empty()) {
-            dst.errorfmt("{}", error);
+        if (!error.empty())
             return false;
-        }
         names.clear();
         for (size_t i = 0; i < inputs.size(); ++i)
             for (size_t c = 0; c < layouts[i].names.size(); ++c) {
@@ -521,6 +543,12 @@ bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs,
                     names.push_back(name);
             }
     }
+    int first = 0;
+    for (size_t i = 0; i < inputs.size(); ++i) {
+        files->first.push_back(first);
+        first += int(std::count(keep[i].begin(), keep[i].end(), true));
+    }
+    files->open.resize(inputs.size());
 
     // The first mean input's metadata (colour space, camera, renderer) is the output's.
     size_t meta_from = 0;
@@ -542,25 +570,84 @@ bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs,
     if (layouts[meta_from].parts.size() > 1)
         spec.attribute(kPartsAttribute, parts_text(layouts[meta_from]));
     spec.attribute(kOutputChannelsAttribute, Strutil::join(output_channels, "\n"));
-    // Not zero-filled: the files fill every channel (a fill would be a pass more).
+    m_spec = spec;
+    m_files = std::move(files);
+    return true;
+}
+
+bool InputRows::read(ImageBuf& dst, int ybegin, int yend, std::string& error,
+                     const std::vector<bool>& channels) const
+{
+    if (!m_files) {
+        error = "InputRows::read: no inputs opened";
+        return false;
+    }
+    Files& f = *m_files;
+    if (ybegin < m_spec.y || yend > m_spec.y + m_spec.height || ybegin >= yend) {
+        error = format("InputRows::read: rows [{}, {}) outside the frame's [{}, {})", ybegin,
+                       yend, m_spec.y, m_spec.y + m_spec.height);
+        return false;
+    }
+    ImageSpec spec = m_spec;
+    spec.y = ybegin;
+    spec.height = yend - ybegin;
+    // Not zero-filled when every file is read: the files fill every channel (a fill would
+    // be a pass more). A buffer of the same shape is read into again (no fresh pages: a light
+    // pass reads the frame through one).
+    const bool every_file = channels.empty();
     ImageBuf out;
-    allocate_frame(out, spec, false);
-    if (!allocated(out, inputs[meta_from].path, error)) {
+    if (dst.localpixels() && dst.spec().format == TypeDesc::FLOAT
+        && dst.spec().nchannels == spec.nchannels && dst.spec().width == spec.width
+        && dst.spec().height == spec.height && dst.spec().x == spec.x) {
+        out = std::move(dst);
+        out.set_origin(spec.x, spec.y, spec.z);
+    } else {
+        allocate_frame(out, spec, !every_file);
+        if (!allocated(out, f.inputs[0].path, error))
+            return false;
+    }
+    for (size_t i = 0; i < f.inputs.size(); ++i) {
+        const int first = f.first[i];
+        const int count = int(std::count(f.keep[i].begin(), f.keep[i].end(), true));
+        if (!every_file
+            && std::none_of(channels.begin() + first, channels.begin() + first + count,
+                            [](bool b) { return b; }))
+            continue;  // none of its channels wanted: the file is not decoded
+        if (f.directories[i].initialized()) {
+            ROI rows = f.directories[i].roi();
+            rows.ybegin = ybegin;
+            rows.yend = yend;
+            copy_channels(out, first, OIIO::ImageBufAlgo::cut(f.directories[i], rows));
+            continue;
+        }
+        if (!f.open[i]) {
+            f.open[i] = ImageInput::open(f.layouts[i].path);
+            if (!f.open[i]) {
+                error = format("{}: cannot read: {}", f.layouts[i].path, OIIO::geterror());
+                return false;
+            }
+        }
+        if (!read_pixels_into(out, first, f.layouts[i], *f.open[i], f.keep[i], ybegin, yend,
+                              error))
+            return false;
+    }
+    dst = std::move(out);
+    return true;
+}
+
+bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs,
+                 const InputSelection& selection)
+{
+    // Headers first: every name and window is checked and the merged frame allocated before
+    // any pixel is read; then each file reads straight into it (an 8K frame of 40 channels
+    // peaks at its own 5.3 GB, not twice that).
+    InputRows rows;
+    std::string error;
+    if (!rows.open(inputs, selection, error)
+        || !rows.read(dst, rows.spec().y, rows.spec().y + rows.spec().height, error)) {
         dst.errorfmt("{}", error);
         return false;
     }
-    int first = 0;
-    for (size_t i = 0; i < inputs.size(); ++i) {
-        if (directories[i].initialized())
-            copy_channels(out, first, directories[i]);
-        else if (!read_pixels_into(out, first, layouts[i], keep[i], error)) {
-            dst.errorfmt("{}", error);
-            return false;
-        }
-        directories[i].reset();
-        first += int(std::count(keep[i].begin(), keep[i].end(), true));
-    }
-    dst = std::move(out);
     return true;
 }
 

@@ -245,13 +245,13 @@ struct ProbeIndex {
 
 ColourSums colour_sums(const ColorPlanes& color)
 {
-    ColourSums sums;
+    ColourSums part[3];  // as core/frame_facts.h sums them: a channel at a time, then added
     for (int c = 0; c < 3; ++c)
-        for (size_t i = 0; i < color.mean[c].size(); ++i, ++sums.n) {
-            sums.sum_abs += std::fabs(color.mean[c].px[i]);
-            sums.sum_sd += std::sqrt(color.variance[c].px[i]);
+        for (size_t i = 0; i < color.mean[c].size(); ++i, ++part[c].n) {
+            part[c].sum_abs += std::fabs(color.mean[c].px[i]);
+            part[c].sum_sd += std::sqrt(color.variance[c].px[i]);
         }
-    return sums;
+    return combined(part);
 }
 
 /// Without half buffers (a renderer's colour and its variance, as Arnold and RenderMan

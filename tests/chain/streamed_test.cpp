@@ -1,0 +1,149 @@
+// A frame read a band of rows at a time (mcdn::InputRows, run_chain on a RowReader) gives what
+// the frame read whole gives: the same rows from scanline and tiled files, with and without a
+// selection of channels, and the same chain result.
+#include <gtest/gtest.h>
+
+#include <OpenImageIO/imagebufalgo.h>
+
+#include "mcdn/chain.h"
+#include "mcdn/io.h"
+
+#include "fixtures.h"
+
+using namespace mcdn;
+using OIIO::ImageBuf;
+
+namespace {
+
+const char* const kFaces[] = { "", "_var", "_A", "_B" };
+const InputKind kKinds[] = { InputKind::Mean, InputKind::Variance, InputKind::HalfA,
+                             InputKind::HalfB };
+
+// box16's four files, each stacked eight times (64x512), written to `dir` scanline or tiled.
+std::vector<InputFile> tall_files(const std::string& dir, bool tiled)
+{
+    std::vector<InputFile> files;
+    for (int f = 0; f < 4; ++f) {
+        ImageBuf one;
+        EXPECT_TRUE(read_image(one, mcdn_test::test_data("box16/box_0016spp") + kFaces[f] + ".exr"));
+        OIIO::ImageSpec spec = one.spec();
+        spec.height = spec.full_height = 8 * one.spec().height;
+        ImageBuf tall(spec);
+        for (int i = 0; i < 8; ++i)
+            EXPECT_TRUE(OIIO::ImageBufAlgo::paste(tall, 0, i * one.spec().height, 0, 0, one));
+        if (tiled)
+            tall.set_write_tiles(32, 32);
+        const std::string path = dir + "/box" + kFaces[f] + ".exr";
+        EXPECT_TRUE(tall.write(path)) << tall.geterror();
+        files.push_back({ path, kKinds[f] });
+    }
+    return files;
+}
+
+void expect_rows_match(const std::vector<InputFile>& files, const InputSelection& selection)
+{
+    ImageBuf whole;
+    ASSERT_TRUE(read_inputs(whole, files, selection)) << whole.geterror();
+    InputRows rows;
+    std::string error;
+    ASSERT_TRUE(rows.open(files, selection, error)) << error;
+    EXPECT_EQ(rows.spec().channelnames, whole.spec().channelnames);
+    ImageBuf band;
+    // Rows on and off the 32-row tiles, and the frame's last rows.
+    for (auto [y0, y1] : { std::pair { 0, 64 }, { 40, 97 }, { 100, 103 }, { 480, 512 } }) {
+        ASSERT_TRUE(rows.read(band, y0, y1, error)) << error;
+        ASSERT_EQ(band.spec().y, y0);
+        ASSERT_EQ(band.spec().height, y1 - y0);
+        const auto cmp = OIIO::ImageBufAlgo::compare(band, whole, 0, 0, band.roi());
+        EXPECT_EQ(cmp.maxerror, 0.0) << y0 << "-" << y1;
+        EXPECT_EQ(cmp.nfail, 0u);
+    }
+    // Only the colour: the half files are not decoded, their channels zero.
+    const int r = rows.spec().channelindex("ViewLayer.Combined.R");
+    const int a = rows.spec().channelindex("A.ViewLayer.Combined.R");
+    ASSERT_GE(r, 0);
+    ASSERT_GE(a, 0);
+    std::vector<bool> colour(size_t(rows.spec().nchannels), false);
+    colour[size_t(r)] = true;
+    ImageBuf some;
+    ASSERT_TRUE(rows.read(some, 32, 64, error, colour)) << error;
+    EXPECT_EQ(some.getchannel(0, 40, 0, a), 0.0f);
+    EXPECT_NE(whole.getchannel(0, 40, 0, a), 0.0f);
+    EXPECT_EQ(some.getchannel(5, 40, 0, r), whole.getchannel(5, 40, 0, r));
+    EXPECT_FALSE(rows.read(some, 500, 520, error));
+    EXPECT_NE(error.find("outside the frame"), std::string::npos) << error;
+}
+
+// The chain on the files read a band at a time, against the chain in bands on the frame in
+// memory (tests/chain/bands_test.cpp: that is the whole frame's result).
+void expect_chain_match(const std::vector<InputFile>& files, const ChainOptions& o,
+                        double tolerance)
+{
+    ImageBuf whole;
+    ASSERT_TRUE(read_inputs(whole, files)) << whole.geterror();
+    ImageBuf expected;
+    ASSERT_TRUE(run_chain(expected, whole, o)) << expected.geterror();
+
+    InputRows rows;
+    std::string error;
+    ASSERT_TRUE(rows.open(files, InputSelection(), error)) << error;
+    int reads = 0;
+    auto read = [&](ImageBuf& band, int y0, int y1, const std::vector<bool>& channels,
+                    std::string& read_error) {
+        ++reads;
+        return rows.read(band, y0, y1, read_error, channels);
+    };
+    ImageBuf streamed;
+    auto sink = [&](const ImageBuf& band, OIIO::ROI own, std::string&) {
+        own.chbegin = 0;  // every channel of the result (the input's ROI has fewer)
+        own.chend = band.nchannels();
+        if (!streamed.initialized()) {
+            OIIO::ImageSpec spec = band.spec();
+            spec.y = whole.spec().y;
+            spec.height = whole.spec().height;
+            streamed.reset(spec);
+        }
+        return OIIO::ImageBufAlgo::paste(streamed, own.xbegin, own.ybegin, 0, 0,
+                                         OIIO::ImageBufAlgo::cut(band, own));
+    };
+    ASSERT_TRUE(run_chain(rows.spec(), read, o, sink, error)) << error;
+    if (o.band_pixels > 0)
+        EXPECT_GT(reads, 2);  // the light pass and the bands
+    else
+        EXPECT_EQ(reads, 1);
+    ASSERT_EQ(streamed.spec().channelnames, expected.spec().channelnames);
+    const auto cmp = OIIO::ImageBufAlgo::compare(streamed, expected, 0, 0);
+    EXPECT_LE(cmp.maxerror, tolerance) << " at " << cmp.maxx << "," << cmp.maxy << " channel "
+                                       << cmp.maxc << " (" << expected.spec().channel_name(cmp.maxc) << ")";
+}
+
+}  // namespace
+
+TEST(Streamed, RowsAreTheWholeFramesRows)
+{
+    for (bool tiled : { false, true }) {
+        const auto files
+            = tall_files(mcdn_test::temp_dir(tiled ? "streamed_rows_tiled" : "streamed_rows"), tiled);
+        expect_rows_match(files, InputSelection());
+        InputSelection roles;
+        roles.only_roles = true;
+        expect_rows_match(files, roles);
+    }
+}
+
+TEST(Streamed, ChainOnRowsIsTheChainOnTheFrame)
+{
+    const auto files = tall_files(mcdn_test::temp_dir("streamed_chain"), false);
+    ChainOptions o;
+    o.band_pixels = 64 * 64;
+    o.stages = { "cnn", "sure", "mix" };
+    o.settings = { { "mix.model", "analytic" } };
+    expect_chain_match(files, o, 0.0);
+    o.stages = { "prefilter", "nfor" };
+    o.settings = {};
+    expect_chain_match(files, o, 0.0);
+    // One band: the frame is read whole.
+    o.band_pixels = 0;
+    o.stages = { "cnn" };
+    expect_chain_match(files, o, 0.0);
+}
