@@ -119,16 +119,23 @@ bool run_streamed_chain(Session& s, const std::vector<Command>& commands, size_t
             std::cerr << "mcdntool: --denoise runs " << plan.describe() << "\n";
     }
     // Converged tiles are counted on the rows as the chain reads them: each band's own rows
-    // once (bands start on the tile grid, mcdn/skip.h), through the light pass's reads.
+    // once (bands start on the tile grid, mcdn/skip.h), through the light pass's reads, which
+    // then also read the colour and its variance (a cnn chain's pass reads only the depth).
     mcdn::ConvergedCount converged;
     const bool count = s.verbose && aovs.has(mcdn::Role::ColorVariance);
     int counted_until = input.y;
     auto read = [&](ImageBuf& band, int y0, int y1, const std::vector<bool>& channels,
                     std::string& read_error) {
-        if (!rows.read(band, y0, y1, read_error, channels)
+        const bool counting = count && y0 == counted_until;
+        std::vector<bool> wanted = channels;
+        if (counting && !wanted.empty())
+            for (mcdn::Role r : { mcdn::Role::Color, mcdn::Role::ColorVariance })
+                for (int c : aovs.channels(r))
+                    wanted[size_t(c)] = true;
+        if (!rows.read(band, y0, y1, read_error, wanted)
             || !mcdn::validate_inputs(band, aovs, read_error))
             return false;
-        if (count && y0 == counted_until) {
+        if (counting) {
             const mcdn::ConvergedCount c = mcdn::count_converged_tiles(band, aovs);
             converged.converged += c.converged;
             converged.tiles += c.tiles;

@@ -282,6 +282,20 @@ TEST(Pipeline, StagesAndOneOutputStreamInBands)
                                 "MCDN_BAND_PIXELS=1024");
         ASSERT_EQ(run.exit_code, 0) << run.output;
         EXPECT_NE(run.output.find("in 2 band(s) of rows"), std::string::npos) << run.output;
+        // -v counts the converged tiles of the bands as of the whole frame.
+        const auto whole = run_mcdntool("-v " + in + " " + chain + " -o "
+                                            + quote(dir + "/whole.exr"),
+                                        "MCDN_BAND_PIXELS=0");
+        ASSERT_EQ(whole.exit_code, 0) << whole.output;
+        auto converged_line = [](const std::string& out) {
+            const size_t at = out.find(" tiles converged");
+            if (at == std::string::npos)
+                return std::string();
+            const size_t begin = out.rfind('\n', at) + 1;  // npos + 1 = 0
+            return out.substr(begin, at - begin);
+        };
+        EXPECT_NE(converged_line(whole.output), "") << whole.output;
+        EXPECT_EQ(converged_line(run.output), converged_line(whole.output)) << chain;
         run = run_mcdntool(in + " --fixnan none " + chain + " -o " + quote(by_command));
         ASSERT_EQ(run.exit_code, 0) << run.output;
         OIIO::ImageBuf a(streamed), b(by_command);
