@@ -389,4 +389,3 @@ bool run_chain(const ImageSpec& frame, const RowReader& read, const ChainOptions
 }
 
 }  // namespace mcdn
-

@@ -40,13 +40,15 @@ using Strutil::fmt::format;
 
 namespace {
 
-// Copies every channel of `src` into `dst` starting at channel `first` (same ROI, float).
+// Copies every channel of `src` into `dst` starting at channel `first`: dst's rows, which
+// src holds (same columns, float).
 void copy_channels(ImageBuf& dst, int first, const ImageBuf& src)
 {
     const int nsrc = src.nchannels(), ndst = dst.nchannels();
-    const float* in = static_cast<const float*>(src.localpixels());
+    const float* in = static_cast<const float*>(src.localpixels())
+                      + size_t(dst.spec().y - src.spec().y) * src.spec().width * nsrc;
     float* out = static_cast<float*>(dst.localpixels());
-    const size_t npixels = src.spec().image_pixels();
+    const size_t npixels = dst.spec().image_pixels();
     for (size_t p = 0; p < npixels; ++p)
         for (int c = 0; c < nsrc; ++c)
             out[p * ndst + first + c] = in[p * nsrc + c];
@@ -614,10 +616,7 @@ bool InputRows::read(ImageBuf& dst, int ybegin, int yend, std::string& error,
                             [](bool b) { return b; }))
             continue;  // none of its channels wanted: the file is not decoded
         if (f.directories[i].initialized()) {
-            ROI rows = f.directories[i].roi();
-            rows.ybegin = ybegin;
-            rows.yend = yend;
-            copy_channels(out, first, OIIO::ImageBufAlgo::cut(f.directories[i], rows));
+            copy_channels(out, first, f.directories[i]);
             continue;
         }
         if (!f.open[i]) {
