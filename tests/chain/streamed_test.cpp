@@ -142,8 +142,14 @@ TEST(Streamed, ChainOnRowsIsTheChainOnTheFrame)
     o.stages = { "prefilter", "nfor" };
     o.settings = {};
     expect_chain_match(files, o, 0.0);
-    // One band: the frame is read whole.
+    // One band: the frame is read whole, and the chain runs on it as its own (sure probes
+    // it in place; a prefilter's features are put back from it after).
     o.band_pixels = 0;
     o.stages = { "cnn" };
+    expect_chain_match(files, o, 0.0);
+    o.stages = { "cnn", "sure", "mix" };
+    o.settings = { { "mix.model", "analytic" } };
+    expect_chain_match(files, o, 0.0);
+    o.stages = { "prefilter", "nfor", "sure", "mix" };
     expect_chain_match(files, o, 0.0);
 }

@@ -12,6 +12,7 @@
 #include "fixtures.h"
 #include "same_pixels.h"
 #include "synthetic.h"
+#include "sure/sure_steps.h"
 
 using namespace mcdn;
 using namespace mcdn_test;
@@ -56,6 +57,41 @@ TEST(SureBands, NforChainInBandsEqualsTheWholeFrame)
     banded.band_pixels = 64 * 64;  // 64 own rows, halos of 77 rounded to 96
     ImageBuf a = sure_of(src, chain, whole), b = sure_of(src, chain, banded);
     EXPECT_TRUE(same_pixels(a, b)) << "largest difference " << max_difference(a, b);
+}
+
+TEST(SureBands, ProbingTheCallersFrameGivesSuresResultAndPutsItBack)
+{
+    // sure_probing_src probes src itself (one band): nfor copies its input with the room
+    // sure asks for (core/attributes.h); a callable that copies without it is written into
+    // an output of sure's own.
+    NforOptions n;
+    struct Case {
+        ImageBuf frame;
+        Denoiser denoiser;
+        AovSpec aovs;
+    };
+    Case cases[] = {
+        { tall_box16(), [&](ImageBuf& d, const ImageBuf& s) { return nfor(d, s, n, {}, 2); },
+          AovSpec() },
+        { noisy_render(48, 200, ramp, 0.01f, 3), box_denoiser(2), generic_spec() },
+    };
+    for (Case& c : cases) {
+        SureOptions options;
+        options.aovs = c.aovs;
+        const ImageBuf before = c.frame.copy(OIIO::TypeDesc::FLOAT);
+        const std::string spec_before = c.frame.spec().to_xml();
+        ImageBuf expected, probed;
+        ASSERT_TRUE(sure(expected, c.frame, c.denoiser, options, {}, 2)) << expected.geterror();
+        ASSERT_TRUE(sure_probing_src(probed, c.frame, c.denoiser, options, {}, 2))
+            << probed.geterror();
+        EXPECT_EQ(probed.spec().channelnames, expected.spec().channelnames);
+        EXPECT_TRUE(same_pixels(expected, probed))
+            << "largest difference " << max_difference(expected, probed);
+        EXPECT_FALSE(probed.spec().find_attribute("mcdn:output_room"));
+        // The caller's frame as it was: pixels and attributes.
+        EXPECT_TRUE(same_pixels(c.frame, before));
+        EXPECT_EQ(c.frame.spec().to_xml(), spec_before);
+    }
 }
 
 TEST(SureBands, ProbesAreDrawnPerFramePixel)

@@ -5,6 +5,7 @@
 
 #include <OpenImageIO/strutil.h>
 
+#include "chain/chain_steps.h"
 #include "core/frame_facts.h"
 #include "core/op_prepare.h"
 #include "mcdn/cnn.h"
@@ -14,6 +15,7 @@
 #include "mcdn/prefilter.h"
 #include "mcdn/settings.h"
 #include "mcdn/sure.h"
+#include "sure/sure_steps.h"
 
 namespace mcdn {
 
@@ -172,8 +174,11 @@ bool keeps_prefiltered_features(const ChainOptions& o)
     return false;
 }
 
-bool run_stages(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, ROI roi,
-                int nthreads);
+// `own`: src itself, mutable (run_chain_on_own), or null.
+bool run_stages(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOptions& o,
+                ROI roi, int nthreads);
+bool run_chain_impl(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOptions& o,
+                    ROI roi, int nthreads);
 
 // The chain in bands (chain_bands.cpp), its rows gathered into dst: the frame-sized result
 // and one band are all that is allocated besides src.
@@ -215,12 +220,25 @@ bool run_chain_into(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, i
 
 bool run_chain(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, ROI roi, int nthreads)
 {
+    return run_chain_impl(dst, src, nullptr, o, roi, nthreads);
+}
+
+bool run_chain_on_own(ImageBuf& dst, ImageBuf& src, const ChainOptions& o, int nthreads)
+{
+    return run_chain_impl(dst, src, &src, o, {}, nthreads);
+}
+
+namespace {
+
+bool run_chain_impl(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOptions& o,
+                    ROI roi, int nthreads)
+{
     // A band of a larger frame (it carries the frame's facts) is never cut again.
     const bool whole_frame = (!roi.defined() || roi == src.roi())
                              && !is_frame_band(src.spec());
     if (o.band_pixels > 0 && whole_frame && int64_t(src.roi().npixels()) > o.band_pixels)
         return run_chain_into(dst, src, o, nthreads);
-    if (!run_stages(dst, src, o, roi, nthreads))
+    if (!run_stages(dst, src, own, o, roi, nthreads))
         return false;
     if (keeps_prefiltered_features(o))
         return true;
@@ -235,10 +253,8 @@ bool run_chain(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, ROI ro
     return true;
 }
 
-namespace {
-
-bool run_stages(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, ROI roi,
-                int nthreads)
+bool run_stages(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOptions& o,
+                ROI roi, int nthreads)
 {
     std::vector<std::string> check;
     std::string error;
@@ -257,7 +273,7 @@ bool run_stages(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, ROI r
         planned.stages = plan.stages;
         if (!planned.settings.count("mix.model"))
             planned.settings["mix.model"] = "net";
-        if (!run_chain(dst, src, planned, roi, nthreads))
+        if (!run_chain_impl(dst, src, own, planned, roi, nthreads))
             return false;
         dst.specmod().attribute("mcdn:denoise_plan", plan.describe());
         return true;
@@ -284,7 +300,15 @@ bool run_stages(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, ROI r
             SureOptions s;
             stage_options(s, o, name, error);
             s.denoiser_radius = chain_radius(pending_reach);
-            ok = sure(next, *current, compose(std::move(pending)), s, roi, nthreads);
+            // Probed in the chain's own input where it has one (a frame less).
+            const bool probe_own = own && current == &src;
+            ok = probe_own
+                     ? sure_probing_src(next, *own, compose(std::move(pending)), s, roi, nthreads)
+                     : sure(next, *current, compose(std::move(pending)), s, roi, nthreads);
+            // No later stage reads the chain's input: its pages go back now (the mix's
+            // network is next).
+            if (ok && probe_own && keeps_prefiltered_features(o))
+                own->reset();
             pending.clear();
             pending_reach.clear();
         } else {  // mix

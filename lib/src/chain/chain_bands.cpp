@@ -9,6 +9,7 @@
 
 #include <OpenImageIO/strutil.h>
 
+#include "chain/chain_steps.h"
 #include "cnn/cnn_steps.h"
 #include "core/bands.h"
 #include "core/channels.h"
@@ -238,7 +239,7 @@ bool run_bands(const std::vector<Band>& bands, const ROI& whole, const FrameFact
         if (!rows(band, bands[b], error))
             return false;
         set_frame_facts(band.specmod(), facts);
-        if (!run_chain(result, band, band_options, {}, nthreads)) {
+        if (!run_chain_on_own(result, band, band_options, nthreads)) {
             error = result.geterror();
             return false;
         }
@@ -271,18 +272,21 @@ std::vector<Band> chain_bands(const ImageSpec& spec, const ChainOptions& o)
                                               : plan_bands(spec.roi(), 0, 0);
 }
 
-// A frame of one band: the chain on the whole of it, handed on at once.
-bool run_whole(const ImageBuf& input, const ChainOptions& o, const BandSink& sink,
-               std::string& error, int nthreads)
+// A frame of one band: the chain on the whole of it, handed on at once. `own`: input
+// itself, when it is ours (read for the chain), else null.
+bool run_whole(const ImageBuf& input, ImageBuf* own, const ChainOptions& o,
+               const BandSink& sink, std::string& error, int nthreads)
 {
+    const ROI whole = input.roi();  // before the chain: it may release its own input
     ImageBuf result;
     ChainOptions whole_frame = o;
     whole_frame.band_pixels = 0;
-    if (!run_chain(result, input, whole_frame, {}, nthreads)) {
+    if (!(own ? run_chain_on_own(result, *own, whole_frame, nthreads)
+              : run_chain(result, input, whole_frame, {}, nthreads))) {
         error = result.geterror();
         return false;
     }
-    return sink(result, input.roi(), error);
+    return sink(result, whole, error);
 }
 
 // The input's colour space and the frame's resolved AOVs, for a chain in bands.
@@ -305,7 +309,7 @@ bool run_chain(const ImageBuf& input, const ChainOptions& o, const BandSink& sin
     const ROI whole = input.roi();
     const std::vector<Band> bands = chain_bands(input.spec(), o);
     if (bands.size() == 1)
-        return run_whole(input, o, sink, error, nthreads);
+        return run_whole(input, nullptr, o, sink, error, nthreads);
     // The light pass and the bands in the working space (the stages then convert nothing);
     // each band's result back in the input's space before it is handed on.
     std::string from;
@@ -346,7 +350,7 @@ bool run_chain(const ImageSpec& frame, const RowReader& read, const ChainOptions
     if (bands.size() == 1) {  // read whole, run whole
         ImageBuf input;
         return read(input, whole.ybegin, whole.yend, {}, error)
-               && run_whole(input, o, sink, error, nthreads);
+               && run_whole(input, &input, o, sink, error, nthreads);
     }
     std::string from;
     AovSet aovs;

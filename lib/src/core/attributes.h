@@ -18,6 +18,13 @@ constexpr const char* kProbeAttribute = "mcdn:sure_probe";
 /// a frame-sized copy less per probe). compose keeps it for a chain's last stage only.
 constexpr const char* kColourOnlyAttribute = "mcdn:colour_only";
 
+/// Channel names, one a line, that an op copying its input (prepare_op) appends, zero, to
+/// its output, and then drops from the output's attributes. sure sets it on the input of
+/// its unprobed run when that input is the caller's own frame rather than a copy with room
+/// for sure's channels: the denoiser's copy then has the room, and becomes sure's output
+/// without another frame-sized copy. An op that does not copy its input ignores it.
+constexpr const char* kOutputRoomAttribute = "mcdn:output_room";
+
 /// A tile map (skip/converged_tiles.h's encoding) a denoiser decided from its input and set
 /// on its output (nfor's safety net, skip/worse_tiles.h). sure sets it on its probes' input,
 /// where the denoiser uses it instead of deciding anew: a probe then differs from the

@@ -5,6 +5,8 @@
 
 #include <OpenImageIO/strutil.h>
 
+#include "core/attributes.h"
+#include "core/channels.h"
 #include "core/huge_pages.h"
 #include "core/planar.h"
 #include "mcdn/threads.h"
@@ -59,6 +61,18 @@ bool prepare_op(ImageBuf& dst, const ImageBuf& src, const AovSpec& spec, AovSet&
     }
     if (&dst == &src)
         return true;
+    // Room for channels a caller will add (core/attributes.h): the copy made with them.
+    const std::string room = src.spec().get_string_attribute(kOutputRoomAttribute);
+    if (!room.empty()) {
+        dst = copy_with_channels(src, OIIO::Strutil::splits(room, "\n"), {}, nthreads);
+        if (!dst.localpixels()) {
+            dst.errorfmt("{}: could not allocate a copy of the input with {} more channels",
+                         op, OIIO::Strutil::splits(room, "\n").size());
+            return false;
+        }
+        dst.specmod().erase_attribute(kOutputRoomAttribute);
+        return true;
+    }
     // Fast path: a float buffer in memory is copied with one memcpy (ImageBuf::copy goes
     // pixel by pixel, slow on many-channel frames).
     if (const float* pixels = float_frame_pixels(src)) {

@@ -5,9 +5,13 @@
 
 #include <cmath>
 
+#include <OpenImageIO/strutil.h>
+
+#include "core/attributes.h"
 #include "core/channels.h"
 #include "core/frame_facts.h"
 #include "core/op_prepare.h"
+#include "core/planar.h"
 #include "core/progress.h"
 #include "core/trace.h"
 #include "mcdn/color.h"
@@ -17,8 +21,9 @@ namespace mcdn {
 
 namespace {
 
+// `probed`: src itself, mutable (sure_probing_src), or null: the copy of a band is probed.
 bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& denoiser,
-                           const SureOptions& options, ROI roi, int nthreads)
+                           const SureOptions& options, ROI roi, int nthreads, ImageBuf* probed)
 {
     AovSet aovs;
     std::string error;
@@ -81,13 +86,37 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
             : plan_bands(frame.whole, 0, 0);
     ImageBuf out;
     ProgressCounter progress(options.progress, "sure", int(bands.size()));
+    // One band of a float frame in memory that is the caller's to probe: probed as it is
+    // (its spec and its probed channels' bits put back after), the denoiser's copy of it
+    // given the room for sure's channels (core/attributes.h): a frame-sized copy less.
+    const bool in_place = probed && bands.size() == 1 && float_frame_pixels(*probed);
+    struct SpecBack {
+        ImageBuf* buf;
+        ImageSpec spec;
+        ~SpecBack()
+        {
+            if (buf)
+                buf->specmod() = spec;
+        }
+    } spec_back { in_place ? probed : nullptr, in_place ? probed->spec() : ImageSpec() };
     for (const Band& band : bands) {
         // The band's rows, with room for sure's channels (sure_steps.h).
-        ImageBuf noisy = copy_with_channels(src, sure_channel_names(frame), band.cut, nthreads);
-        if (!noisy.localpixels())
-            return dst.errorfmt("sure: could not allocate a {}x{} frame of {} channels",
-                                noisy.spec().width, noisy.spec().height,
-                                noisy.spec().nchannels), false;
+        ImageBuf copy;
+        if (in_place) {
+            std::vector<std::string> room;
+            for (const std::string& name : sure_channel_names(frame))
+                if (src.spec().channelindex(name) < 0)
+                    room.push_back(name);
+            if (!room.empty())
+                probed->specmod().attribute(kOutputRoomAttribute, OIIO::Strutil::join(room, "\n"));
+        } else {
+            copy = copy_with_channels(src, sure_channel_names(frame), band.cut, nthreads);
+            if (!copy.localpixels())
+                return dst.errorfmt("sure: could not allocate a {}x{} frame of {} channels",
+                                    copy.spec().width, copy.spec().height,
+                                    copy.spec().nchannels), false;
+        }
+        ImageBuf& noisy = in_place ? *probed : copy;
         if (!band_of_frame)
             set_frame_facts(noisy.specmod(), facts);
         if (!sure_band(out, noisy, band, denoiser, options, frame, error)) {
@@ -114,7 +143,19 @@ bool sure(ImageBuf& dst, const ImageBuf& src, const Denoiser& denoiser,
     if (!check_op_threads(dst, nthreads, "sure"))
         return false;
     return run_in_working_space(dst, src, options.aovs, "sure", [&](ImageBuf& d, const ImageBuf& s) {
-        return sure_in_working_space(d, s, denoiser, options, roi, nthreads);
+        return sure_in_working_space(d, s, denoiser, options, roi, nthreads, nullptr);
+    });
+}
+
+bool sure_probing_src(ImageBuf& dst, ImageBuf& src, const Denoiser& denoiser,
+                      const SureOptions& options, ROI roi, int nthreads)
+{
+    if (!check_op_threads(dst, nthreads, "sure"))
+        return false;
+    // src itself only where the op runs on it (not on a copy in the working space).
+    return run_in_working_space(dst, src, options.aovs, "sure", [&](ImageBuf& d, const ImageBuf& s) {
+        return sure_in_working_space(d, s, denoiser, options, roi, nthreads,
+                                     &s == &src ? &src : nullptr);
     });
 }
 

@@ -201,7 +201,10 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
     {
         ImageBuf denoised;
         trace.mark("read x, converged tiles");
-        if (!denoiser(denoised, noisy)) {
+        const bool ran = denoiser(denoised, noisy);
+        noisy.specmod().erase_attribute(kOutputRoomAttribute);  // for this run only
+        denoised.specmod().erase_attribute(kOutputRoomAttribute);  // a callable's copy of it
+        if (!ran) {
             error = format("sure: the denoiser failed: {}", denoised.geterror());
             return false;
         }

@@ -35,12 +35,19 @@ struct SureFrame {
 /// sure.residual.*, then noisy.<extra>, then sure.fallback when asked for.
 std::vector<std::string> sure_channel_names(const SureFrame& frame);
 
+/// mcdn::sure on a src that is the caller's own: when the frame is one band, its probes are
+/// made in src itself, not in a copy (a frame-sized copy less), and src's pixels and spec
+/// are as they were when it returns (also on failure). Meanwhile nothing else may read src.
+bool sure_probing_src(ImageBuf& dst, ImageBuf& src, const Denoiser& denoiser,
+                      const SureOptions& options, ROI roi = {}, int nthreads = 0);
+
 /// Runs the denoiser on `noisy` (one band of the frame, its own float copy: probed in place)
 /// K + 1 times and writes the band's own rows of dst: the denoised channels, noisy.*, sure.*,
 /// sure.divergence.*, sure.residual.*, noisy.<extra>. The first band allocates dst (the
 /// frame's window, the denoiser's channels plus those). `noisy` comes with those channels
-/// (zero): a denoiser that keeps every channel then returns them, and when the band is the
-/// whole frame its result becomes dst itself, without a frame-sized copy. False with
+/// (zero), or asks for them (kOutputRoomAttribute, dropped after the unprobed run): a
+/// denoiser that keeps every channel then returns them, and when the band is the whole
+/// frame its result becomes dst itself, without a frame-sized copy. False with
 /// `error` on failure.
 bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser& denoiser,
                const SureOptions& options, const SureFrame& frame, std::string& error);
