@@ -1,5 +1,7 @@
 // Extra AOVs (light groups) through the beauty's KPCN kernels add up to the denoised beauty,
 // with the diffuse/specular split (Cycles passes) and without it (Tungsten buffers).
+#include <OpenImageIO/imagebufalgo.h>
+
 #include "fixtures.h"
 #include "mcdn/cnn.h"
 #include "mcdn/io.h"
@@ -35,6 +37,12 @@ TEST(CnnExtras, LightGroupsAddUpToTheDenoisedBeauty)
             EXPECT_NEAR(out.getchannel(7, 9, 0, p.beauty[c]), v, 1e-5f * std::abs(v) + 1e-7f);
         }
         EXPECT_EQ(alone.getchannel(7, 9, 0, p.key[0]), p.image.getchannel(7, 9, 0, p.key[0]));
+
+        // In place (the chain's own band): the same light groups.
+        o.denoise_extras = true;
+        ImageBuf in_place = p.image.copy(OIIO::TypeDesc::FLOAT);
+        ASSERT_TRUE(cnn(in_place, in_place, o)) << in_place.geterror();
+        EXPECT_EQ(OIIO::ImageBufAlgo::compare(in_place, out, 0, 0).maxerror, 0.0) << preset;
     }
 }
 

@@ -333,6 +333,18 @@ bool run_stages(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOp
             dst = std::move(made);
         return true;
     }
+    if (own && current == &src && pending.size() == 1 && pending[0].first == "cnn"
+        && keeps_prefiltered_features(o)) {
+        // The chain's own input is read by nothing after: the cnn runs in place (a frame
+        // less; cnn.cpp keeps the colour it reads apart from the one it writes).
+        if (!pending[0].second(*own, *own)) {
+            dst.errorfmt("cnn: {}", own->geterror());
+            return false;
+        }
+        dst = std::move(*own);
+        *own = ImageBuf();  // a moved-from ImageBuf has no state at all (not even empty)
+        return true;
+    }
     return compose(std::move(pending))(dst, *current);
 }
 

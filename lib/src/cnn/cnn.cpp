@@ -55,11 +55,13 @@ bool with_threads(int nthreads, Body&& body)
 }
 
 /// Eq. 4 on `rect` (frame pixels inside the tile's core): colour = (albedo + eps) ·
-/// irradiance + exp(log specular) − 1, written into the frame except on converged tiles
-/// (a tile the network ran on for its neighbours keeps the render); with extras, their
-/// shares of the two components too (pass_through_extras restores converged tiles).
-void recombine(kpcn::OutputFrame& frame, Rect rect, const Rect& window, const kpcn::Worker& worker,
-               bool split, const ImageBuf& src, const AovSet& aovs, const std::vector<int>& color,
+/// irradiance + exp(log specular) − 1, written into `colour_frame`'s channels `color` except
+/// on converged tiles (a tile the network ran on for its neighbours keeps the render); with
+/// extras, their shares of the two components too, into `frame` (pass_through_extras
+/// restores converged tiles).
+void recombine(kpcn::OutputFrame& colour_frame, kpcn::OutputFrame& frame, Rect rect,
+               const Rect& window, const kpcn::Worker& worker, bool split, const ImageBuf& src,
+               const AovSet& aovs, const std::vector<int>& color,
                const std::vector<ExtraPlanes>& extras, const ConvergedTiles& converged)
 {
     Plane demod[3];
@@ -78,7 +80,7 @@ void recombine(kpcn::OutputFrame& frame, Rect rect, const Rect& window, const kp
         for (int x = rect.x0; x < rect.x1; ++x) {
             const float* ls = log_spec.pixel(y - window.y0, x - window.x0);
             const float* irr = split ? irradiance->pixel(y - window.y0, x - window.x0) : nullptr;
-            float* out = frame.pixel(x, y);
+            float* out = colour_frame.pixel(x, y);
             const size_t i = size_t(y - rect.y0) * rect.width() + (x - rect.x0);
             const bool render_stays = converged.pixel(x, y);
             for (int c = 0; c < 3; ++c) {
@@ -130,16 +132,20 @@ void pass_through_color(kpcn::OutputFrame& frame, const ImageBuf& dst,
 bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& options,
                           ROI roi, int nthreads)
 {
-    if (&dst == &src) {  // the tiles read the render while others write their results
+    // A SURE probe's result is read for its colour alone (core/attributes.h): then dst is
+    // the colour channels, not a copy of every channel of the frame.
+    const bool colour_only = src.spec().get_int_attribute(kColourOnlyAttribute, 0) == 1;
+    // In place, the tiles read the render's colour around them while others write theirs:
+    // the colour is made in a frame of its own and then written into dst (the extras' inputs
+    // are planes of their own already, read_extras). Else on a copy of the render.
+    const bool in_place = &dst == &src;
+    if (in_place && (colour_only || !float_frame_pixels(src))) {
         const ImageBuf render = src.copy(OIIO::TypeDesc::FLOAT);
         return cnn_in_working_space(dst, render, options, roi, nthreads);
     }
     StageTrace trace("cnn");
     AovSet aovs;
     std::string error;
-    // A SURE probe's result is read for its colour alone (core/attributes.h): then dst is
-    // the colour channels, not a copy of every channel of the frame.
-    const bool colour_only = src.spec().get_int_attribute(kColourOnlyAttribute, 0) == 1;
     if (colour_only) {
         if (!check_op_input(src, options.aovs, aovs, "cnn", error)
             || !aovs.require({ Role::Color }, src.spec(), error)) {
@@ -177,6 +183,15 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
     kpcn::OutputFrame frame(dst);
     if (!frame.valid()) {
         dst.errorfmt("cnn: the output frame is not in memory");
+        return false;
+    }
+    ImageBuf made_colour;  // in place: the colour frame, the render's until a tile writes
+    if (in_place)
+        made_colour = OIIO::ImageBufAlgo::channels(src, 3, out_color);
+    kpcn::OutputFrame colour_frame(in_place ? made_colour : dst);
+    const std::vector<int> colour_channels = in_place ? std::vector<int> { 0, 1, 2 } : out_color;
+    if (!colour_frame.valid()) {
+        dst.errorfmt("cnn: could not make the colour frame");
         return false;
     }
     const std::string path = options.weights.empty() ? default_cnn_weights() : options.weights;
@@ -251,8 +266,8 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
                     error = "cnn: '" + path + "': " + tile_error;
                 return false;
             }
-            recombine(frame, output_rect(tile.core, dst, where), tile.window, k, split, src, aovs,
-                      out_color, extras, converged);
+            recombine(colour_frame, frame, output_rect(tile.core, dst, where), tile.window, k,
+                      split, src, aovs, colour_channels, extras, converged);
             progress.advance();
             return true;
         };
@@ -263,6 +278,11 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
         return false;
     }
     trace.mark("network tiles (4.2, eq. 4)");
+    if (in_place)
+        for (int y = where.ybegin - dst.spec().y; y < where.yend - dst.spec().y; ++y)
+            for (int x = where.xbegin - dst.spec().x; x < where.xend - dst.spec().x; ++x)
+                for (int c = 0; c < 3; ++c)
+                    frame.pixel(x, y)[out_color[c]] = colour_frame.pixel(x, y)[c];
     // Converged tiles keep the render (sanitized), the extras' too.
     pass_through_color(frame, dst, out_color, where, converged);
     pass_through_extras(dst, where, extras, converged);
