@@ -6,6 +6,7 @@
 
 #include <OpenImageIO/imagebufalgo.h>
 
+#include "mcdn/cnn.h"
 #include "mcdn/nfor.h"
 #include "mcdn/prefilter.h"
 #include "mcdn/settings.h"
@@ -57,6 +58,39 @@ TEST(SureBands, NforChainInBandsEqualsTheWholeFrame)
     banded.band_pixels = 64 * 64;  // 64 own rows, halos of 77 rounded to 96
     ImageBuf a = sure_of(src, chain, whole), b = sure_of(src, chain, banded);
     EXPECT_TRUE(same_pixels(a, b)) << "largest difference " << max_difference(a, b);
+}
+
+TEST(SureBands, ComposedInPlaceIsComposed)
+{
+    // compose_in_place runs each stage after the first on the result before it (the ops
+    // may run in place): the same result, for the unprobed run and a colour-only probe, and
+    // a failing stage still names itself.
+    ImageBuf src = tall_box16();
+    PrefilterOptions p;
+    NforOptions n;
+    CnnOptions c;
+    const std::vector<std::pair<std::string, Denoiser>> stages = {
+        { "prefilter", [&](ImageBuf& d, const ImageBuf& s) { return prefilter(d, s, p, {}, 2); } },
+        { "nfor", [&](ImageBuf& d, const ImageBuf& s) { return nfor(d, s, n, {}, 2); } },
+        { "cnn", [&](ImageBuf& d, const ImageBuf& s) { return cnn(d, s, c, {}, 2); } },
+    };
+    for (bool probe : { false, true }) {
+        ImageBuf input = src.copy(OIIO::TypeDesc::FLOAT);
+        if (probe)
+            input.specmod().attribute("mcdn:colour_only", 1);
+        ImageBuf a, b;
+        ASSERT_TRUE(compose(stages)(a, input)) << a.geterror();
+        ASSERT_TRUE(compose_in_place(stages)(b, input)) << b.geterror();
+        EXPECT_EQ(a.spec().channelnames, b.spec().channelnames);
+        EXPECT_TRUE(same_pixels(a, b)) << "largest difference " << max_difference(a, b);
+    }
+    NforOptions bad;
+    bad.window_radius = -1;
+    ImageBuf failed;
+    EXPECT_FALSE(compose_in_place({ stages[0], { "nfor", [&](ImageBuf& d, const ImageBuf& s) {
+                                                    return nfor(d, s, bad, {}, 2);
+                                                } } })(failed, src));
+    EXPECT_EQ(failed.geterror().rfind("nfor: ", 0), 0u) << failed.geterror();
 }
 
 TEST(SureBands, ProbingTheCallersFrameGivesSuresResultAndPutsItBack)

@@ -42,6 +42,9 @@ bool parse_finite(const std::string& text, double& value);
 /// Denoisers run one after the other as one Denoiser (what SURE probes); a failing stage's
 /// error is reported as "name: error".
 Denoiser compose(std::vector<std::pair<std::string, Denoiser>> stages);
+/// The same for stages that may run in place (dst and src one buffer, as every mcdn op
+/// may): each stage after the first runs on the result before it, no frame-sized copy.
+Denoiser compose_in_place(std::vector<std::pair<std::string, Denoiser>> stages);
 
 /// How far one denoiser of a chain reaches (its stage's receptive_radius()): on an input not
 /// yet prefiltered and on one that is; -1 when not known (the cnn, a callable).

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 
+#include <OpenImageIO/imagebufalgo.h>
 #include <OpenImageIO/strutil.h>
 
 #include "chain/chain_steps.h"
@@ -238,14 +239,35 @@ bool run_chain_impl(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const Cha
                              && !is_frame_band(src.spec());
     if (o.band_pixels > 0 && whole_frame && int64_t(src.roi().npixels()) > o.band_pixels)
         return run_chain_into(dst, src, o, nthreads);
-    if (!run_stages(dst, src, own, o, roi, nthreads))
-        return false;
-    if (keeps_prefiltered_features(o))
-        return true;
+    const bool put_back = !keeps_prefiltered_features(o);
     AovSet aovs;
     std::string error;
-    if (!resolve_aovs(aovs, o.aovs, src.spec(), error)
-        || !copy_channels_by_name(dst, src, feature_channel_names(aovs, src.spec()), error)) {
+    std::vector<std::string> features;
+    if (put_back) {
+        if (!resolve_aovs(aovs, o.aovs, src.spec(), error)) {
+            dst.errorfmt("{}", error);
+            return false;
+        }
+        features = feature_channel_names(aovs, src.spec());
+    }
+    // The chain's own input may be changed in place (run_stages): its features are kept
+    // apart first, to be put back from there.
+    ImageBuf kept;
+    if (own && put_back && !features.empty()) {
+        std::vector<int> channels;
+        for (const std::string& name : features)
+            channels.push_back(src.spec().channelindex(name));
+        kept = OIIO::ImageBufAlgo::channels(src, int(channels.size()), channels, {}, features);
+        if (kept.has_error()) {
+            dst.errorfmt("keeping the input's features: {}", kept.geterror());
+            return false;
+        }
+    }
+    if (!run_stages(dst, src, own, o, roi, nthreads))
+        return false;
+    if (!put_back)
+        return true;
+    if (!copy_channels_by_name(dst, own ? kept : src, features, error)) {
         dst.errorfmt("putting back the input's features: {}", error);
         return false;
     }
@@ -303,11 +325,12 @@ bool run_stages(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOp
             // Probed in the chain's own input where it has one (a frame less).
             const bool probe_own = own && current == &src;
             ok = probe_own
-                     ? sure_probing_src(next, *own, compose(std::move(pending)), s, roi, nthreads)
-                     : sure(next, *current, compose(std::move(pending)), s, roi, nthreads);
-            // No later stage reads the chain's input: its pages go back now (the mix's
-            // network is next).
-            if (ok && probe_own && keeps_prefiltered_features(o))
+                     ? sure_probing_src(next, *own, compose_in_place(std::move(pending)), s, roi,
+                                        nthreads)
+                     : sure(next, *current, compose_in_place(std::move(pending)), s, roi, nthreads);
+            // No later stage reads the chain's input (its features are kept apart): its
+            // pages go back now (the mix's network is next).
+            if (ok && probe_own)
                 own->reset();
             pending.clear();
             pending_reach.clear();
@@ -333,19 +356,20 @@ bool run_stages(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOp
             dst = std::move(made);
         return true;
     }
-    if (own && current == &src && pending.size() == 1 && pending[0].first == "cnn"
-        && keeps_prefiltered_features(o)) {
-        // The chain's own input is read by nothing after: the cnn runs in place (a frame
-        // less; cnn.cpp keeps the colour it reads apart from the one it writes).
-        if (!pending[0].second(*own, *own)) {
-            dst.errorfmt("cnn: {}", own->geterror());
-            return false;
-        }
+    if (own && current == &src) {
+        // The chain's own input is read by nothing after (its features are kept apart): the
+        // denoisers run in place on it, no frame-sized copy each (prefilter and nfor read
+        // their planes before they write, the cnn keeps the colour it reads apart).
+        for (const auto& [name, stage] : pending)
+            if (!stage(*own, *own)) {
+                dst.errorfmt("{}: {}", name, own->geterror());
+                return false;
+            }
         dst = std::move(*own);
         *own = ImageBuf();  // a moved-from ImageBuf has no state at all (not even empty)
         return true;
     }
-    return compose(std::move(pending))(dst, *current);
+    return compose_in_place(std::move(pending))(dst, *current);
 }
 
 }  // namespace

@@ -6,10 +6,10 @@
 namespace mcdn {
 
 /// mcdn::run_chain on the whole of a src that is the caller's own (a band it read or cut,
-/// a frame it read): sure probes src itself instead of a copy (sure/sure_steps.h
-/// sure_probing_src), so a band costs a frame-sized buffer less, and src is released
-/// (reset) as soon as no later stage needs it; else it is as it was when this returns.
-/// Meanwhile nothing else may read it.
+/// a frame it read), which it uses up: sure probes src itself instead of a copy
+/// (sure/sure_steps.h sure_probing_src) and src is released once sure is done; denoisers
+/// after the last sure (or with none) run in place on it. A band then costs no frame-sized
+/// copy of itself. src is left empty or changed; nothing else may read it meanwhile.
 bool run_chain_on_own(ImageBuf& dst, ImageBuf& src, const ChainOptions& options, int nthreads);
 
 }  // namespace mcdn

@@ -292,9 +292,11 @@ Settings stage_settings(const std::map<std::string, std::string>& all, const std
     return settings;
 }
 
-Denoiser compose(std::vector<std::pair<std::string, Denoiser>> stages)
+namespace {
+
+Denoiser composed(std::vector<std::pair<std::string, Denoiser>> stages, bool in_place)
 {
-    return [stages = std::move(stages)](ImageBuf& dst, const ImageBuf& src) {
+    return [stages = std::move(stages), in_place](ImageBuf& dst, const ImageBuf& src) {
         // Each stage reads the one before's result; the first reads src itself (a copy of
         // the frame per call would be SURE's largest cost after the denoiser's own).
         const ImageBuf* input = &src;
@@ -304,8 +306,18 @@ Denoiser compose(std::vector<std::pair<std::string, Denoiser>> stages)
             const auto& [name, stage] = stages[i];
             const bool last = i + 1 == stages.size();
             ImageBuf next;
-            bool ok = stage(next, *input);
-            if (ok && !last && next.nchannels() < input->nchannels()) {
+            // In place on the one before's result, which nothing else reads (never
+            // colour-only: only the last stage is asked for that).
+            const bool here = in_place && input == &current;
+            bool ok;
+            if (here) {
+                ok = stage(current, current);
+                next = std::move(current);  // its error too
+                current = ImageBuf();
+            } else {
+                ok = stage(next, *input);
+            }
+            if (ok && !last && !here && next.nchannels() < input->nchannels()) {
                 // A colour-only result (kColourOnlyAttribute) where the next stage needs the
                 // frame: run again without the mark.
                 ImageBuf unmarked = *input;
@@ -329,6 +341,18 @@ Denoiser compose(std::vector<std::pair<std::string, Denoiser>> stages)
         dst = std::move(current);
         return true;
     };
+}
+
+}  // namespace
+
+Denoiser compose(std::vector<std::pair<std::string, Denoiser>> stages)
+{
+    return composed(std::move(stages), false);
+}
+
+Denoiser compose_in_place(std::vector<std::pair<std::string, Denoiser>> stages)
+{
+    return composed(std::move(stages), true);
 }
 
 }  // namespace mcdn
