@@ -456,7 +456,6 @@ struct InputRows::Files {
     std::vector<ImageBuf> directories;  // Tungsten buffer sets, read whole
     std::vector<std::vector<bool>> keep;
     std::vector<int> first;  // each file's first channel in the merged frame
-    std::vector<std::unique_ptr<ImageInput>> open;  // each file, opened once
 };
 
 InputRows::InputRows() = default;
@@ -550,7 +549,6 @@ bool InputRows::open(const std::vector<InputFile>& inputs, const InputSelection&
         files->first.push_back(first);
         first += int(std::count(keep[i].begin(), keep[i].end(), true));
     }
-    files->open.resize(inputs.size());
 
     // The first mean input's metadata (colour space, camera, renderer) is the output's.
     size_t meta_from = 0;
@@ -619,15 +617,24 @@ bool InputRows::read(ImageBuf& dst, int ybegin, int yend, std::string& error,
             copy_channels(out, first, f.directories[i]);
             continue;
         }
-        if (!f.open[i]) {
-            f.open[i] = ImageInput::open(f.layouts[i].path);
-            if (!f.open[i]) {
-                error = format("{}: cannot read: {}", f.layouts[i].path, OIIO::geterror());
-                return false;
-            }
+        // Opened for these rows and closed after them: an open EXR holds line buffers of
+        // its own for each decoding thread (tens of MB a file at 4K), which would otherwise
+        // stay beside the band through the stages. Headers are read again for each band.
+        std::unique_ptr<ImageInput> in = ImageInput::open(f.layouts[i].path);
+        if (!in) {
+            error = format("{}: cannot read: {}", f.layouts[i].path, OIIO::geterror());
+            return false;
         }
-        if (!read_pixels_into(out, first, f.layouts[i], *f.open[i], f.keep[i], ybegin, yend,
-                              error))
+        const ImageSpec& part = f.layouts[i].parts[0];
+        const ImageSpec& now = in->spec(f.layouts[i].subimages[0]);
+        if (now.width != part.width || now.height != part.height || now.x != part.x
+            || now.y != part.y || now.channelnames != part.channelnames) {
+            error = format("{}: the file changed while it was read (it is now {}x{}, {} "
+                           "channel(s))", f.layouts[i].path, now.width, now.height,
+                           now.nchannels);
+            return false;
+        }
+        if (!read_pixels_into(out, first, f.layouts[i], *in, f.keep[i], ybegin, yend, error))
             return false;
     }
     dst = std::move(out);
