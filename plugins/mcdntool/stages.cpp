@@ -295,7 +295,7 @@ std::vector<CommandInfo> stage_commands()
           "alpha=1 adds "
           "mix.alpha.* channels; with model=net: the network trained for the denoiser before "
           "--sure (models/mix_cnn.mcdnw after --cnn, else models/mix.mcdnw; weights=FILE), "
-          "afloor=1, alpha is at least the analytic model's; "
+          "afloor=1, alpha is at least the analytic model's; with either model: "
           "outlier=0.3, alpha is at least eq. 9 where the "
           "render's variance exceeds 0.3 (y^2 + 0.01), drop=1.5: alpha = 1 where it exceeds "
           "1.5 (y^2 + 0.01) (0: off).",

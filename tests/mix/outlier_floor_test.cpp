@@ -1,4 +1,4 @@
-// The outlier floor of the network's alpha (lib/src/mix/outlier_floor.cpp): where the render
+// The outlier floor of the mix model's alpha (lib/src/mix/outlier_floor.cpp): where the render
 // pixel is an outlier of its own variance, alpha >= the pixel's PD eq. 9 (alpha = 1 where
 // the variance is larger still); nowhere else.
 #include <cmath>
@@ -132,4 +132,41 @@ TEST(MixOutlierFloor, ABrightFeatureTheRenderResolvesIsTheTTestsCase)
         mid.residual.px[i] = (mid.y.px[i] - mid.x.px[i]) * (mid.y.px[i] - mid.x.px[i]);
     mid.apply(0.3f, 3.0f);
     EXPECT_NEAR(mid.alpha(8, 8), (100.0f - 2.0f) / (37.0f * 37.0f), 1e-4);
+}
+
+TEST(MixOutlierFloor, TheAnalyticModelGetsItToo)
+{
+    // Eq. 9 on 21x21 box averages spreads the firefly's sigma^2 and ||y - x||^2 over its
+    // neighbours, where y = x. With the floor (the defaults) the firefly goes to the denoised
+    // image, with it off its alpha is the box's; ordinary pixels keep the box's either way.
+    MixInputs in;
+    for (int c = 0; c < 3; ++c) {
+        Scene s(0.0f, 47.0f, 2300.0f);
+        s.divergence(8, 8) = 2000.0f;  // a denoiser that follows the spike: eq. 9's box small
+        in.x[c] = s.x;
+        in.y[c] = s.y;
+        in.variance[c] = s.variance;
+        in.divergence[c] = s.divergence;
+        in.residual[c] = s.residual;
+        in.sure[c] = Plane(16, 16, 0.0f);
+    }
+    MixOptions options;
+    options.model = MixOptions::Model::Analytic;
+    options.t_test = false;
+    options.skip.enabled = false;
+    Plane alpha[3];
+    ConvergedTiles passed;
+    std::string error;
+    ASSERT_TRUE(mix_alpha(alpha, passed, in, options, nullptr, 1.0f, error)) << error;
+    EXPECT_EQ(alpha[1](8, 8), 1.0f);  // past the drop threshold: dropped
+    options.outlier_relative_variance = 0;
+    options.drop_relative_variance = 0;
+    Plane box[3];
+    ASSERT_TRUE(mix_alpha(box, passed, in, options, nullptr, 1.0f, error)) << error;
+    EXPECT_LT(box[1](8, 8), 0.2f);  // the box's: the firefly kept
+    for (int y = 0; y < 16; ++y)
+        for (int x = 0; x < 16; ++x)
+            if (x != 8 || y != 8) {
+                EXPECT_EQ(alpha[1](x, y), box[1](x, y)) << x << "," << y;
+            }
 }

@@ -45,13 +45,13 @@ struct MixOptions {
     /// Tungsten scenes) — and neither is high where the denoiser is visibly biased (a large
     /// ||y - x||^2 lowers eq. 9); the t-test still bounds the result.
     bool analytic_floor = true;
-    /// Model::Net: where the render's variance exceeds this many times y^2 + 0.01 (an
-    /// outlier of its own variance; the network's arctan error inputs read such pixels as
-    /// saturated), alpha is at least the pixel's own eq. 9 (lib/src/mix/outlier_floor.cpp).
-    /// 0 disables the bound.
+    /// Either model: where the render's variance exceeds this many times y^2 + 0.01 (an
+    /// outlier of its own variance: the network's arctan error inputs read such pixels as
+    /// saturated, the analytic model's box averages spread them over 441 pixels), alpha is
+    /// at least the pixel's own eq. 9 (lib/src/mix/outlier_floor.cpp). 0 disables the bound.
     float outlier_relative_variance = 0.3f;
-    /// Model::Net: where it exceeds this many times y^2 + 0.01, alpha = 1 before the t-test
-    /// (the render pixel's value says little about its mean; eq. 9 is noise there).
+    /// Either model: where it exceeds this many times y^2 + 0.01, alpha = 1 before the
+    /// t-test (the render pixel's value says little about its mean; eq. 9 is noise there).
     /// 0 disables it.
     float drop_relative_variance = 1.5f;
 

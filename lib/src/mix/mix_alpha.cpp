@@ -34,13 +34,16 @@ bool mix_alpha(Plane alpha[3], ConvergedTiles& passed, const MixInputs& in,
                     alpha[c].px[i] = std::max(alpha[c].px[i], analytic[c].px[i]);
             trace.mark("band: analytic floor (eq. 9)");
         }
-        for (int c = 0; c < 3; ++c)
-            outlier_floor(alpha[c], in.variance[c], in.y[c], in.divergence[c], in.residual[c],
-                          options.outlier_relative_variance, options.drop_relative_variance);
-        trace.mark("band: outlier floor");
     } else {
         analytic_alpha(alpha, in, options.analytic_radius);
     }
+    // Either model: a render pixel that is an outlier of its own variance leans to y
+    // (outlier_floor.cpp; the box averages of eq. 9 spread a firefly's terms over 441
+    // pixels as the network's saturated inputs hide them).
+    for (int c = 0; c < 3; ++c)
+        outlier_floor(alpha[c], in.variance[c], in.y[c], in.divergence[c], in.residual[c],
+                      options.outlier_relative_variance, options.drop_relative_variance);
+    trace.mark("band: outlier floor");
 
     if (options.t_test)
         for (int c = 0; c < 3; ++c)

@@ -1,4 +1,4 @@
-// A lower bound on the network's alpha where the render pixel is an outlier of its own
+// A lower bound on the mix model's alpha where the render pixel is an outlier of its own
 // variance: there alpha >= the pixel's own PD eq. 9,
 //   alpha_9 = (sigma^2 - sigma^2 f'(x)) / ||y - x||^2, clipped to [0, 1],
 // and where the render's standard error is larger still, alpha = 1: the render pixel is
@@ -8,7 +8,9 @@
 // Why: the network sees the error estimates as arctan(v / (y^2 + 0.01)) (training/mix/
 // model.py). A render firefly has a relative variance of thousands and SURE of tens or
 // hundreds; both read as pi/2 to within 1%, so the network cannot tell which image is wrong
-// and may keep the firefly (alpha ~ 0). Eq. 9 itself is too noisy to use
+// and may keep the firefly (alpha ~ 0). The analytic model (eq. 9 on 21x21 box averages)
+// misses it too: the firefly's sigma^2 and ||y - x||^2 are averaged with 440 neighbours
+// whose eq. 9 may be small. Both models get this floor. Eq. 9 itself is too noisy to use
 // everywhere (PD Fig. 3), but where the render's expected error sigma^2 dwarfs the pixel's
 // value, sigma^2 dominates both its numerator and ||y - x||^2 (the firefly is what makes
 // both large), and the ratio is reliable. It only ever raises alpha toward the denoised
