@@ -316,10 +316,9 @@ DepthRange depth_range(const ImageBuf& src, const AovSet& aovs)
         const WindowReader band(src, { 0, y, src.spec().width,
                                        std::min(y + kBandRows, src.spec().height) },
                                 false);
-        for (float d : band.plane(channel).px) {
-            lo = std::min(lo, d);
-            hi = std::max(hi, d);
-        }
+        const DepthRange r = depth_range(band.plane(channel));
+        lo = std::min(lo, r.lo);
+        hi = std::max(hi, r.hi);
     }
     return { lo, hi - lo, hi };
 }
