@@ -2,6 +2,8 @@
 
 #include "session.h"
 
+#include "mcdn/cnn.h"
+
 #include <algorithm>
 #include <cstdlib>
 #include <fstream>
@@ -41,7 +43,8 @@ double cnn_thread_bytes(const std::vector<Command>& commands)
 {
     for (const auto& c : commands)
         if (c.name == "--cnn") {
-            double tile = OIIO::Strutil::stod(c.modifier("tile", "512"));
+            double tile = OIIO::Strutil::stod(
+                c.modifier("tile", std::to_string(mcdn::CnnOptions{}.tile_size)));
             double side = (std::max(tile, 1.0) + 64) / (512 + 64);
             return 350e6 * side * side;
         }

@@ -269,7 +269,7 @@ std::vector<CommandInfo> stage_commands()
           "Without halves, render them, or use --denoise or --cnn." },
         { "--cnn", "", with_frames(mcdn::setting_keys("cnn")),
           "Kernel-predicting CNN denoiser (KPCN): diffuse/specular split, our trained weights "
-          "(models/kpcn.mcdnw; weights=FILE), tiled (tile=512). Extra AOVs take their share "
+          "(models/kpcn.mcdnw; weights=FILE), tiled (tile=384). Extra AOVs take their share "
           "of the beauty's denoised light through its kernels (extras=0: keep them). "
           "Cross-frame, in a sequence: frames=2 first combines this frame with 2 previous "
           "and 2 next ones, aligned by the motion vectors (Blender's Vector pass), weighted "
