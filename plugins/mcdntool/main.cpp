@@ -130,16 +130,19 @@ bool outputs_exist(const std::vector<Command>& commands)
 
 // What the command line's stages read of the variance and half-buffer files: the faces of
 // the roles, and the halves only for NFOR (or where no variance is given, from which the
-// stages then take the halves' difference). Everything when a command names channels.
+// stages then take the halves' difference), the light split's only for the CNN.
+// Everything when a command names channels.
 mcdn::InputSelection input_selection(const std::vector<Command>& commands)
 {
     mcdn::InputSelection selection;
     selection.only_roles = true;
+    selection.light_split = false;
     bool nfor = false, variance = false;
     for (const auto& c : commands) {
         if (c.name == "--ch" || (c.name == "--info" && c.has("verbose"))
             || (c.name == "--metrics" && c.has("channels")))
             selection.only_roles = false;
+        selection.light_split |= c.name == "--cnn" || c.name == "--denoise" || c.name == "--info";
         nfor |= c.name == "--prefilter" || c.name == "--nfor";
         variance |= c.name == "-i" && c.modifier("as") == "variance";
         if ((c.name == "--prefilter" || c.name == "--nfor") && c.has("features"))

@@ -107,6 +107,7 @@ bool run_streamed_chain(Session& s, const std::vector<Command>& commands, size_t
     chain.progress = s.progress();
     chain.stages.clear();
     chain.band_pixels = band_pixels();
+    chain.output_channels_only = write.channels.empty();  // the writer's default
     for (size_t i = first; i + 1 < commands.size(); ++i) {
         const std::string stage = commands[i].name.substr(2);
         chain.stages.push_back(stage);

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <OpenImageIO/imagebufalgo.h>
+#include <OpenImageIO/strutil.h>
 
 #include "mcdn/chain.h"
 #include "mcdn/io.h"
@@ -152,4 +153,45 @@ TEST(Streamed, ChainOnRowsIsTheChainOnTheFrame)
     expect_chain_match(files, o, 0.0);
     o.stages = { "prefilter", "nfor", "sure", "mix" };
     expect_chain_match(files, o, 0.0);
+}
+
+// A chain without the CNN reads no variance or half of the light split (diffuse, glossy,
+// emission, environment), and only the output's features are put back after a prefilter:
+// what -o writes is what reading every channel and putting every face back gives.
+TEST(Streamed, ChainWithoutTheCnnReadsNoFaceOfTheLightSplit)
+{
+    const auto files = tall_files(mcdn_test::temp_dir("streamed_split"), false);
+    InputSelection selection;
+    selection.only_roles = true;
+    selection.light_split = false;
+    ImageBuf all, some;
+    ASSERT_TRUE(read_inputs(all, files)) << all.geterror();
+    ASSERT_TRUE(read_inputs(some, files, selection)) << some.geterror();
+    for (const char* name : { "variance.ViewLayer.DiffDir.R", "A.ViewLayer.GlossInd.G",
+                              "B.ViewLayer.Emit.B" }) {
+        EXPECT_GE(all.spec().channelindex(name), 0) << name;
+        EXPECT_LT(some.spec().channelindex(name), 0) << name;
+    }
+    for (const char* name : { "ViewLayer.DiffDir.R", "variance.ViewLayer.Combined.R",
+                              "A.ViewLayer.Denoising Albedo.G", "variance.ViewLayer.Denoising Depth.Z" })
+        EXPECT_GE(some.spec().channelindex(name), 0) << name;
+
+    ChainOptions o;
+    o.stages = { "prefilter", "nfor" };
+    o.band_pixels = 0;
+    ImageBuf expected, result;
+    ASSERT_TRUE(run_chain(expected, all, o)) << expected.geterror();
+    o.output_channels_only = true;
+    ASSERT_TRUE(run_chain(result, some, o)) << result.geterror();
+    const std::vector<std::string> output = OIIO::Strutil::splits(
+        all.spec().get_string_attribute("mcdn:output_channels"), "\n");
+    ASSERT_FALSE(output.empty());
+    for (const std::string& name : output) {
+        const int e = expected.spec().channelindex(name), r = result.spec().channelindex(name);
+        ASSERT_GE(e, 0) << name;
+        ASSERT_GE(r, 0) << name;
+        ImageBuf a = OIIO::ImageBufAlgo::channels(expected, 1, { e });
+        ImageBuf b = OIIO::ImageBufAlgo::channels(result, 1, { r });
+        EXPECT_EQ(OIIO::ImageBufAlgo::compare(a, b, 0, 0).maxerror, 0.0) << name;
+    }
 }

@@ -32,6 +32,11 @@ struct ChainOptions {
     /// mixing network's to float round-off: its tiles fall differently), and memory follows
     /// the band, not the frame. 0: the whole frame at once.
     int64_t band_pixels = int64_t(1) << 21;
+    /// The caller keeps only the input's output channels of the result ("mcdn:output_channels",
+    /// what -o writes: mcdntool's chain into one -o). After a prefilter only the features'
+    /// output channels are then put back (and kept apart for it), the others (their
+    /// variances and halves) are left as the prefilter made them.
+    bool output_channels_only = false;
 };
 
 /// The rows [own.ybegin, own.yend) of a chain's result, every channel, in `band` (which may

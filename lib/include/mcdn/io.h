@@ -52,10 +52,14 @@ bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs);
 /// `only_roles`, a variance or half file's channel is read only when it is a face of a role
 /// (or extra AOV) that `aovs` resolves to, or of one of `extra_features`; with `halves`
 /// false, no half-buffer channel (a chain without NFOR and with a colour variance): the half
-/// files are then only checked, from their headers, to hold the colour's half.
+/// files are then only checked, from their headers, to hold the colour's half; with
+/// `light_split` false, no face of the light components that only the CNN splits the colour
+/// into (diffuse, specular and Blender's factors of them, emission, environment, the
+/// transmission passes): a chain without the CNN. Their means are read (they are written).
 struct InputSelection {
     bool only_roles = false;
     bool halves = true;
+    bool light_split = true;
     AovSpec aovs;
     std::vector<std::string> extra_features;
 };

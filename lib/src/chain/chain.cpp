@@ -7,6 +7,7 @@
 #include <OpenImageIO/strutil.h>
 
 #include "chain/chain_steps.h"
+#include "core/attributes.h"
 #include "core/frame_facts.h"
 #include "core/op_prepare.h"
 #include "mcdn/cnn.h"
@@ -249,6 +250,17 @@ bool run_chain_impl(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const Cha
             return false;
         }
         features = feature_channel_names(aovs, src.spec());
+        if (o.output_channels_only) {
+            const std::vector<std::string> output = Strutil::splits(
+                src.spec().get_string_attribute(kOutputChannelsAttribute), "\n");
+            if (!output.empty())
+                features.erase(std::remove_if(features.begin(), features.end(),
+                                              [&](const std::string& name) {
+                                                  return std::find(output.begin(), output.end(),
+                                                                   name) == output.end();
+                                              }),
+                               features.end());
+        }
     }
     // The chain's own input may be changed in place (run_stages): its features are kept
     // apart first, to be put back from there.

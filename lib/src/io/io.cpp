@@ -398,6 +398,15 @@ bool check_colour_faces(const ImageSpec& spec, const AovSet& aovs, bool halves,
     return true;
 }
 
+// The light components only the CNN reads (InputSelection::light_split).
+bool is_light_split(Role r)
+{
+    return r == Role::Diffuse || r == Role::Specular || r == Role::DiffuseColor
+           || r == Role::DiffuseDirect || r == Role::DiffuseIndirect || r == Role::GlossyColor
+           || r == Role::GlossyDirect || r == Role::GlossyIndirect || r == Role::Emission
+           || r == Role::Environment;
+}
+
 // The variance and half-buffer channels `selection` keeps of a merged buffer's full list of
 // names (`spec`, before any pixel is read).
 std::set<std::string> selected_faces(const ImageSpec& spec, const InputSelection& selection,
@@ -416,7 +425,8 @@ std::set<std::string> selected_faces(const ImageSpec& spec, const InputSelection
             wanted.insert(spec.channelnames[c]);
     };
     for (int r = 0; r < kRoleCount; ++r)
-        add(aovs.channels(Role(r)));
+        if (selection.light_split || !is_light_split(Role(r)))
+            add(aovs.channels(Role(r)));
     for (const AovSet::Extra& e : aovs.extras())
         add(e.channels);
     // Cycles' transmission passes, which the CNN reads by name (aov/transmission.h): without
@@ -424,7 +434,7 @@ std::set<std::string> selected_faces(const ImageSpec& spec, const InputSelection
     // one that reads every channel (a --ch of the variance file's).
     for (const char* pass : kTransmissionPasses)
         for (const std::string& name : transmission_channels(aovs.names(Role::DiffuseColor), pass))
-            if (spec.channelindex(name) >= 0)
+            if (selection.light_split && spec.channelindex(name) >= 0)
                 wanted.insert(name);
     // Every face of each of them: roles without faces of their own (Blender's DiffCol,
     // GlossDir, ...) have their variance read by name too (the CNN's delta method).
