@@ -46,23 +46,42 @@ bool find_feature_channels(std::vector<FeatureChannel>& features, const AovSet& 
     return true;
 }
 
-FeaturePlanes read_feature(const OIIO::ImageBuf& src, const FeatureChannel& feature)
+std::vector<FeaturePlanes> read_features(const OIIO::ImageBuf& src,
+                                         const std::vector<FeatureChannel>& features)
 {
-    FeaturePlanes p;
-    p.mean = read_plane(src, feature.mean);
-    bool halves = feature.half_a >= 0 && feature.half_b >= 0;
-    p.half_a = halves ? read_plane(src, feature.half_a) : p.mean;
-    p.half_b = halves ? read_plane(src, feature.half_b) : p.mean;
-    if (feature.variance >= 0) {
-        p.variance = read_plane(src, feature.variance, true);
-    } else {
-        p.variance = Plane(p.mean.width, p.mean.height);
-        for (size_t i = 0; i < p.variance.size(); ++i) {
-            float d = p.half_a.px[i] - p.half_b.px[i];
-            p.variance.px[i] = sanitize_variance(0.25f * d * d);
+    std::vector<FeaturePlanes> planes(features.size());
+    std::vector<PlaneRead> reads;
+    for (size_t i = 0; i < features.size(); ++i) {
+        const FeatureChannel& f = features[i];
+        FeaturePlanes& p = planes[i];
+        reads.push_back({ f.mean, &p.mean });
+        if (f.half_a >= 0 && f.half_b >= 0) {
+            reads.push_back({ f.half_a, &p.half_a });
+            reads.push_back({ f.half_b, &p.half_b });
+        }
+        if (f.variance >= 0)
+            reads.push_back({ f.variance, &p.variance, true });
+    }
+    read_planes(src, reads);
+    for (size_t i = 0; i < features.size(); ++i) {
+        const FeatureChannel& f = features[i];
+        FeaturePlanes& p = planes[i];
+        if (f.half_a < 0 || f.half_b < 0)
+            p.half_a = p.half_b = p.mean;
+        if (f.variance < 0) {
+            p.variance = Plane(p.mean.width, p.mean.height);
+            for (size_t j = 0; j < p.variance.size(); ++j) {
+                float d = p.half_a.px[j] - p.half_b.px[j];
+                p.variance.px[j] = sanitize_variance(0.25f * d * d);
+            }
         }
     }
-    return p;
+    return planes;
+}
+
+FeaturePlanes read_feature(const OIIO::ImageBuf& src, const FeatureChannel& feature)
+{
+    return std::move(read_features(src, { feature })[0]);
 }
 
 }  // namespace mcdn

@@ -29,5 +29,8 @@ struct FeaturePlanes {
     Plane mean, variance, half_a, half_b;
 };
 FeaturePlanes read_feature(const OIIO::ImageBuf& src, const FeatureChannel& feature);
+/// The planes of each of `features`, read in one pass over src's pixels.
+std::vector<FeaturePlanes> read_features(const OIIO::ImageBuf& src,
+                                         const std::vector<FeatureChannel>& features);
 
 }  // namespace mcdn

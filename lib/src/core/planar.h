@@ -76,4 +76,23 @@ Plane read_rows(const OIIO::ImageBuf& src, int channel, const OIIO::ROI& rows, b
 /// Writes a plane into channel `channel` of `dst` (same data window), inside `roi` only.
 void write_plane(OIIO::ImageBuf& dst, int channel, const Plane& plane, OIIO::ROI roi);
 
+/// One channel to read into a plane of its own, as read_plane does.
+struct PlaneRead {
+    int channel;
+    Plane* out;
+    bool is_variance = false;
+};
+/// Reads several channels of `src`'s rows `rows` (undefined: the data window) into planes
+/// of the rows' size in one pass over its pixels, rows on `nthreads` threads: a pass per
+/// channel pulls every cache line of an interleaved frame once per channel.
+void read_planes(const OIIO::ImageBuf& src, const std::vector<PlaneRead>& reads,
+                 OIIO::ROI rows = {}, int nthreads = 1);
+/// One plane to write into a channel, as write_plane does.
+struct PlaneWrite {
+    int channel;
+    const Plane* plane;
+};
+/// Writes several planes into `dst` inside `roi`, in one pass over its pixels.
+void write_planes(OIIO::ImageBuf& dst, const std::vector<PlaneWrite>& writes, OIIO::ROI roi);
+
 }  // namespace mcdn

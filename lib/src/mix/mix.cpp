@@ -6,8 +6,6 @@
 #include "mcdn/mix.h"
 
 #include <OpenImageIO/strutil.h>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 
 #include "core/bands.h"
 #include "core/channels.h"
@@ -59,44 +57,17 @@ bool find_mix_channels(MixChannels& ch, const ImageSpec& spec, const AovSet& aov
     return true;
 }
 
-MixInputs read_mix_inputs(const ImageBuf& src, const MixChannels& ch, const ROI& rows)
+MixInputs read_mix_inputs(const ImageBuf& src, const MixChannels& ch, const ROI& rows,
+                          int nthreads)
 {
     MixInputs in;
-    Plane* planes[18];
     const int* channels[6] = { ch.y, ch.variance, ch.x, ch.sure, ch.divergence, ch.residual };
     Plane* groups[6] = { in.y, in.variance, in.x, in.sure, in.divergence, in.residual };
-    int index[18];
+    std::vector<PlaneRead> reads;
     for (int g = 0; g < 6; ++g)
-        for (int c = 0; c < 3; ++c) {
-            planes[g * 3 + c] = &groups[g][c];
-            index[g * 3 + c] = channels[g][c];
-        }
-    const float* pixels = float_frame_pixels(src);
-    if (!pixels) {  // not a float frame in memory: plane by plane
-        for (int p = 0; p < 18; ++p)
-            *planes[p] = read_rows(src, index[p], rows, p / 3 == 1);
-        return in;
-    }
-    // A float frame in memory: one pass over the rows' pixels gathers all 18 planes
-    // (sanitized as read_rows does; 18 strided passes would read the frame 18 times).
-    const ImageSpec& spec = src.spec();
-    const int w = rows.width(), h = rows.height(), nch = spec.nchannels;
-    for (Plane* p : planes)
-        *p = Plane(w, h);
-    tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& b) {
-        for (int r = b.begin(); r != b.end(); ++r) {
-            const float* row = pixels + (size_t(rows.ybegin + r - spec.y) * spec.width
-                                         + size_t(rows.xbegin - spec.x)) * nch;
-            for (int x = 0; x < w; ++x) {
-                const float* px = row + size_t(x) * nch;
-                const size_t i = size_t(r) * w + x;
-                for (int p = 0; p < 18; ++p) {
-                    const float v = px[index[p]];
-                    planes[p]->px[i] = p / 3 == 1 ? sanitize_variance(v) : sanitize(v);
-                }
-            }
-        }
-    });
+        for (int c = 0; c < 3; ++c)
+            reads.push_back({ channels[g][c], &groups[g][c], g == 1 });
+    read_planes(src, reads, rows, nthreads);
     return in;
 }
 
@@ -159,7 +130,7 @@ bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options, ROI roi,
         alpha_channels = add_channels(dst, { "mix.alpha.R", "mix.alpha.G", "mix.alpha.B" });
     ProgressCounter progress(options.progress, "mix", int(bands.size()));
     for (const Band& band : bands) {
-        const MixInputs in = read_mix_inputs(src, channels, band.cut);
+        const MixInputs in = read_mix_inputs(src, channels, band.cut, nthreads);
         Plane alpha[3];
         ConvergedTiles passed;
         if (!mix_alpha(alpha, passed, in, options, use_net ? &net : nullptr, sigma_s, error)) {

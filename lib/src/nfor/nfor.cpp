@@ -128,8 +128,7 @@ bool read_inputs(NforInputs& in, ImageBuf& dst, const ImageBuf& src, const NforO
             return false;
         }
     read_color_planes(in.color, src, in.aovs, in.halves);
-    for (const FeatureChannel& f : feature_channels)
-        in.features.push_back(read_feature(src, f));
+    in.features = read_features(src, feature_channels);
     if (denoises_extras(options.denoise_extras, src)
         && !read_extras(in.extras, src, in.aovs, in.halves, error)) {
         dst.errorfmt("{}: {}", op, error);

@@ -43,9 +43,7 @@ bool prefilter_in_working_space(ImageBuf& dst, const ImageBuf& src,
                      "aov overrides", options.aovs.preset, channel_list(src.spec()));
         return false;
     }
-    std::vector<FeaturePlanes> planes;
-    for (const FeatureChannel& f : channels)
-        planes.push_back(read_feature(src, f));
+    std::vector<FeaturePlanes> planes = read_features(src, channels);
     const ConvergedTiles converged = converged_tiles_of(src, aovs, options.skip);
     if (options.skip.enabled)
         drop_constant_features(planes, channels, src.spec());  // copied unchanged
@@ -57,15 +55,17 @@ bool prefilter_in_working_space(ImageBuf& dst, const ImageBuf& src,
     trace.mark("NL-means (5.1)");
 
     roi = output_roi(dst, roi);
+    std::vector<PlaneWrite> writes;
     for (size_t i = 0; i < channels.size(); ++i) {
-        write_plane(dst, channels[i].mean, planes[i].mean, roi);
+        writes.push_back({ channels[i].mean, &planes[i].mean });
         if (channels[i].half_a >= 0)
-            write_plane(dst, channels[i].half_a, planes[i].half_a, roi);
+            writes.push_back({ channels[i].half_a, &planes[i].half_a });
         if (channels[i].half_b >= 0)
-            write_plane(dst, channels[i].half_b, planes[i].half_b, roi);
+            writes.push_back({ channels[i].half_b, &planes[i].half_b });
         if (channels[i].variance >= 0)
-            write_plane(dst, channels[i].variance, planes[i].variance, roi);
+            writes.push_back({ channels[i].variance, &planes[i].variance });
     }
+    write_planes(dst, writes, roi);
     dst.specmod().attribute("mcdn:prefiltered", 1);
     trace.mark("write");
     progress.advance();

@@ -184,10 +184,11 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
 {
     StageTrace trace("sure");
     Plane x[3], variance[3];
-    for (int c = 0; c < 3; ++c) {
-        x[c] = read_plane(noisy, frame.color[c]);
-        variance[c] = read_plane(noisy, frame.variance[c], true);
-    }
+    read_planes(noisy, { { frame.color[0], &x[0] }, { frame.color[1], &x[1] },
+                         { frame.color[2], &x[2] }, { frame.variance[0], &variance[0], true },
+                         { frame.variance[1], &variance[1], true },
+                         { frame.variance[2], &variance[2], true } },
+                {}, frame.nthreads);
 
     // mcdn/skip.h: the denoiser's runs all skip the tiles of this map (bands start on whole
     // tiles, so a band's map is the frame's).
@@ -213,8 +214,9 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
         if (!check_finite(denoised, noisy, frame.nthreads, error))
             return false;
         trace.mark("y is finite");
-        for (int c = 0; c < 3; ++c)
-            y[c] = read_plane(denoised, frame.color[c]);
+        read_planes(denoised, { { frame.color[0], &y[0] }, { frame.color[1], &y[1] },
+                                { frame.color[2], &y[2] } },
+                    {}, frame.nthreads);
         // The denoiser's own tile decisions hold for its probes (core/attributes.h).
         denoiser_tiles = denoised.spec().get_string_attribute(kDenoiserTilesAttribute);
         if (!dst.initialized() && is_whole_output(denoised, band, frame)) {
