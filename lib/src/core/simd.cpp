@@ -3,6 +3,10 @@
 #include <cstdlib>
 #include <string>
 
+#if MCDN_X86_DISPATCH
+#    include <xmmintrin.h>
+#endif
+
 namespace mcdn {
 
 Isa detect_isa()
@@ -28,6 +32,21 @@ Isa detect_isa()
     }();
     return isa;
 }
+
+#if MCDN_X86_DISPATCH
+constexpr unsigned kFtzDaz = 0x8040;  // MXCSR flush-to-zero (bit 15), denormals-are-zero (bit 6)
+FlushDenormals::FlushDenormals() : m_saved(_mm_getcsr())
+{
+    _mm_setcsr(m_saved | kFtzDaz);
+}
+FlushDenormals::~FlushDenormals()
+{
+    _mm_setcsr(m_saved);
+}
+#else
+FlushDenormals::FlushDenormals() {}
+FlushDenormals::~FlushDenormals() {}
+#endif
 
 const char* isa_name(Isa isa)
 {

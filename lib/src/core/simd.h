@@ -48,6 +48,24 @@ MCDN_INLINE float exp_neg(float d)
     return d < 80.0f ? p * scale : 0.0f;
 }
 
+/// For its scope, float results below the normal range are flushed to zero and such inputs
+/// read as zero (x86 MXCSR FTZ and DAZ), as they were on entry after it. The NL-means and
+/// regression kernels run under it: products of an exp(-80)-small weight and a small
+/// feature difference are denormal, and each one costs a microcode assist (most of a pass
+/// on some windows), while none is large enough to move a sum of weights that holds the
+/// centre's. Every run of a kernel is under it, on any thread: the result does not depend
+/// on the thread count.
+class FlushDenormals {
+public:
+    FlushDenormals();
+    ~FlushDenormals();
+    FlushDenormals(const FlushDenormals&) = delete;
+    FlushDenormals& operator=(const FlushDenormals&) = delete;
+
+private:
+    unsigned m_saved = 0;
+};
+
 /// 16 float lanes (GCC vector extension): one zmm under AVX-512, two ymm under AVX2, four
 /// xmm in the baseline build. Unaligned, may alias float data.
 typedef float vfloat16 __attribute__((vector_size(64), aligned(4), may_alias));

@@ -89,8 +89,10 @@ std::vector<std::vector<Plane>> collaborative_regression(const RegressionInputs&
         parallel_for_index(tiles_per_row, nthreads, [&](int i) {
             if (in.skip_tiles && in.skip_tiles->covers(tiles[row0 + i]))
                 results[i].area = Rect {};  // gathers nothing
-            else
+            else {
+                const FlushDenormals no_denormals;
                 kernel(in, tiles[row0 + i], scratch.local(), results[i]);
+            }
         });
         // Gather in tile order: the sums do not depend on which thread ran which tile.
         for (const TileResult& r : results) {

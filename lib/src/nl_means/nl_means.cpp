@@ -130,8 +130,10 @@ std::vector<Plane> nl_means(const std::vector<const Plane*>& image,
     // Scratch kept per thread across calls: no page faults for fresh buffers on every call.
     static tbb::enumerable_thread_specific<FilterScratch> scratch;
     parallel_for_index(int(tiles.size()), nthreads, [&](int i) {
-        if (!skip || !skip->covers(tiles[i]))
+        if (!skip || !skip->covers(tiles[i])) {
+            const FlushDenormals no_denormals;
             kernel(job, tiles[i], scratch.local());
+        }
     });
     if (skip)
         for (size_t c = 0; c < image.size(); ++c)
