@@ -43,7 +43,8 @@ bool parse_finite(const std::string& text, double& value);
 /// error is reported as "name: error".
 Denoiser compose(std::vector<std::pair<std::string, Denoiser>> stages);
 /// The same for stages that may run in place (dst and src one buffer, as every mcdn op
-/// may): each stage after the first runs on the result before it, no frame-sized copy.
+/// may): each stage after the first runs on the result before it, no frame-sized copy;
+/// called with dst and src one buffer, the first runs in it too.
 Denoiser compose_in_place(std::vector<std::pair<std::string, Denoiser>> stages);
 
 /// How far one denoiser of a chain reaches (its stage's receptive_radius()): on an input not

@@ -57,6 +57,12 @@ struct SureOptions {
     /// frame's, so the result is the whole-frame run's, and memory follows the band
     /// (core/bands.h). -1 (not known: a Python callable): the whole frame at once.
     int denoiser_radius = -1;
+    /// The denoiser may run on its input itself (dst = src), where it changes only the
+    /// colour and the RGB extra AOVs, and reads no extra AOV when probed (the CNN; mcdntool
+    /// and run_chain set it for a chain's cnn). When sure probes the caller's own one-band
+    /// input that already has sure's channels (the chain's input read with room for them),
+    /// the denoiser then runs in it and it becomes the result: no copy of the frame.
+    bool denoiser_in_place = false;
     /// Pixels of one band, halos not counted: half of prefilter's and nfor's band_pixels, so
     /// that a band with its halos (up to 136 rows each side at 7680 wide) stays within theirs
     /// and they run it whole instead of cutting it again: at any frame size the peak is the

@@ -334,6 +334,9 @@ bool run_stages(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOp
             SureOptions s;
             stage_options(s, o, name, error);
             s.denoiser_radius = chain_radius(pending_reach);
+            // The cnn alone writes only its colour and extras, and reads no extra when
+            // probed: it may run in the input itself (SureOptions::denoiser_in_place).
+            s.denoiser_in_place = pending.size() == 1 && pending[0].first == "cnn";
             // Probed in the chain's own input where it has one (a frame less).
             const bool probe_own = own && current == &src;
             ok = probe_own
@@ -341,9 +344,10 @@ bool run_stages(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOp
                                         nthreads)
                      : sure(next, *current, compose_in_place(std::move(pending)), s, roi, nthreads);
             // No later stage reads the chain's input (its features are kept apart): its
-            // pages go back now (the mix's network is next).
+            // pages go back now (the mix's network is next). Assigned, not reset: sure may
+            // have made it its result (moved from, it has no state to reset).
             if (ok && probe_own)
-                own->reset();
+                *own = ImageBuf();
             pending.clear();
             pending_reach.clear();
         } else {  // mix

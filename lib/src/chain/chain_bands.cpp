@@ -14,6 +14,7 @@
 #include "core/bands.h"
 #include "core/channels.h"
 #include "core/frame_facts.h"
+#include "core/op_prepare.h"
 #include "core/planar.h"
 #include "core/trace.h"
 #include "mcdn/cnn.h"
@@ -23,6 +24,8 @@
 #include "mcdn/nfor.h"
 #include "mcdn/prefilter.h"
 #include "mcdn/settings.h"
+#include "mcdn/sure.h"
+#include "sure/sure_steps.h"
 
 namespace mcdn {
 
@@ -218,6 +221,24 @@ int chain_reach(const ImageSpec& spec, const ChainOptions& o)
 
 namespace {
 
+// Sure's channels when the chain's sure probes the cnn alone (run_stages), else none.
+std::vector<std::string> sure_room(const ImageSpec& frame, const ChainOptions& o)
+{
+    std::vector<std::string> stages;
+    std::string error;
+    AovSet aovs;
+    SureOptions s;
+    if (!resolved_stages(stages, frame, o, error) || stages.size() < 2 || stages[0] != "cnn"
+        || stages[1] != "sure" || !resolve_aovs(aovs, o.aovs, frame, error)
+        || !apply_settings(s, stage_settings(o.settings, "sure"), error))
+        return {};
+    std::vector<std::string> room;
+    for (const std::string& name : sure_channel_names(aovs, s))
+        if (frame.channelindex(name) < 0)
+            room.push_back(name);
+    return room;
+}
+
 // The bands of a frame through the chain, once the frame's facts are known: `rows` gives a
 // band's rows (its cut), every channel, in the working space.
 bool run_bands(const std::vector<Band>& bands, const ROI& whole, const FrameFacts& facts,
@@ -349,6 +370,17 @@ bool run_chain(const ImageSpec& frame, const RowReader& read, const ChainOptions
     const std::vector<Band> bands = chain_bands(frame, o);
     if (bands.size() == 1) {  // read whole, run whole
         ImageBuf input;
+        // A sure that probes the cnn alone makes its result in the input itself when the
+        // input has room for its channels (SureOptions::denoiser_in_place): read into a
+        // frame that has them, zero, after the frame's own.
+        const std::vector<std::string> room = sure_room(frame, o);
+        if (!room.empty()) {
+            ImageSpec spec = frame;
+            for (const std::string& name : room)
+                spec.channelnames.push_back(name);
+            spec.nchannels = int(spec.channelnames.size());
+            allocate_frame(input, spec, true);
+        }
         return read(input, whole.ybegin, whole.yend, {}, error)
                && run_whole(input, &input, o, sink, error, nthreads);
     }

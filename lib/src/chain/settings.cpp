@@ -302,6 +302,10 @@ Denoiser composed(std::vector<std::pair<std::string, Denoiser>> stages, bool in_
         const ImageBuf* input = &src;
         ImageBuf current;
         const bool colour_only = src.spec().get_int_attribute(kColourOnlyAttribute, 0) == 1;
+        if (in_place && &dst == &src && !stages.empty()) {  // the first stage in it too
+            current = std::move(dst);
+            input = &current;
+        }
         for (size_t i = 0; i < stages.size(); ++i) {
             const auto& [name, stage] = stages[i];
             const bool last = i + 1 == stages.size();

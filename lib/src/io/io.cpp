@@ -603,12 +603,15 @@ bool InputRows::read(ImageBuf& dst, int ybegin, int yend, std::string& error,
     spec.height = yend - ybegin;
     // Not zero-filled when every file is read: the files fill every channel (a fill would
     // be a pass more). A buffer of the same shape is read into again (no fresh pages: a light
-    // pass reads the frame through one).
+    // pass reads the frame through one), also one with more channels after the frame's (room
+    // a caller made for its own: they are left as they are).
     const bool every_file = channels.empty();
     ImageBuf out;
     if (dst.localpixels() && dst.spec().format == TypeDesc::FLOAT
-        && dst.spec().nchannels == spec.nchannels && dst.spec().width == spec.width
-        && dst.spec().height == spec.height && dst.spec().x == spec.x) {
+        && dst.spec().nchannels >= spec.nchannels && dst.spec().width == spec.width
+        && dst.spec().height == spec.height && dst.spec().x == spec.x
+        && std::equal(spec.channelnames.begin(), spec.channelnames.end(),
+                      dst.spec().channelnames.begin())) {
         out = std::move(dst);
         out.set_origin(spec.x, spec.y, spec.z);
     } else {

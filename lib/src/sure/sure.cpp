@@ -109,6 +109,11 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
                     room.push_back(name);
             if (!room.empty())
                 probed->specmod().attribute(kOutputRoomAttribute, OIIO::Strutil::join(room, "\n"));
+            // With the room there already, the denoiser runs in probed and probed is the
+            // result (its spec is the result's then, not put back).
+            frame.denoise_in_place = room.empty() && options.denoiser_in_place;
+            if (frame.denoise_in_place)
+                spec_back.buf = nullptr;
         } else {
             copy = copy_with_channels(src, sure_channel_names(frame), band.cut, nthreads);
             if (!copy.localpixels())

@@ -130,6 +130,31 @@ bool check_finite(const ImageBuf& denoised, const ImageBuf& noisy, int nthreads,
     return true;
 }
 
+// check_finite for a denoiser that ran in place: `channels` of buf against their bits
+// before it (`before`, one plane each).
+bool check_finite_in_place(const ImageBuf& buf, const std::vector<int>& channels,
+                           const std::vector<std::vector<float>>& before, std::string& error)
+{
+    std::vector<float> now;
+    for (size_t m = 0; m < channels.size(); ++m) {
+        ROI r = buf.roi();
+        r.chbegin = channels[m];
+        r.chend = channels[m] + 1;
+        now.resize(r.npixels());
+        buf.get_pixels(r, OIIO::TypeDesc::FLOAT, now.data());
+        size_t bad = 0;
+        for (size_t i = 0; i < now.size(); ++i)
+            bad += !std::isfinite(now[i]) && std::isfinite(before[m][i]);
+        if (bad) {
+            error = format("sure: the denoiser returned {} NaN or Inf values in channel {} "
+                           "(a denoiser must return finite values)", bad,
+                           buf.spec().channel_name(channels[m]));
+            return false;
+        }
+    }
+    return true;
+}
+
 // The denoiser's result is the output as it stands: the band is the whole frame, and the
 // result is a float frame in memory on the frame's window that kept sure's channels.
 bool is_whole_output(const ImageBuf& denoised, const Band& band, const SureFrame& frame)
@@ -179,6 +204,17 @@ std::vector<std::string> sure_channel_names(const SureFrame& frame)
     return names;
 }
 
+std::vector<std::string> sure_channel_names(const AovSet& aovs, const SureOptions& options)
+{
+    SureFrame frame;
+    for (const AovSet::Extra& extra : aovs.extras())
+        if (extra.channels.size() == 3)
+            frame.extra_names.insert(frame.extra_names.end(), extra.names.begin(),
+                                     extra.names.end());
+    frame.fallback_channel = options.output_fallback;
+    return sure_channel_names(frame);
+}
+
 bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser& denoiser,
                const SureOptions& options, const SureFrame& frame, std::string& error)
 {
@@ -196,10 +232,75 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
     if (options.skip.enabled)
         noisy.specmod().attribute(kConvergedAttribute, encode_converged_tiles(converged));
 
-    // y = F(x): the result we report SURE for. Written to dst at once, its colour kept.
+    // The moved channels' exact bits (read_plane would sanitize), restored after each probe;
+    // the extras' x, recorded for the mix. Both before the denoiser, which may write them
+    // (SureFrame::denoise_in_place).
+    const int w = x[0].width, h = x[0].height;
+    auto channel_roi = [&](int channel) {
+        ROI r = noisy.roi();
+        r.chbegin = channel;
+        r.chend = channel + 1;
+        return r;
+    };
+    auto exact = [&](const std::vector<int>& channels) {
+        std::vector<std::vector<float>> bits(channels.size());
+        for (size_t m = 0; m < channels.size(); ++m) {
+            bits[m].resize(size_t(w) * h);
+            noisy.get_pixels(channel_roi(channels[m]), OIIO::TypeDesc::FLOAT, bits[m].data());
+        }
+        return bits;
+    };
+    auto put_back = [&](const std::vector<int>& channels,
+                        const std::vector<std::vector<float>>& bits) {
+        for (size_t m = 0; m < channels.size(); ++m)
+            noisy.set_pixels(channel_roi(channels[m]), OIIO::TypeDesc::FLOAT, bits[m].data());
+    };
+    const std::vector<std::vector<float>> unprobed = frame.eps > 0 || frame.denoise_in_place
+                                                         ? exact(frame.moved)
+                                                         : std::vector<std::vector<float>>();
+    std::vector<Plane> extras(frame.extras.size());
+    {
+        std::vector<PlaneRead> reads;
+        for (size_t e = 0; e < frame.extras.size(); ++e)
+            reads.push_back({ frame.extras[e], &extras[e] });
+        read_planes(noisy, reads, {}, frame.nthreads);
+    }
+
+    // y = F(x): the result we report SURE for. Written to dst at once, its colour kept; in
+    // place, made in noisy itself, which becomes dst once the probes are done.
     Plane y[3];
     std::string denoiser_tiles;
-    {
+    ImageSpec result_spec;                 // in place: noisy's spec as the denoiser left it
+    std::vector<std::vector<float>> y_bits;  // in place: the colour as the denoiser made it
+    if (frame.denoise_in_place) {
+        trace.mark("read x, converged tiles");
+        const ImageSpec unprobed_spec = noisy.spec();
+        const std::vector<std::vector<float>> extras_bits = exact(frame.extras);
+        if (!denoiser(noisy, noisy)) {
+            error = format("sure: the denoiser failed: {}", noisy.geterror());
+            return false;
+        }
+        trace.mark("y = F(x)");
+        if (!check_finite_in_place(noisy, frame.color, { unprobed.begin(), unprobed.begin() + 3 },
+                                   error)
+            || !check_finite_in_place(noisy, frame.extras, extras_bits, error))
+            return false;
+        read_planes(noisy, { { frame.color[0], &y[0] }, { frame.color[1], &y[1] },
+                             { frame.color[2], &y[2] } },
+                    {}, frame.nthreads);
+        y_bits = exact(frame.color);
+        result_spec = noisy.spec();
+        result_spec.erase_attribute(kOutputRoomAttribute);
+        result_spec.erase_attribute(kConvergedAttribute);
+        result_spec.erase_attribute(kDenoiserTilesAttribute);
+        denoiser_tiles = noisy.spec().get_string_attribute(kDenoiserTilesAttribute);
+        // The probes see the input as it was: x and its spec (the extras they do not read).
+        noisy.specmod() = unprobed_spec;
+        noisy.specmod().erase_attribute(kOutputRoomAttribute);
+        put_back({ frame.color[0], frame.color[1], frame.color[2] },
+                 { unprobed.begin(), unprobed.begin() + 3 });
+        trace.mark("y is finite, x put back");
+    } else {
         ImageBuf denoised;
         trace.mark("read x, converged tiles");
         const bool ran = denoiser(denoised, noisy);
@@ -231,7 +332,6 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
     }
     // Of those, the tiles the denoiser did pass through (a callable may not skip): no probes.
     const ConvergedTiles passed = tiles_where_equal(y, x, &converged);
-    const int w = x[0].width, h = x[0].height;
     const Plane no_probe(w, h);
 
     // Eq. 2: probe with b ~ N(0, Sigma); the render and both halves move together. b of a
@@ -239,19 +339,6 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
     const uint64_t first_index = uint64_t(noisy.spec().y - frame.index_origin) * uint64_t(w);
     const double eps = frame.eps;
     Plane divergence[3] = { Plane(w, h), Plane(w, h), Plane(w, h) };
-    // The moved channels' exact bits (read_plane would sanitize), restored after each probe.
-    std::vector<std::vector<float>> unprobed(frame.moved.size());
-    auto channel_roi = [&](int channel) {
-        ROI r = noisy.roi();
-        r.chbegin = channel;
-        r.chend = channel + 1;
-        return r;
-    };
-    if (eps > 0)
-        for (size_t m = 0; m < frame.moved.size(); ++m) {
-            unprobed[m].resize(size_t(w) * h);
-            noisy.get_pixels(channel_roi(frame.moved[m]), OIIO::TypeDesc::FLOAT, unprobed[m].data());
-        }
     for (int k = 0; eps > 0 && k < options.probes; ++k) {
         Plane b[3];
         for (int c = 0; c < 3; ++c)
@@ -277,8 +364,7 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
         ImageBuf response;
         const bool probe_ok = denoiser(response, noisy);
         trace.mark("F(x + eps b)");
-        for (size_t m = 0; m < frame.moved.size(); ++m)
-            noisy.set_pixels(channel_roi(frame.moved[m]), OIIO::TypeDesc::FLOAT, unprobed[m].data());
+        put_back(frame.moved, unprobed);
         noisy.specmod().erase_attribute(kProbeAttribute);
         noisy.specmod().erase_attribute(kColourOnlyAttribute);
         noisy.specmod().erase_attribute(kDenoiserTilesAttribute);
@@ -301,6 +387,15 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
         }
     }
 
+    const int band_y = noisy.spec().y;
+    // In place, noisy is the result now: y and the spec the denoiser gave it.
+    if (frame.denoise_in_place) {
+        put_back(frame.color, y_bits);
+        noisy.specmod() = result_spec;
+        dst = std::move(noisy);
+    }
+    const ImageSpec& in_spec = frame.denoise_in_place ? dst.spec() : noisy.spec();
+
     // Eq. 1 per pixel and channel (d = 1): SURE = (y - x)^2 + 2 sigma^2 f'(x) - sigma^2.
     for (int c = 0; c < 3; ++c)  // the pass-through's f'(x) = 1
         pass_through_converged(divergence[c], variance[c], passed);
@@ -311,7 +406,6 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
     ROI where = frame.where;
     where.ybegin = std::max(where.ybegin, band.own_begin);
     where.yend = std::min(where.yend, band.own_end);
-    const int band_y = noisy.spec().y;
     Plane residual[3], estimate[3];
     for (int c = 0; c < 3; ++c) {
         residual[c] = Plane(w, h);
@@ -326,9 +420,6 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
             }
         });
     }
-    std::vector<Plane> extras;
-    for (size_t e = 0; e < frame.extras.size(); ++e)
-        extras.push_back(read_plane(noisy, frame.extras[e]));
 
     // The safety net (skip/worse_tiles.h): where SURE says y is worse than x, y = x and SURE
     // is the render's own error, as on a tile passed through.
@@ -359,11 +450,11 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
         planes.push_back(&fell_back);
     if (fall_back) {
         for (int c = 0; c < 3; ++c) {
-            out.push_back(dst.spec().channelindex(noisy.spec().channel_name(frame.color[c])));
+            out.push_back(dst.spec().channelindex(in_spec.channel_name(frame.color[c])));
             planes.push_back(&y[c]);
         }
         for (size_t e = 0; e < frame.extras.size(); ++e) {
-            out.push_back(dst.spec().channelindex(noisy.spec().channel_name(frame.extras[e])));
+            out.push_back(dst.spec().channelindex(in_spec.channel_name(frame.extras[e])));
             planes.push_back(&extras[e]);
         }
     }

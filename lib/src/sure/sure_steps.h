@@ -28,16 +28,23 @@ struct SureFrame {
     std::vector<std::string> extra_names;
     double eps = 0;              // the probe step (core/frame_facts.h relative_probe_step)
     bool fallback_channel = false;  // sure.fallback (SureOptions::output_fallback)
+    // The denoiser runs on noisy itself (SureOptions::denoiser_in_place) and noisy, which
+    // already has sure's channels, becomes dst: the band is the whole frame.
+    bool denoise_in_place = false;
     int nthreads = 0;            // for SURE's own per-pixel work (the op's nthreads)
 };
 
 /// The channels sure adds, in the order it writes them: noisy.*, sure.*, sure.divergence.*,
 /// sure.residual.*, then noisy.<extra>, then sure.fallback when asked for.
 std::vector<std::string> sure_channel_names(const SureFrame& frame);
+/// The same for a frame whose AOVs are `aovs`, with `options`.
+std::vector<std::string> sure_channel_names(const AovSet& aovs, const SureOptions& options);
 
 /// mcdn::sure on a src that is the caller's own: when the frame is one band, its probes are
 /// made in src itself, not in a copy (a frame-sized copy less), and src's pixels and spec
 /// are as they were when it returns (also on failure). Meanwhile nothing else may read src.
+/// When src has sure's channels already and options.denoiser_in_place, the denoiser runs
+/// in src too and src becomes dst (moved: src is left without state).
 bool sure_probing_src(ImageBuf& dst, ImageBuf& src, const Denoiser& denoiser,
                       const SureOptions& options, ROI roi = {}, int nthreads = 0);
 
