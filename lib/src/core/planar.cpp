@@ -77,6 +77,24 @@ void read_frame_rows(const OIIO::ImageSpec& spec, const float* frame, const OIIO
         }
 }
 
+// Rows of `roi` of planes (on the frame's data window) into a float frame's channels.
+void write_frame_rows(const OIIO::ImageSpec& spec, float* frame, const OIIO::ROI& roi,
+                      const std::vector<PlaneWrite>& writes)
+{
+    const size_t nch = size_t(spec.nchannels);
+    for (int y = roi.ybegin; y < roi.yend; ++y)
+        for (int x0 = roi.xbegin; x0 < roi.xend; x0 += kPassPixels) {
+            const int n = std::min(kPassPixels, roi.xend - x0);
+            float* pixels = frame + pixel_index(spec, x0, y);
+            for (const PlaneWrite& w : writes) {
+                const float* in = w.plane->row(y - spec.y) + (x0 - spec.x);
+                float* out = pixels + w.channel;
+                for (int x = 0; x < n; ++x)
+                    out[size_t(x) * nch] = in[x];
+            }
+        }
+}
+
 }  // namespace
 
 Plane read_rows(const OIIO::ImageBuf& src, int channel, const OIIO::ROI& rows, bool is_variance)
@@ -127,14 +145,8 @@ void write_plane(OIIO::ImageBuf& dst, int channel, const Plane& plane, OIIO::ROI
         return;
     // A float frame is written straight into its pixels (no copy of the plane, no iterator).
     if (float_frame_pixels(dst) && inside(spec, roi)) {
-        float* frame = static_cast<float*>(dst.localpixels());
-        const size_t nch = size_t(spec.nchannels);
-        for (int y = roi.ybegin; y < roi.yend; ++y) {
-            const float* in = plane.row(y - spec.y) + (roi.xbegin - spec.x);
-            float* out = frame + pixel_index(spec, roi.xbegin, y) + channel;
-            for (int x = 0; x < roi.width(); ++x, out += nch)
-                *out = in[x];
-        }
+        write_frame_rows(spec, static_cast<float*>(dst.localpixels()), roi,
+                         { { channel, &plane } });
         return;
     }
     // Copy the ROI rows out of the plane, then hand them to OIIO in one call.
@@ -179,21 +191,7 @@ void write_planes(OIIO::ImageBuf& dst, const std::vector<PlaneWrite>& writes, OI
             write_plane(dst, w.channel, *w.plane, roi);
         return;
     }
-    if (roi.npixels() == 0)
-        return;
-    float* frame = static_cast<float*>(dst.localpixels());
-    const size_t nch = size_t(spec.nchannels);
-    for (int y = roi.ybegin; y < roi.yend; ++y)
-        for (int x0 = roi.xbegin; x0 < roi.xend; x0 += kPassPixels) {
-            const int n = std::min(kPassPixels, roi.xend - x0);
-            float* pixels = frame + pixel_index(spec, x0, y);
-            for (const PlaneWrite& w : writes) {
-                const float* in = w.plane->row(y - spec.y) + (x0 - spec.x);
-                float* out = pixels + w.channel;
-                for (int x = 0; x < n; ++x)
-                    out[size_t(x) * nch] = in[x];
-            }
-        }
+    write_frame_rows(spec, static_cast<float*>(dst.localpixels()), roi, writes);
 }
 
 }  // namespace mcdn

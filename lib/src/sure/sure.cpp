@@ -55,12 +55,7 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
         if (aovs.has(half))
             frame.moved.insert(frame.moved.end(), aovs.channels(half).begin(),
                                aovs.channels(half).end());
-    for (const AovSet::Extra& extra : aovs.extras())  // so that mix can mix them too
-        if (extra.channels.size() == 3) {
-            frame.extras.insert(frame.extras.end(), extra.channels.begin(), extra.channels.end());
-            frame.extra_names.insert(frame.extra_names.end(), extra.names.begin(),
-                                     extra.names.end());
-        }
+    add_extras(frame, aovs);
     // The frame's facts: a chain band's own, else the frame's colour sums, handed to the
     // denoiser on each of its inputs (core/frame_facts.h): every run, probed or not, then
     // takes the same unprobed frame's statistics.

@@ -130,25 +130,20 @@ bool check_finite(const ImageBuf& denoised, const ImageBuf& noisy, int nthreads,
     return true;
 }
 
-// check_finite for a denoiser that ran in place: `channels` of buf against their bits
-// before it (`before`, one plane each).
-bool check_finite_in_place(const ImageBuf& buf, const std::vector<int>& channels,
+// check_finite for a denoiser that ran in place: `now`, the bits of `channels` of `spec`'s
+// frame after it, against `before` (one plane each).
+bool check_finite_in_place(const ImageSpec& spec, const std::vector<int>& channels,
+                           const std::vector<std::vector<float>>& now,
                            const std::vector<std::vector<float>>& before, std::string& error)
 {
-    std::vector<float> now;
     for (size_t m = 0; m < channels.size(); ++m) {
-        ROI r = buf.roi();
-        r.chbegin = channels[m];
-        r.chend = channels[m] + 1;
-        now.resize(r.npixels());
-        buf.get_pixels(r, OIIO::TypeDesc::FLOAT, now.data());
         size_t bad = 0;
-        for (size_t i = 0; i < now.size(); ++i)
-            bad += !std::isfinite(now[i]) && std::isfinite(before[m][i]);
+        for (size_t i = 0; i < now[m].size(); ++i)
+            bad += !std::isfinite(now[m][i]) && std::isfinite(before[m][i]);
         if (bad) {
             error = format("sure: the denoiser returned {} NaN or Inf values in channel {} "
                            "(a denoiser must return finite values)", bad,
-                           buf.spec().channel_name(channels[m]));
+                           spec.channel_name(channels[m]));
             return false;
         }
     }
@@ -204,13 +199,20 @@ std::vector<std::string> sure_channel_names(const SureFrame& frame)
     return names;
 }
 
+void add_extras(SureFrame& frame, const AovSet& aovs)
+{
+    for (const AovSet::Extra& extra : aovs.extras())
+        if (extra.channels.size() == 3) {
+            frame.extras.insert(frame.extras.end(), extra.channels.begin(), extra.channels.end());
+            frame.extra_names.insert(frame.extra_names.end(), extra.names.begin(),
+                                     extra.names.end());
+        }
+}
+
 std::vector<std::string> sure_channel_names(const AovSet& aovs, const SureOptions& options)
 {
     SureFrame frame;
-    for (const AovSet::Extra& extra : aovs.extras())
-        if (extra.channels.size() == 3)
-            frame.extra_names.insert(frame.extra_names.end(), extra.names.begin(),
-                                     extra.names.end());
+    add_extras(frame, aovs);
     frame.fallback_channel = options.output_fallback;
     return sure_channel_names(frame);
 }
@@ -281,14 +283,17 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
             return false;
         }
         trace.mark("y = F(x)");
-        if (!check_finite_in_place(noisy, frame.color, { unprobed.begin(), unprobed.begin() + 3 },
-                                   error)
-            || !check_finite_in_place(noisy, frame.extras, extras_bits, error))
-            return false;
-        read_planes(noisy, { { frame.color[0], &y[0] }, { frame.color[1], &y[1] },
-                             { frame.color[2], &y[2] } },
-                    {}, frame.nthreads);
         y_bits = exact(frame.color);
+        if (!check_finite_in_place(noisy.spec(), frame.color, y_bits,
+                                   { unprobed.begin(), unprobed.begin() + 3 }, error)
+            || !check_finite_in_place(noisy.spec(), frame.extras, exact(frame.extras),
+                                      extras_bits, error))
+            return false;
+        for (int c = 0; c < 3; ++c) {  // as read_plane reads them
+            y[c] = Plane(w, h);
+            for (size_t i = 0; i < y[c].size(); ++i)
+                y[c].px[i] = sanitize(y_bits[c][i]);
+        }
         result_spec = noisy.spec();
         result_spec.erase_attribute(kOutputRoomAttribute);
         result_spec.erase_attribute(kConvergedAttribute);

@@ -39,6 +39,9 @@ struct SureFrame {
 std::vector<std::string> sure_channel_names(const SureFrame& frame);
 /// The same for a frame whose AOVs are `aovs`, with `options`.
 std::vector<std::string> sure_channel_names(const AovSet& aovs, const SureOptions& options);
+/// The RGB extra AOVs of `aovs` into frame.extras and frame.extra_names (so that mix can
+/// mix them too).
+void add_extras(SureFrame& frame, const AovSet& aovs);
 
 /// mcdn::sure on a src that is the caller's own: when the frame is one band, its probes are
 /// made in src itself, not in a copy (a frame-sized copy less), and src's pixels and spec
