@@ -1,7 +1,10 @@
 // Reading, merging, validating and writing images.
 #include "mcdn/io.h"
 
+#include <cmath>
+#include <cstring>
 #include <fstream>
+#include <limits>
 
 #include <OpenImageIO/imagebufalgo.h>
 #include <OpenImageIO/imageio.h>
@@ -323,4 +326,54 @@ TEST(Io, TiledFilesReadAsTheirScanlineOriginals)
         EXPECT_EQ(cmp.nfail, 0u) << (only_roles ? "roles only" : "every channel");
         EXPECT_EQ(cmp.maxerror, 0.0);
     }
+}
+
+// Files are read through OpenEXR's C core where it reads the codec as the C++ library does
+// (io.cpp: core_reads). Every codec a renderer may write, float and half, scanline and
+// tiled, layer-prefixed names, Inf and NaN among the values: read_image gives the C++
+// library's bits exactly, and DWA/B44 files (which the core in OpenEXR 3.1 cannot read, or
+// reads otherwise) are still read. A codec that the core reads differently in a later
+// OpenEXR fails here, not in a user's frame.
+TEST(Io, EveryExrCodecReadsAsTheCxxLibraryReadsIt)
+{
+    const std::string dir = mcdn_test::temp_dir("codecs");
+    const int w = 45, h = 37, nch = 5;
+    std::vector<float> values(size_t(w) * h * nch);
+    uint32_t state = 12345;
+    for (size_t i = 0; i < values.size(); ++i) {
+        state = state * 1664525u + 1013904223u;
+        const float u = float(state >> 8) / float(1 << 24);
+        values[i] = (u - 0.3f) * std::exp(12.0f * u - 4.0f);
+    }
+    values[3] = std::numeric_limits<float>::infinity();
+    values[17] = std::numeric_limits<float>::quiet_NaN();
+    for (const char* codec : { "none", "rle", "zips", "zip", "piz", "pxr24", "b44", "b44a",
+                               "dwaa", "dwab" })
+        for (const OIIO::TypeDesc type : { OIIO::TypeDesc::FLOAT, OIIO::TypeDesc::HALF })
+            for (int tile : { 0, 16 }) {
+                ImageSpec spec(w, h, nch, type);
+                spec.channelnames = { "ViewLayer.Combined.R", "ViewLayer.Combined.G",
+                                      "ViewLayer.Combined.B", "albedo.R", "N.X" };
+                spec.attribute("compression", codec);
+                spec.tile_width = spec.tile_height = tile;
+                const std::string path = OIIO::Strutil::fmt::format(
+                    "{}/{}_{}_{}.exr", dir, codec, type.c_str(), tile);
+                auto out = OIIO::ImageOutput::create(path);
+                ASSERT_TRUE(out && out->open(path, spec)
+                            && out->write_image(OIIO::TypeDesc::FLOAT, values.data())
+                            && out->close()) << path;
+                int before = 0;
+                OIIO::getattribute("openexr:core", before);
+                OIIO::attribute("openexr:core", 0);
+                ImageBuf cxx(path);
+                const bool read_cxx = cxx.read(0, 0, true, OIIO::TypeDesc::FLOAT);
+                OIIO::attribute("openexr:core", before);
+                ASSERT_TRUE(read_cxx) << path << ": " << cxx.geterror();
+                ImageBuf ours;
+                ASSERT_TRUE(read_image(ours, path)) << path << ": " << ours.geterror();
+                ASSERT_EQ(ours.nchannels(), cxx.nchannels()) << path;
+                const size_t n = size_t(w) * h * nch;
+                EXPECT_EQ(std::memcmp(ours.localpixels(), cxx.localpixels(), n * sizeof(float)),
+                          0) << path;
+            }
 }

@@ -9,7 +9,9 @@
 #include <cstring>
 #include <filesystem>
 #include <map>
+#include <cstdlib>
 #include <memory>
+#include <mutex>
 #include <set>
 
 #include <signal.h>
@@ -82,6 +84,7 @@ struct FileLayout {
     std::vector<ImageSpec> parts;
     std::vector<std::string> names;
     std::vector<int> subimages;  // each part's subimage in the file
+    bool exr = false;
 
     // The merged buffer's spec: the first part's metadata with every part's channels.
     ImageSpec merged_spec() const
@@ -154,7 +157,7 @@ bool read_layout(FileLayout& layout, const std::string& path, const std::string&
         error = format("{}: cannot read: {}", path, OIIO::geterror());
         return false;
     }
-    layout = { path, {}, {}, {} };
+    layout = { path, {}, {}, {}, std::string(in->format_name()) == "openexr" };
     std::vector<std::string> part_names;
     for (int s = 0; in->seek_subimage(s, 0); ++s) {
         ImageSpec spec = in->spec(s, 0);
@@ -190,6 +193,45 @@ bool read_layout(FileLayout& layout, const std::string& path, const std::string&
         for (const auto& ch : layout.parts[p].channelnames)
             layout.names.push_back(part_qualified(layout.parts[p], p == 0, ch));
     return true;
+}
+
+// OpenEXR's C core (OIIO's openexr:core reader) decodes the codecs renderers write most a
+// third faster than the C++ library, with the same values. Not for DWAA/DWAB (OpenEXR 3.1's
+// core cannot read them) nor B44/B44A (it reads their float channels otherwise):
+// tests/core/io_test.cpp checks both readers agree on every codec in this list.
+// MCDN_OPENEXR_CORE=0 reads every file with the C++ library.
+bool core_reads(const FileLayout& layout)
+{
+    static const bool allowed = [] {
+        const char* env = std::getenv("MCDN_OPENEXR_CORE");
+        return !env || std::string(env) != "0";
+    }();
+    if (!allowed || !layout.exr)
+        return false;
+    for (const ImageSpec& part : layout.parts) {
+        std::string codec = part.get_string_attribute("compression", "none");
+        codec = codec.substr(0, codec.find(':'));
+        if (codec != "none" && codec != "rle" && codec != "zips" && codec != "zip"
+            && codec != "piz" && codec != "pxr24")
+            return false;
+    }
+    return true;
+}
+
+// The file opened for its pixels: OIIO picks the EXR reader when it creates one, from a
+// global attribute, so the attribute is set for this open alone (and put back).
+std::unique_ptr<ImageInput> open_for_pixels(const FileLayout& layout)
+{
+    if (!core_reads(layout))
+        return ImageInput::open(layout.path);
+    static std::mutex mutex;
+    std::lock_guard<std::mutex> lock(mutex);
+    int before = 0;
+    OIIO::getattribute("openexr:core", before);
+    OIIO::attribute("openexr:core", 1);
+    std::unique_ptr<ImageInput> in = ImageInput::open(layout.path);
+    OIIO::attribute("openexr:core", before);
+    return in;
 }
 
 // OIIO leaves a buffer without pixels (and says so only on its debug channel) when memory
@@ -284,7 +326,7 @@ bool read_image(ImageBuf& dst, const std::string& path)
         return false;
     }
     ImageBuf out(layout.merged_spec());
-    auto in = ImageInput::open(path);
+    auto in = open_for_pixels(layout);
     if (!in) {
         dst.errorfmt("{}: cannot read: {}", path, OIIO::geterror());
         return false;
@@ -633,7 +675,7 @@ bool InputRows::read(ImageBuf& dst, int ybegin, int yend, std::string& error,
         // Opened for these rows and closed after them: an open EXR holds line buffers of
         // its own for each decoding thread (tens of MB a file at 4K), which would otherwise
         // stay beside the band through the stages. Headers are read again for each band.
-        std::unique_ptr<ImageInput> in = ImageInput::open(f.layouts[i].path);
+        std::unique_ptr<ImageInput> in = open_for_pixels(f.layouts[i]);
         if (!in) {
             error = format("{}: cannot read: {}", f.layouts[i].path, OIIO::geterror());
             return false;
