@@ -1105,6 +1105,13 @@ bool write_image(const ImageBuf& src, const std::string& path, const WriteOption
     OutputLayout layout;
     if (!output_layout(layout, src.spec(), path, options, error))
         return false;
+    // One part: written as a chain writes its bands, the channels gathered a chunk of rows
+    // at a time (a whole copy first would be a frame of fresh pages).
+    if (layout.parts.empty()) {
+        RowWriter writer;
+        return writer.open(src.spec(), path, options, error)
+               && writer.write_rows(src, src.roi(), error) && writer.close(error, warnings);
+    }
     const std::vector<int>& order = layout.order;
     ImageBuf out = OIIO::ImageBufAlgo::channels(src, int(order.size()), order);
     if (out.has_error()) {
@@ -1132,37 +1139,32 @@ bool write_image(const ImageBuf& src, const std::string& path, const WriteOption
     }
     const std::string tmp = temporary_for(path);
     TemporaryRegistration registration(tmp);
-    bool ok;
-    if (parts.empty()) {
-        ok = output->open(tmp, spec) && output->write_image(TypeDesc::FLOAT, out.localpixels());
-    } else {
-        std::vector<ImageSpec> specs;
-        std::vector<int> first_channel;
-        int first = 0;
-        for (size_t p = 0; p < parts.size(); ++p) {
-            const int n = int(layout.part_channels[p].size());
-            if (n == 0)
-                continue;
-            ImageSpec part = spec;
-            part.nchannels = n;
-            part.channelnames = layout.part_channels[p];
-            part.attribute("name", parts[p].name);
-            part.attribute("oiio:subimagename", parts[p].name);
-            part.alpha_channel = part.channelindex("A");
-            part.z_channel = part.channelindex("Z");
-            specs.push_back(part);
-            first_channel.push_back(first);
-            first += n;
-        }
-        const OIIO::stride_t pixel = OIIO::stride_t(out.nchannels()) * sizeof(float);
-        const float* pixels = static_cast<const float*>(out.localpixels());
-        ok = output->supports("multiimage")
-             && output->open(tmp, int(specs.size()), specs.data());
-        for (size_t p = 0; ok && p < specs.size(); ++p)
-            ok = (p == 0 || output->open(tmp, specs[p], ImageOutput::AppendSubimage))
-                 && output->write_image(TypeDesc::FLOAT, pixels + first_channel[p], pixel,
-                                        pixel * spec.width);
+    std::vector<ImageSpec> specs;
+    std::vector<int> first_channel;
+    int first = 0;
+    for (size_t p = 0; p < parts.size(); ++p) {
+        const int n = int(layout.part_channels[p].size());
+        if (n == 0)
+            continue;
+        ImageSpec part = spec;
+        part.nchannels = n;
+        part.channelnames = layout.part_channels[p];
+        part.attribute("name", parts[p].name);
+        part.attribute("oiio:subimagename", parts[p].name);
+        part.alpha_channel = part.channelindex("A");
+        part.z_channel = part.channelindex("Z");
+        specs.push_back(part);
+        first_channel.push_back(first);
+        first += n;
     }
+    const OIIO::stride_t pixel = OIIO::stride_t(out.nchannels()) * sizeof(float);
+    const float* pixels = static_cast<const float*>(out.localpixels());
+    bool ok = output->supports("multiimage")
+              && output->open(tmp, int(specs.size()), specs.data());
+    for (size_t p = 0; ok && p < specs.size(); ++p)
+        ok = (p == 0 || output->open(tmp, specs[p], ImageOutput::AppendSubimage))
+             && output->write_image(TypeDesc::FLOAT, pixels + first_channel[p], pixel,
+                                    pixel * spec.width);
     ok = output->close() && ok;
     if (!ok) {
         error = format("{}: write failed: {}", path, output->geterror());
