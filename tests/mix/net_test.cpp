@@ -91,6 +91,55 @@ TEST(MixNet, MatchesPyTorch)
     EXPECT_LT(alpha_error, 1e-4);
 }
 
+// net_alpha makes the features a tile window at a time (no frame of 18 inputs): a window
+// that reaches past the frame repeats its last row and column, as run_tiled extends the
+// frame, and the network's outputs are those of the whole features run at run_tiled's
+// default tile, bit for bit.
+TEST(MixNet, FeaturesMadePerTileEqualTheWholeFrames)
+{
+    nn::Weights io;
+    std::string error;
+    ASSERT_TRUE(nn::read_weights(mcdn_test::test_data("mix/mix_net_io.mcdnw"), io, error)) << error;
+    MixInputs in;
+    const char* names[] = { "x", "y", "variance", "sure", "divergence", "residual" };
+    Plane* planes[] = { in.x, in.y, in.variance, in.sure, in.divergence, in.residual };
+    // The fixture's inputs repeated to a frame of several tiles (a partial last one).
+    const int w = 300, h = 280;
+    for (int k = 0; k < 6; ++k) {
+        const nn::Tensor t = to_tensor(*io.find(std::string("input.") + names[k]));
+        for (int c = 0; c < 3; ++c) {
+            const Plane small = channel_plane(t, c);
+            planes[k][c] = Plane(w, h);
+            for (int y = 0; y < h; ++y)
+                for (int x = 0; x < w; ++x)
+                    planes[k][c].px[size_t(y) * w + x]
+                        = small.px[size_t(y % small.height) * small.width + x % small.width];
+        }
+    }
+    const nn::Tensor whole = net_features(in);
+    const Rect window { w / 2, h / 3, w + 5, h + 7 };
+    nn::Tensor part;
+    net_features(in, window, part);
+    ASSERT_EQ(part.width, window.width());
+    ASSERT_EQ(part.height, window.height());
+    for (int y = window.y0; y < window.y1; ++y)
+        for (int x = window.x0; x < window.x1; ++x)
+            for (int c = 0; c < whole.channels; ++c)
+                ASSERT_EQ(part.pixel(y - window.y0, x - window.x0)[c],
+                          whole.pixel(std::min(y, h - 1), std::min(x, w - 1))[c])
+                    << x << "," << y << " input " << c;
+
+    nn::Net net;
+    ASSERT_TRUE(load_mix_net(net, default_mix_weights(), error)) << error;
+    Plane alpha[3];
+    nn::Tensor raw;
+    ASSERT_TRUE(net_alpha(alpha, in, net, error, &raw)) << error;
+    std::vector<nn::Tensor> outputs;
+    ASSERT_TRUE(nn::run_tiled(net, { whole }, outputs, error)) << error;
+    ASSERT_EQ(raw.data.size(), outputs[0].data.size());
+    EXPECT_EQ(raw.data, outputs[0].data);
+}
+
 TEST(MixNet, MissingOrWrongWeightsSayWhatToDo)
 {
     nn::Net net;

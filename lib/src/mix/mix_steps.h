@@ -25,6 +25,9 @@ bool load_mix_net(nn::Net& net, const std::string& path, std::string& error);
 
 /// The network's 18 inputs (training/mix/model.py features()), NHWC.
 nn::Tensor net_features(const MixInputs& in);
+/// The same for the pixels of `window` into f (reshaped), of the frame extended past its last
+/// row and column by repeating them, as nn::run_tiled extends it.
+void net_features(const MixInputs& in, const Rect& window, nn::Tensor& f);
 
 /// alpha = clip(f_act(h_NN(features)), 0, 1) per colour channel (eq. 19); `raw`, if given,
 /// receives the network's outputs (x1 RGB, x2 RGB, x3 RGB per pixel).

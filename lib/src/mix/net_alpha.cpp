@@ -6,6 +6,7 @@
 //   0-2 HDR  signed log(1 + |x|)           3-5 DEN  signed log(1 + |y|)
 //   6-8 VAR, 9-11 SURE, 12-14 sigma^2 f'(x), 15-17 ||y - x||^2: arctan(v / (y^2 + 0.01))
 // (the paper's arctan of each error estimate, made relative first: see training/mix/README.md).
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 
@@ -14,6 +15,7 @@
 #include <tbb/parallel_for.h>
 
 #include "mix/mix_steps.h"
+#include "nn/ops.h"
 
 namespace mcdn {
 
@@ -66,36 +68,57 @@ bool load_mix_net(nn::Net& net, const std::string& path, std::string& error)
     return true;
 }
 
-nn::Tensor net_features(const MixInputs& in)
+void net_features(const MixInputs& in, const Rect& window, nn::Tensor& f)
 {
     const int w = in.x[0].width, h = in.x[0].height;
-    nn::Tensor f(h, w, kInputs);
+    nn::reshape(f, window.height(), window.width(), kInputs);
     // Threaded over rows (18 log/atan per pixel).
-    tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& rows) {
-        for (int c = 0; c < 3; ++c)
-            for (size_t i = size_t(rows.begin()) * w; i < size_t(rows.end()) * w; ++i) {
-                float* px = f.data.data() + i * kInputs;
-                const float y = in.y[c].px[i];
-                const float scale = 1.0f / (y * y + kErrorDenominatorOffset);
-                px[0 + c] = signed_log1p(in.x[c].px[i]);
-                px[3 + c] = signed_log1p(y);
-                px[6 + c] = std::atan(in.variance[c].px[i] * scale);
-                px[9 + c] = std::atan(in.sure[c].px[i] * scale);
-                px[12 + c] = std::atan(in.divergence[c].px[i] * scale);
-                px[15 + c] = std::atan(in.residual[c].px[i] * scale);
+    tbb::parallel_for(tbb::blocked_range<int>(window.y0, window.y1),
+                      [&](const tbb::blocked_range<int>& rows) {
+        for (int wy = rows.begin(); wy < rows.end(); ++wy) {
+            const size_t row = size_t(std::min(wy, h - 1)) * w;
+            float* px = f.pixel(wy - window.y0, 0);
+            for (int wx = window.x0; wx < window.x1; ++wx, px += kInputs) {
+                const size_t i = row + size_t(std::min(wx, w - 1));
+                for (int c = 0; c < 3; ++c) {
+                    const float y = in.y[c].px[i];
+                    const float scale = 1.0f / (y * y + kErrorDenominatorOffset);
+                    px[0 + c] = signed_log1p(in.x[c].px[i]);
+                    px[3 + c] = signed_log1p(y);
+                    px[6 + c] = std::atan(in.variance[c].px[i] * scale);
+                    px[9 + c] = std::atan(in.sure[c].px[i] * scale);
+                    px[12 + c] = std::atan(in.divergence[c].px[i] * scale);
+                    px[15 + c] = std::atan(in.residual[c].px[i] * scale);
+                }
             }
+        }
     });
+}
+
+nn::Tensor net_features(const MixInputs& in)
+{
+    nn::Tensor f;
+    net_features(in, Rect { 0, 0, in.x[0].width, in.x[0].height }, f);
     return f;
 }
 
 bool net_alpha(Plane alpha[3], const MixInputs& in, nn::Net& net, std::string& error,
                nn::Tensor* raw_out, const std::vector<Rect>& regions)
 {
-    std::vector<nn::Tensor> inputs(1), outputs;
-    inputs[0] = net_features(in);  // moved in, not copied from an initializer list
+    // The features made a tile window at a time: no frame of 18 inputs beside the band.
+    const nn::TileInputs features = [&](const Rect& window, std::vector<nn::Tensor>& inputs,
+                                        std::string&) {
+        inputs.resize(1);
+        net_features(in, window, inputs[0]);
+        return true;
+    };
+    std::vector<nn::Tensor> outputs;
+    // Tiles of 256: the 48-channel layers' buffers follow (tile + halo)^2, and the result is
+    // the same for any tile.
     nn::TileOptions tiles;
+    tiles.tile_size = 256;
     tiles.regions = regions;
-    if (!nn::run_tiled(net, inputs, outputs, error, tiles)) {
+    if (!nn::run_tiled(net, in.x[0].height, in.x[0].width, features, outputs, error, tiles)) {
         error = "mix: model=net: " + error;
         return false;
     }
