@@ -47,19 +47,22 @@ bool find_feature_channels(std::vector<FeatureChannel>& features, const AovSet& 
 }
 
 std::vector<FeaturePlanes> read_features(const OIIO::ImageBuf& src,
-                                         const std::vector<FeatureChannel>& features)
+                                         const std::vector<FeatureChannel>& features,
+                                         FeatureFaces faces)
 {
     std::vector<FeaturePlanes> planes(features.size());
     std::vector<PlaneRead> reads;
     for (size_t i = 0; i < features.size(); ++i) {
         const FeatureChannel& f = features[i];
         FeaturePlanes& p = planes[i];
-        reads.push_back({ f.mean, &p.mean });
-        if (f.half_a >= 0 && f.half_b >= 0) {
+        const bool halves = f.half_a >= 0 && f.half_b >= 0;
+        if (faces.mean || !halves)
+            reads.push_back({ f.mean, &p.mean });
+        if (halves) {
             reads.push_back({ f.half_a, &p.half_a });
             reads.push_back({ f.half_b, &p.half_b });
         }
-        if (f.variance >= 0)
+        if (faces.variance && f.variance >= 0)
             reads.push_back({ f.variance, &p.variance, true });
     }
     read_planes(src, reads);
@@ -68,8 +71,8 @@ std::vector<FeaturePlanes> read_features(const OIIO::ImageBuf& src,
         FeaturePlanes& p = planes[i];
         if (f.half_a < 0 || f.half_b < 0)
             p.half_a = p.half_b = p.mean;
-        if (f.variance < 0) {
-            p.variance = Plane(p.mean.width, p.mean.height);
+        if (faces.variance && f.variance < 0) {
+            p.variance = Plane(p.half_a.width, p.half_a.height);
             for (size_t j = 0; j < p.variance.size(); ++j) {
                 float d = p.half_a.px[j] - p.half_b.px[j];
                 p.variance.px[j] = sanitize_variance(0.25f * d * d);
@@ -77,6 +80,17 @@ std::vector<FeaturePlanes> read_features(const OIIO::ImageBuf& src,
         }
     }
     return planes;
+}
+
+void read_feature_means(std::vector<FeaturePlanes>& planes, const OIIO::ImageBuf& src,
+                        const std::vector<FeatureChannel>& features)
+{
+    std::vector<PlaneRead> reads;
+    for (size_t i = 0; i < features.size(); ++i)
+        if (planes[i].mean.px.empty())
+            reads.push_back({ features[i].mean, &planes[i].mean });
+    if (!reads.empty())
+        read_planes(src, reads);
 }
 
 FeaturePlanes read_feature(const OIIO::ImageBuf& src, const FeatureChannel& feature)

@@ -29,8 +29,18 @@ struct FeaturePlanes {
     Plane mean, variance, half_a, half_b;
 };
 FeaturePlanes read_feature(const OIIO::ImageBuf& src, const FeatureChannel& feature);
+/// Which planes read_features fills besides the halves: a caller may leave the mean for later
+/// (read_feature_means) or the variance out (left empty). A feature without halves of its own
+/// has its mean read regardless (its halves are the mean).
+struct FeatureFaces {
+    bool mean = true, variance = true;
+};
 /// The planes of each of `features`, read in one pass over src's pixels.
 std::vector<FeaturePlanes> read_features(const OIIO::ImageBuf& src,
-                                         const std::vector<FeatureChannel>& features);
+                                         const std::vector<FeatureChannel>& features,
+                                         FeatureFaces faces = {});
+/// The means read_features left out (empty), in one pass.
+void read_feature_means(std::vector<FeaturePlanes>& planes, const OIIO::ImageBuf& src,
+                        const std::vector<FeatureChannel>& features);
 
 }  // namespace mcdn

@@ -71,6 +71,7 @@ OutlierRule outlier_rule(const NforOptions& o, const ColourSums& frame)
 struct NforInputs {
     AovSet aovs;
     bool halves = false;  // else the one-buffer path: the render and its variance only
+    bool means_later = false;  // the features' means are read after §5.2 (read_inputs)
     ColorPlanes color;
     std::vector<FeaturePlanes> features;
     std::vector<FeatureChannel> feature_channels;  // where each of `features` came from
@@ -128,7 +129,18 @@ bool read_inputs(NforInputs& in, ImageBuf& dst, const ImageBuf& src, const NforO
             return false;
         }
     read_color_planes(in.color, src, in.aovs, in.halves);
-    in.features = read_features(src, feature_channels);
+    // The features' variances serve §5.1 alone, whose result replaces their means. With
+    // half buffers §5.2 fits with the features' halves, so their means are read only for
+    // §5.4 (read_feature_means): a plane per feature less at the peaks of §5.2 and §5.3.
+    const bool prefiltered = src.spec().get_int_attribute("mcdn:prefiltered", 0) == 1;
+    const bool prefilters = !prefiltered && options.prefilter_features;
+    in.means_later = in.halves && !options.cross_frame();
+    FeatureFaces faces;
+    faces.mean = !in.means_later && !prefilters;
+    faces.variance = prefilters;
+    in.features = read_features(src, feature_channels, faces);
+    if (!faces.mean)
+        read_means_of_constant_halves(in.features, src, feature_channels);
     if (denoises_extras(options.denoise_extras, src)
         && !read_extras(in.extras, src, in.aovs, in.halves, error)) {
         dst.errorfmt("{}: {}", op, error);
@@ -530,6 +542,8 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     progress.advance();
     std::vector<Plane> denoised;
     if (in.halves) {
+        if (in.means_later)  // src is still as read: nothing is written before the end
+            read_feature_means(in.features, src, in.feature_channels);
         denoised = second_pass(selected, in.features, extras, options, converged, nthreads);
     } else {  // §5.4 filters the halves' average with their difference as its variance
         for (int c = 0; c < 3; ++c)

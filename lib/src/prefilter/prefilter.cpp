@@ -43,7 +43,12 @@ bool prefilter_in_working_space(ImageBuf& dst, const ImageBuf& src,
                      "aov overrides", options.aovs.preset, channel_list(src.spec()));
         return false;
     }
-    std::vector<FeaturePlanes> planes = read_features(src, channels);
+    // §5.1 makes each mean from the filtered halves: the means are not read (but where they
+    // may be constant, skip/constant_features.h).
+    FeatureFaces faces;
+    faces.mean = false;
+    std::vector<FeaturePlanes> planes = read_features(src, channels, faces);
+    read_means_of_constant_halves(planes, src, channels);
     const ConvergedTiles converged = converged_tiles_of(src, aovs, options.skip);
     if (options.skip.enabled)
         drop_constant_features(planes, channels, src.spec());  // copied unchanged

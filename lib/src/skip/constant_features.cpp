@@ -6,15 +6,34 @@
 
 namespace mcdn {
 
+bool is_constant_plane(const Plane& p)
+{
+    if (p.px.empty())
+        return false;
+    const float value = p.px[0];
+    return std::all_of(p.px.begin(), p.px.end(), [value](float v) { return v == value; });
+}
+
 bool is_constant_feature(const FeaturePlanes& f)
 {
-    if (f.mean.px.empty())
-        return false;
-    const float value = f.mean.px[0];
-    auto all_equal = [value](const Plane& p) {
-        return std::all_of(p.px.begin(), p.px.end(), [value](float v) { return v == value; });
-    };
-    return all_equal(f.mean) && all_equal(f.half_a) && all_equal(f.half_b);
+    return is_constant_plane(f.mean) && is_constant_plane(f.half_a)
+           && is_constant_plane(f.half_b) && f.half_a.px[0] == f.mean.px[0]
+           && f.half_b.px[0] == f.mean.px[0];
+}
+
+void read_means_of_constant_halves(std::vector<FeaturePlanes>& features,
+                                   const OIIO::ImageBuf& src,
+                                   const std::vector<FeatureChannel>& channels)
+{
+    std::vector<PlaneRead> reads;
+    for (size_t i = 0; i < features.size(); ++i) {
+        FeaturePlanes& f = features[i];
+        if (f.mean.px.empty() && is_constant_plane(f.half_a) && is_constant_plane(f.half_b)
+            && f.half_a.px[0] == f.half_b.px[0])
+            reads.push_back({ channels[i].mean, &f.mean });
+    }
+    if (!reads.empty())
+        read_planes(src, reads);
 }
 
 namespace {

@@ -12,6 +12,14 @@ namespace mcdn {
 
 /// Mean, half A and half B hold one value everywhere (NaN is never constant).
 bool is_constant_feature(const FeaturePlanes& feature);
+/// Every value of the plane equals its first (false when empty; NaN is never constant).
+bool is_constant_plane(const Plane& plane);
+
+/// For features read without their means (FeatureFaces): reads the mean of each whose halves
+/// hold one and the same value throughout, the only ones is_constant_feature can find constant.
+void read_means_of_constant_halves(std::vector<FeaturePlanes>& features,
+                                   const OIIO::ImageBuf& src,
+                                   const std::vector<FeatureChannel>& channels);
 
 /// Removes the constant features from `features` and, when given, the matching entries of
 /// `channels` (same order). Returns how many were removed.
