@@ -1245,9 +1245,12 @@ bool RowWriter::write_rows(const ImageBuf& band, const ROI& own, std::string& er
     }
     // The output's channels, pixel-interleaved and checked as write_image checks, a chunk of
     // rows at a time: the chunk is all the writer holds besides the band (a whole band's
-    // copy would add a frame of the output's channels at the peak). 256 rows: a multiple of
-    // every EXR compression's block height.
-    constexpr int kChunkRows = 256;
+    // copy would add a frame of the output's channels at the peak), about 16 MB of rows, in
+    // multiples of 32 (zip's blocks are 16 rows, piz's and dwaa's 32; OpenEXR keeps a partly
+    // filled block of dwab's 256 rows until the next call completes it).
+    const size_t row_bytes = size_t(own.width()) * nch * sizeof(float);
+    const int kChunkRows = std::clamp(int(((size_t(16) << 20) / std::max<size_t>(row_bytes, 1)
+                                           + 31) / 32 * 32), 32, 256);
     const ImageSpec& in = band.spec();
     const float* pixels = float_frame_pixels(band);
     for (int y0 = own.ybegin; y0 < own.yend; y0 += kChunkRows) {
