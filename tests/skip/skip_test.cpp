@@ -454,10 +454,11 @@ TEST(SkipChains, AConvergedFrameIsTheRenderThroughEveryChain)
         ASSERT_TRUE(run_chain(out, src, chain, {}, 2)) << out.geterror();
         EXPECT_EQ(max_color_difference(out, src, 0, 128), 0.0f) << stages[0];
         const int alpha = out.spec().channelindex("mix.alpha.G");
-        if (alpha >= 0)
+        if (alpha >= 0) {
             for (int y = 0; y < 128; y += 7)
                 for (int x = 0; x < 128; x += 7)
                     ASSERT_EQ(out.getchannel(x, y, 0, alpha), 0.0f);
+        }
     }
 }
 
