@@ -131,14 +131,19 @@ bool outputs_exist(const std::vector<Command>& commands)
 // What the command line's stages read of the variance and half-buffer files: the faces of
 // the roles, and the halves only for NFOR (or where no variance is given, from which the
 // stages then take the halves' difference), the light split's only for the CNN.
-// Everything when a command names channels.
+// Everything when a command names channels. --info without a stage reads what any stage
+// could, so that it says what each can do with the files given.
 mcdn::InputSelection input_selection(const std::vector<Command>& commands)
 {
     mcdn::InputSelection selection;
     selection.only_roles = true;
     selection.light_split = false;
-    bool nfor = false, variance = false;
+    bool nfor = false, variance = false, info = false, stage = false;
     for (const auto& c : commands) {
+        info |= c.name == "--info";
+        for (const char* name :
+             { "--prefilter", "--nfor", "--cnn", "--sure", "--mix", "--denoise" })
+            stage |= c.name == name;
         if (c.name == "--ch" || (c.name == "--info" && c.has("verbose"))
             || (c.name == "--metrics" && c.has("channels")))
             selection.only_roles = false;
@@ -149,7 +154,7 @@ mcdn::InputSelection input_selection(const std::vector<Command>& commands)
             for (const std::string& f : Strutil::splits(c.modifier("features"), ","))
                 selection.extra_features.push_back(f);
     }
-    selection.halves = nfor || !variance;
+    selection.halves = nfor || !variance || (info && !stage);
     return selection;
 }
 

@@ -70,6 +70,11 @@ TEST(Pipeline, OnlyTheChannelsTheChainUsesAreRead)
     EXPECT_NE(info.output.find("73 channels from 4 input(s)"), std::string::npos) << info.output;
     info = run_mcdntool(in + " --nfor --info");
     EXPECT_NE(info.output.find("141 channels from 4 input(s)"), std::string::npos) << info.output;
+    // --info alone reads what any stage could: the halves are found.
+    info = run_mcdntool(in + " --info");
+    EXPECT_NE(info.output.find("141 channels from 4 input(s)"), std::string::npos) << info.output;
+    EXPECT_NE(info.output.find("two-buffer"), std::string::npos) << info.output;
+    EXPECT_EQ(info.output.find("no half buffers"), std::string::npos) << info.output;
     int k = 0;
     for (const char* chain : { "--denoise", "--prefilter --nfor --sure --mix" }) {
         const std::string a = dir + "/a" + std::to_string(k) + ".exr";
