@@ -218,6 +218,15 @@ bool core_reads(const FileLayout& layout)
     return true;
 }
 
+// The rows of one block of a part core_reads reads (OpenEXR's lines per chunk).
+int core_block_rows(const ImageSpec& part)
+{
+    const std::string codec = part.get_string_attribute("compression", "none");
+    if (Strutil::starts_with(codec, "zips") || codec == "none" || codec == "rle")
+        return 1;
+    return Strutil::starts_with(codec, "piz") ? 32 : 16;  // zip, pxr24
+}
+
 // The file opened for its pixels: OIIO picks the EXR reader when it creates one, from a
 // global attribute, so the attribute is set for this open alone (and put back).
 std::unique_ptr<ImageInput> open_for_pixels(const FileLayout& layout)
@@ -262,6 +271,7 @@ bool read_pixels_into(ImageBuf& dst, int first, const FileLayout& layout, ImageI
     };
     const int total = dst.nchannels();
     const OIIO::stride_t pixel = OIIO::stride_t(total) * sizeof(float);
+    const bool core = core_reads(layout);
     float* out = static_cast<float*>(dst.localpixels()) + first;
     size_t k = 0;  // index into keep over every part's channels
     std::vector<float> rows;
@@ -275,9 +285,12 @@ bool read_pixels_into(ImageBuf& dst, int first, const FileLayout& layout, ImageI
         if (kept.empty())
             continue;
         // A tiled file (Arnold's and RenderMan's EXRs often are) is read in rows of whole
-        // tiles: OIIO reads tiles, not scanlines, from it.
+        // tiles: OIIO reads tiles, not scanlines, from it. OpenEXR's core reader is asked
+        // for whole blocks of rows too: OIIO 2.4 reads a range that starts or ends inside a
+        // block through a buffer it allocates with new[] and frees with delete.
         const bool tiled = part.tile_width > 0 && part.tile_height > 0;
-        if (!tiled && int(kept.size()) == n) {
+        const int aligned = tiled ? part.tile_height : core ? core_block_rows(part) : 1;
+        if (aligned == 1 && int(kept.size()) == n) {
             if (!in.read_scanlines(layout.subimages[s], 0, y0, y1, part.z, 0, n, TypeDesc::FLOAT,
                                    out, pixel, pixel * part.width))
                 return failed();
@@ -285,14 +298,11 @@ bool read_pixels_into(ImageBuf& dst, int first, const FileLayout& layout, ImageI
             continue;
         }
         int band = std::max(1, int((int64_t(1) << 22) / (int64_t(part.width) * n)));
-        int first_row = y0;
-        if (tiled) {
-            band = std::max(1, band / part.tile_height) * part.tile_height;
-            first_row = part.y + (y0 - part.y) / part.tile_height * part.tile_height;
-        }
+        band = std::max(1, band / aligned) * aligned;
+        const int first_row = part.y + (y0 - part.y) / aligned * aligned;
+        const int last_row = part.y + (y1 - part.y + aligned - 1) / aligned * aligned;
         for (int y = first_row; y < y1; y += band) {
-            const int end = std::min(part.y + part.height,
-                                     tiled ? y + band : std::min(y1, y + band));
+            const int end = std::min({ part.y + part.height, last_row, y + band });
             rows.resize(size_t(end - y) * part.width * n);
             const bool read
                 = tiled ? in.read_tiles(layout.subimages[s], 0, part.x, part.x + part.width, y,
