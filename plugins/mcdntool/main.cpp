@@ -141,9 +141,7 @@ mcdn::InputSelection input_selection(const std::vector<Command>& commands)
     bool nfor = false, variance = false, info = false, stage = false;
     for (const auto& c : commands) {
         info |= c.name == "--info";
-        for (const char* name :
-             { "--prefilter", "--nfor", "--cnn", "--sure", "--mix", "--denoise" })
-            stage |= c.name == name;
+        stage |= is_stage(c.name);
         if (c.name == "--ch" || (c.name == "--info" && c.has("verbose"))
             || (c.name == "--metrics" && c.has("channels")))
             selection.only_roles = false;
@@ -286,8 +284,7 @@ void warn_without_output(const std::vector<Command>& commands)
 {
     bool denoises = false, uses = false;
     for (const auto& c : commands) {
-        denoises |= c.name == "--denoise" || c.name == "--prefilter" || c.name == "--nfor"
-                    || c.name == "--cnn" || c.name == "--sure" || c.name == "--mix";
+        denoises |= is_stage(c.name);
         uses |= c.name == "-o" || c.name == "--metrics" || c.name == "--heatmap";
     }
     if (denoises && !uses)

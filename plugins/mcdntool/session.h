@@ -150,5 +150,7 @@ bool run_streamed_chain(Session& s, const std::vector<Command>& commands, size_t
 
 /// Commands of the denoising stages, with their checks (stages.cpp).
 std::vector<CommandInfo> stage_commands();
+/// `name` is one of them (--denoise, --prefilter, --nfor, --cnn, --sure, --mix).
+bool is_stage(const std::string& name);
 
 }  // namespace mcdntool

@@ -225,6 +225,14 @@ bool run_denoise(Session& s, const Command& c, std::string& error)
 
 }  // namespace
 
+bool is_stage(const std::string& name)
+{
+    for (const char* stage : { "--denoise", "--prefilter", "--nfor", "--cnn", "--sure", "--mix" })
+        if (name == stage)
+            return true;
+    return false;
+}
+
 std::vector<CommandInfo> stage_commands()
 {
     return {

@@ -20,18 +20,6 @@ using OIIO::ImageBuf;
 using OIIO::Strutil::fmt::format;
 namespace Strutil = OIIO::Strutil;
 
-namespace {
-
-bool is_stage(const std::string& name)
-{
-    for (const char* stage : { "--denoise", "--prefilter", "--nfor", "--cnn", "--sure", "--mix" })
-        if (name == stage)
-            return true;
-    return false;
-}
-
-}  // namespace
-
 int64_t band_pixels()
 {
     const char* text = std::getenv("MCDN_BAND_PIXELS");

@@ -83,11 +83,12 @@ std::vector<FeaturePlanes> read_features(const OIIO::ImageBuf& src,
 }
 
 void read_feature_means(std::vector<FeaturePlanes>& planes, const OIIO::ImageBuf& src,
-                        const std::vector<FeatureChannel>& features)
+                        const std::vector<FeatureChannel>& features,
+                        const std::function<bool(const FeaturePlanes&)>& which)
 {
     std::vector<PlaneRead> reads;
     for (size_t i = 0; i < features.size(); ++i)
-        if (planes[i].mean.px.empty())
+        if (planes[i].mean.px.empty() && (!which || which(planes[i])))
             reads.push_back({ features[i].mean, &planes[i].mean });
     if (!reads.empty())
         read_planes(src, reads);

@@ -3,6 +3,7 @@
 // user, each with its four faces (mean, variance of the mean, half buffers A and B).
 #pragma once
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -39,8 +40,10 @@ struct FeatureFaces {
 std::vector<FeaturePlanes> read_features(const OIIO::ImageBuf& src,
                                          const std::vector<FeatureChannel>& features,
                                          FeatureFaces faces = {});
-/// The means read_features left out (empty), in one pass.
+/// The means read_features left out (empty), in one pass; with `which`, only those of the
+/// features it accepts.
 void read_feature_means(std::vector<FeaturePlanes>& planes, const OIIO::ImageBuf& src,
-                        const std::vector<FeatureChannel>& features);
+                        const std::vector<FeatureChannel>& features,
+                        const std::function<bool(const FeaturePlanes&)>& which = nullptr);
 
 }  // namespace mcdn

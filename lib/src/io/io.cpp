@@ -8,8 +8,8 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
-#include <map>
 #include <cstdlib>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <set>
@@ -199,6 +199,20 @@ bool read_layout(FileLayout& layout, const std::string& path, const std::string&
 // third faster than the C++ library, with the same values. Not for DWAA/DWAB (OpenEXR 3.1's
 // core cannot read them) nor B44/B44A (it reads their float channels otherwise):
 // tests/core/io_test.cpp checks both readers agree on every codec in this list.
+// The rows of one block (OpenEXR's lines per chunk) of a part stored with a codec the core
+// reads, else 0.
+int core_block_rows(const ImageSpec& part)
+{
+    std::string codec = part.get_string_attribute("compression", "none");
+    codec = codec.substr(0, codec.find(':'));
+    if (codec == "none" || codec == "rle" || codec == "zips")
+        return 1;
+    if (codec == "zip" || codec == "pxr24")
+        return 16;
+    return codec == "piz" ? 32 : 0;
+}
+
+// Every part of the file in a codec the core reads (core_block_rows);
 // MCDN_OPENEXR_CORE=0 reads every file with the C++ library.
 bool core_reads(const FileLayout& layout)
 {
@@ -206,25 +220,9 @@ bool core_reads(const FileLayout& layout)
         const char* env = std::getenv("MCDN_OPENEXR_CORE");
         return !env || std::string(env) != "0";
     }();
-    if (!allowed || !layout.exr)
-        return false;
-    for (const ImageSpec& part : layout.parts) {
-        std::string codec = part.get_string_attribute("compression", "none");
-        codec = codec.substr(0, codec.find(':'));
-        if (codec != "none" && codec != "rle" && codec != "zips" && codec != "zip"
-            && codec != "piz" && codec != "pxr24")
-            return false;
-    }
-    return true;
-}
-
-// The rows of one block of a part core_reads reads (OpenEXR's lines per chunk).
-int core_block_rows(const ImageSpec& part)
-{
-    const std::string codec = part.get_string_attribute("compression", "none");
-    if (Strutil::starts_with(codec, "zips") || codec == "none" || codec == "rle")
-        return 1;
-    return Strutil::starts_with(codec, "piz") ? 32 : 16;  // zip, pxr24
+    return allowed && layout.exr
+           && std::all_of(layout.parts.begin(), layout.parts.end(),
+                          [](const ImageSpec& part) { return core_block_rows(part) > 0; });
 }
 
 // The file opened for its pixels: OIIO picks the EXR reader when it creates one, from a

@@ -71,6 +71,7 @@ OutlierRule outlier_rule(const NforOptions& o, const ColourSums& frame)
 struct NforInputs {
     AovSet aovs;
     bool halves = false;  // else the one-buffer path: the render and its variance only
+    bool prefiltered = false;  // the prefilter op ran already (mcdn:prefiltered)
     bool means_later = false;  // the features' means are read after §5.2 (read_inputs)
     ColorPlanes color;
     std::vector<FeaturePlanes> features;
@@ -132,8 +133,8 @@ bool read_inputs(NforInputs& in, ImageBuf& dst, const ImageBuf& src, const NforO
     // The features' variances serve §5.1 alone, whose result replaces their means. With
     // half buffers §5.2 fits with the features' halves, so their means are read only for
     // §5.4 (read_feature_means): a plane per feature less at the peaks of §5.2 and §5.3.
-    const bool prefiltered = src.spec().get_int_attribute("mcdn:prefiltered", 0) == 1;
-    const bool prefilters = !prefiltered && options.prefilter_features;
+    in.prefiltered = src.spec().get_int_attribute("mcdn:prefiltered", 0) == 1;
+    const bool prefilters = !in.prefiltered && options.prefilter_features;
     in.means_later = in.halves && !options.cross_frame();
     FeatureFaces faces;
     faces.mean = !in.means_later && !prefilters;
@@ -501,7 +502,7 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
         drop_constant_features(in.features, in.feature_channels, src.spec());
     trace.mark("read planes");
 
-    const bool prefiltered = src.spec().get_int_attribute("mcdn:prefiltered", 0) == 1;
+    const bool prefiltered = in.prefiltered;
     prefilter_features(in.features, options, prefiltered, converged, nthreads);
     trace.mark("prefilter (5.1)");
     // §8: the neighbouring frames, read as this one and aligned to it.

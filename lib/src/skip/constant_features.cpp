@@ -25,15 +25,10 @@ void read_means_of_constant_halves(std::vector<FeaturePlanes>& features,
                                    const OIIO::ImageBuf& src,
                                    const std::vector<FeatureChannel>& channels)
 {
-    std::vector<PlaneRead> reads;
-    for (size_t i = 0; i < features.size(); ++i) {
-        FeaturePlanes& f = features[i];
-        if (f.mean.px.empty() && is_constant_plane(f.half_a) && is_constant_plane(f.half_b)
-            && f.half_a.px[0] == f.half_b.px[0])
-            reads.push_back({ channels[i].mean, &f.mean });
-    }
-    if (!reads.empty())
-        read_planes(src, reads);
+    read_feature_means(features, src, channels, [](const FeaturePlanes& f) {
+        return is_constant_plane(f.half_a) && is_constant_plane(f.half_b)
+               && f.half_a.px[0] == f.half_b.px[0];
+    });
 }
 
 namespace {
