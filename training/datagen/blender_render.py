@@ -94,13 +94,24 @@ def setup_render(scene, spec):
         vl.use_pass_vector = True
 
 
-def render(scene, path, spp, seed, adaptive_threshold=None):
+def render(scene, path, spp, seed, adaptive_threshold=None, sample_offset=0):
+    """One render of `spp` samples with Cycles seed `seed`, starting at sample `sample_offset`.
+
+    The K seeds of a level must be independent for their sample variance to be the variance
+    of their mean. In Cycles 3.4 they are not when each starts at sample 0: a pixel's first
+    sample takes the same position in the pixel whatever the seed (seeds of 1 spp give the
+    same image wherever the noise is the pixel filter's, as on sub-pixel detail and small
+    emitters). Seed k of n spp therefore renders samples [k n, (k+1) n) of its own seed, and
+    frame f of a sequence starts past frame f-1's samples, so that only one render of a
+    level ever uses sample 0 (main()).
+    """
     scene.cycles.use_adaptive_sampling = adaptive_threshold is not None
     if adaptive_threshold is not None:
         scene.cycles.adaptive_threshold = adaptive_threshold
         scene.cycles.adaptive_min_samples = 0  # Cycles' automatic minimum
     scene.cycles.samples = spp
     scene.cycles.seed = seed
+    scene.cycles.sample_offset = sample_offset
     scene.render.filepath = path
     c0, w0 = time.process_time(), time.perf_counter()
     bpy.ops.render.render(write_still=True)
@@ -128,6 +139,29 @@ def auto_exposure(scene, spec):
             "cpu_s": cpu, "wall_s": wall}
 
 
+def render_jobs(spec):
+    """Every render of a crop: (tag, level spp, K, seed index, spp, Cycles seed, sample offset)."""
+    jobs = []
+    for li, n in enumerate(spec["levels"]):
+        k = min(spec["K"], n)
+        for s in range(k):
+            jobs.append(("L%04d" % n, n, k, s, n // k, 1 + 100 * li + s))
+    for li, n in enumerate(spec.get("adaptive_levels", [])):
+        k = min(spec["K"], n)
+        for s in range(k):
+            jobs.append(("A%04d" % n, n, k, s, n // k, 50001 + 100 * li + s))
+    rk = spec["ref_K"]
+    for s in range(rk):
+        jobs.append(("ref", spec["ref_spp"], rk, s, spec["ref_spp"] // rk, 100000 + s))
+    if spec.get("only_tags"):  # re-render some levels of a crop (the seeds stay theirs)
+        jobs = [j for j in jobs if j[0] in spec["only_tags"]]
+    seed_offset = int(spec.get("seed_offset", 0))
+    frame_index = int(spec.get("frame_number", 1)) - 1 if spec.get("sequence") else 0
+    # render()'s docstring says why each render starts at its own sample.
+    return [(tag, n, k, s, spp, seed + seed_offset, frame_index * n + s * spp)
+            for tag, n, k, s, spp, seed in jobs]
+
+
 def main():
     spec = parse()
     os.makedirs(spec["raw_dir"], exist_ok=True)
@@ -153,28 +187,12 @@ def main():
     else:
         scene.cycles.film_exposure = float(spec["exposure"])
         log["exposure"] = {"film_exposure": float(spec["exposure"])}
-    jobs = []
-    for li, n in enumerate(spec["levels"]):
-        k = min(spec["K"], n)
-        for s in range(k):
-            jobs.append(("L%04d" % n, n, k, s, n // k, 1 + 100 * li + s))
-    for li, n in enumerate(spec.get("adaptive_levels", [])):
-        k = min(spec["K"], n)
-        for s in range(k):
-            jobs.append(("A%04d" % n, n, k, s, n // k, 50001 + 100 * li + s))
-    rk = spec["ref_K"]
-    for s in range(rk):
-        jobs.append(("ref", spec["ref_spp"], rk, s, spec["ref_spp"] // rk, 100000 + s))
-    if spec.get("only_tags"):  # re-render some levels of a crop (the seeds stay theirs)
-        jobs = [j for j in jobs if j[0] in spec["only_tags"]]
-    seed_offset = int(spec.get("seed_offset", 0))
-    for tag, n, k, s, spp, seed in jobs:
-        seed += seed_offset
+    for tag, n, k, s, spp, seed, sample_offset in render_jobs(spec):
         path = os.path.join(spec["raw_dir"], f"{tag}_s{s}.exr")
         adaptive = spec.get("adaptive_threshold") if tag.startswith("A") else None
-        cpu, wall = render(scene, path, spp, seed, adaptive)
+        cpu, wall = render(scene, path, spp, seed, adaptive, sample_offset)
         log["renders"].append({"tag": tag, "level_spp": n, "K": k, "index": s, "spp": spp,
-                               "seed": seed, "file": os.path.basename(path),
+                               "seed": seed, "sample_offset": sample_offset, "file": os.path.basename(path),
                                "cpu_s": round(cpu, 3), "wall_s": round(wall, 3)})
         print(f"[datagen] {tag} seed {seed} {spp} spp: {wall:.2f} s wall, {cpu:.2f} s cpu",
               flush=True)
@@ -183,10 +201,11 @@ def main():
         json.dump(log, f, indent=1)
 
 
-try:
-    main()
-except BaseException as e:  # make Blender exit non-zero on any failure
-    import traceback
-    traceback.print_exc()
-    sys.stdout.flush()
-    os._exit(1)
+if __name__ == "__main__":  # run by blender -P (seed_test.py imports it)
+    try:
+        main()
+    except BaseException as e:  # make Blender exit non-zero on any failure
+        import traceback
+        traceback.print_exc()
+        sys.stdout.flush()
+        os._exit(1)

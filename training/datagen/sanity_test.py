@@ -11,11 +11,13 @@ checked as a crop, its files named <id>_ref.0001.exr, <id>_NNNNspp.0001.exr, ...
   2. features present and in range: all 39 box channels; alpha in [0,1]; light passes >= 0;
      DiffCol in [0,1], Gloss/TransCol in [0,3]; Denoising Albedo >= 0 with median <= 1.05;
      depths > 0; normals (world and camera space) never longer than 1, and unit length
-     (| |n|-1 | < 0.02) on >= 90% of hit pixels whose normal all seeds agree on;
+     (| |n|-1 | < 0.02) on >= 90% of hit pixels whose normal all seeds agree on (where 64 or
+     more do);
   3. error vs reference falls as 1/sqrt(spp): per crop, the relMSE of the noisy mean against the
      reference (minus the reference's own variance contribution) is fitted against spp in
      log-log; median RMSE slope over crops in [-0.6, -0.4]; and that error matches the one the
-     variance files predict (geometric mean of the ratio over all images in [0.7, 1.4]);
+     variance files predict (geometric mean of the ratio over all images, and over the images
+     of each sample count, in [0.7, 1.4]);
   4. half buffers: sum ((A-B)/2)^2 / sum var (Combined RGB) averaged over crops and levels
      within 20% of 1 (and the geometric mean too);
   5. Combined = DiffCol(DiffDir+DiffInd) + GlossCol(GlossDir+GlossInd) [+ TransCol(...)] + Emit
@@ -135,7 +137,9 @@ def check_features(ck, im, name, var=None):
         coherent = hit & (var.get(lay, "XYZ").sum(-1) < 1e-6)
         unit = float(np.mean(np.abs(n[coherent] - 1) < 0.02)) if coherent.any() else 1.0
         stats[lay] = (unit, int(coherent.sum()), int(hit.sum()))
-        if coherent.sum() >= 16:
+        # A share of a few dozen pixels says little: a sub-pixel strand's footprint can hold
+        # one smoothly curved surface, short in every seed alike.
+        if coherent.sum() >= 64:
             ck.check(unit >= 0.90, f"{name}: {lay} unit length on only {100 * unit:.1f}% of "
                                    f"{coherent.sum()} coherent hit pixels")
     return stats
@@ -182,7 +186,7 @@ def check_crop(ck, stem, levels, full_features=True, suffix=".exr"):
         ratio = float(ab.sum() / max(v.sum(), 1e-30))
         ratios.append(ratio)
         pred = float(np.mean(v / (r ** 2 + 0.01)))
-        consist.append(e / max(pred, 1e-30))
+        consist.append((n, e / max(pred, 1e-30)))
         print(f"  {n:5d} spp: relMSE-ref {e:.4g} (predicted by var {pred:.4g}), A/B var ratio {ratio:.3f}")
     slope = None
     if len(levels) >= 2:
@@ -243,10 +247,23 @@ def main():
               f"range [{min(ratios):.3f}, {max(ratios):.3f}] over {len(ratios)} images (ideal 1)")
         ck.check(0.8 <= am <= 1.2 and 0.8 <= gm <= 1.25, f"A/B variance ratio {am:.3f}/{gm:.3f} not within 20%")
     if consist:
-        gm = float(np.exp(np.mean(np.log(np.maximum(consist, 1e-12)))))
+        def geometric_mean(values):
+            return float(np.exp(np.mean(np.log(np.maximum(values, 1e-12)))))
+        values = [c for _, c in consist]
+        gm = geometric_mean(values)
         print(f"error vs reference / error predicted by the variance files: geometric mean {gm:.3f}, "
-              f"median {np.median(consist):.3f} over {len(consist)} images (ideal 1)")
+              f"median {np.median(values):.3f} over {len(values)} images (ideal 1)")
         ck.check(0.7 <= gm <= 1.4, f"measured error / predicted variance {gm:.3f} not within [0.7,1.4]")
+        # Per sample count too: seeds that share samples (Cycles' first sample of a pixel is
+        # the same for every seed, blender_render.py) make the variance too small at the
+        # lowest counts only, which the mean over all counts hides.
+        for n in sorted({n for n, _ in consist}):
+            at_n = [c for m, c in consist if m == n]
+            gm_n = geometric_mean(at_n)
+            print(f"  {n:5d} spp: geometric mean {gm_n:.3f}, range [{min(at_n):.3f}, {max(at_n):.3f}] "
+                  f"over {len(at_n)} images")
+            ck.check(0.7 <= gm_n <= 1.4,
+                     f"{n} spp: measured error / predicted variance {gm_n:.3f} not within [0.7,1.4]")
     if ck.failures:
         print(f"FAILED: {len(ck.failures)} check(s)")
         return 1
