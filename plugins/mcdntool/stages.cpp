@@ -291,9 +291,9 @@ std::vector<CommandInfo> stage_commands()
           "Monte-Carlo SURE of the denoisers before it (PD §3.2): adds sure.*, "
           "sure.divergence.*, sure.residual.* and noisy.* channels. probes=1 (K; costs K+1 "
           "denoiser runs), eps=1e-3 (relative probe step). -v says in how many 32x32 tiles SURE "
-          "finds the denoiser worse than the render; fallback=1 makes them the render (off by "
-          "default: on heavy-tailed renders the render it falls back to is the worse one); "
-          "fallback-aov=1 adds channel sure.fallback, 1 on those tiles.",
+          "finds the denoiser worse than the render, and those tiles are the render (safety net, "
+          "for any denoiser; fallback=0: the denoiser's are kept); fallback-aov=1 adds channel "
+          "sure.fallback, 1 on those tiles.",
           run_sure, false, check<mcdn::SureOptions>,
           "the colour and the variance of its mean, and a denoiser before it (--cnn, --nfor, "
           "--prefilter --nfor), which it runs probes+1 times." },

@@ -302,8 +302,7 @@ PYBIND11_MODULE(_mcdenoise, m)
           "Monte-Carlo SURE (PD §3.2) of a denoiser: 'nfor' or a callable ImageBuf -> "
           "ImageBuf. Returns the denoised image with noisy.*, sure.*, sure.divergence.*, "
           "sure.residual.* channels. fallback: 32x32 tiles where SURE finds the denoiser worse "
-          "than the render are the render (off by default: on heavy-tailed renders the render "
-          "is the worse one).");
+          "than the render are the render (the safety net; False keeps the denoiser's).");
 
     m.def("mix",
           [](const ImageBuf& src, const std::string& model, const std::string& weights,

@@ -164,7 +164,8 @@ TEST(NforExtras, AnEmptyLightGroupIsLeftAsRendered)
                     for (int ch : empty)
                         largest = std::max(largest, std::fabs(out.getchannel(x, y, 0, ch)));
             EXPECT_EQ(largest, 0.0f) << stages[0] << ", bands of " << band_pixels;
-            if (stages[0] != "cnn")
+            if (stages[0] != "cnn") {
                 EXPECT_LT(partition_error(out, p), 1e-4) << stages[0];
+            }
         }
 }

@@ -171,8 +171,10 @@ TEST(Sure, SafetyNetFindsTheTileTheDenoiserMadeWorse)
         return OIIO::ImageBufAlgo::add(dst, dst, 1.0f, tile);
     };
     SureOptions options;
+    EXPECT_TRUE(options.fallback) << "the safety net is on by default";
     options.aovs = generic_spec();
     options.output_fallback = true;
+    options.fallback = false;
     const ImageBuf kept = sure(src, biased, options);
     ASSERT_FALSE(kept.has_error()) << kept.geterror();
     EXPECT_EQ(kept.spec().get_int_attribute(kSureWorseCountAttribute), 1);

@@ -76,12 +76,11 @@ struct SureOptions {
     /// σ² / (y² + 0.01), so that a few pixels (a firefly, a probe's noise) do not decide it
     /// (lib/src/skip/worse_tiles.h) — is the render there: colour and RGB extras y = x, and
     /// SURE = σ²f'(x) = σ², the render's own error, as on a tile passed through; a mix after
-    /// it keeps the render there. Off by default: at a few samples per pixel a pixel's SURE
-    /// is its one-probe divergence's noise and a variance that misses rare paths, and the
-    /// per-pixel mix does better than falling back (docs/accuracy.md). The tiles are found
-    /// and counted either way: the count is the attribute kSureFallbackCountAttribute when
-    /// they fell back, kSureWorseCountAttribute when not (mcdntool -v prints it).
-    bool fallback = false;
+    /// it keeps the render there. On by default, as NFOR's own (docs/accuracy.md); false
+    /// keeps the denoiser's tiles. The tiles are found and counted either way: the count is
+    /// the attribute kSureFallbackCountAttribute when they fell back,
+    /// kSureWorseCountAttribute when not (mcdntool -v prints it).
+    bool fallback = true;
     /// Add channel sure.fallback: 1 on the tiles SURE finds worse (that fell back, with
     /// fallback), else 0.
     bool output_fallback = false;
