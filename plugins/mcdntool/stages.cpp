@@ -278,7 +278,10 @@ std::vector<CommandInfo> stage_commands()
         { "--cnn", "", with_frames(mcdn::setting_keys("cnn")),
           "Kernel-predicting CNN denoiser (KPCN): diffuse/specular split, our trained weights "
           "(models/kpcn.mcdnw; weights=FILE), tiled (tile=384). Extra AOVs take their share "
-          "of the beauty's denoised light through its kernels (extras=0: keep them). "
+          "of the beauty's denoised light through its kernels (extras=0: keep them). A pixel "
+          "holding one sample worth a hundred of its neighbours (a caustic through glass, a "
+          "firefly) is taken out of the network's input and its excess removed, by --nfor's "
+          "rule (outliers=drop; off: left in, where the kernels spread it). "
           "Cross-frame, in a sequence: frames=2 first combines this frame with 2 previous "
           "and 2 next ones, aligned by the motion vectors (Blender's Vector pass), weighted "
           "by how well their patches agree: a render of up to 5 times the samples where "

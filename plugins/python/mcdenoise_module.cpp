@@ -228,13 +228,13 @@ PYBIND11_MODULE(_mcdenoise, m)
     m.def("cnn",
           [](const ImageBuf& src, const std::string& preset,
              const std::map<std::string, std::string>& aovs, const std::string& colorspace,
-             const std::string& weights, bool extras, bool skip, float converged,
-             const std::vector<ImageBuf*>& previous, const std::vector<ImageBuf*>& next,
-             int nthreads) {
+             const std::string& weights, bool extras, const std::string& outliers, bool skip,
+             float converged, const std::vector<ImageBuf*>& previous,
+             const std::vector<ImageBuf*>& next, int nthreads) {
               auto o = stage_options<mcdn::CnnOptions>(
                   "cnn", aov_spec(preset, aovs, colorspace),
-                  { { "weights", weights }, { "extras", text(extras) }, { "skip", text(skip) },
-                    { "converged", text(converged) } });
+                  { { "weights", weights }, { "extras", text(extras) }, { "outliers", outliers },
+                    { "skip", text(skip) }, { "converged", text(converged) } });
               mcdn::CombineFramesOptions frames;
               frames.aovs = o.aovs;
               frames.previous_frames.assign(previous.begin(), previous.end());
@@ -250,12 +250,15 @@ PYBIND11_MODULE(_mcdenoise, m)
           },
           py::arg("image"), py::arg("preset") = "",
           py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
-          py::arg("weights") = "", py::arg("extras") = true, py::arg("skip") = true,
+          py::arg("weights") = "", py::arg("extras") = true, py::arg("outliers") = "drop",
+          py::arg("skip") = true,
           py::arg("converged") = mcdn::SkipOptions().max_relative_error,
           py::arg("previous") = std::vector<ImageBuf*>(), py::arg("next") = std::vector<ImageBuf*>(),
           py::arg("nthreads") = 0,
           "KPCN: kernel-predicting CNN denoiser with our trained weights. extras: denoise the "
-          "extra AOVs (light groups) with the beauty's kernels. previous, next: cross-frame, "
+          "extra AOVs (light groups) with the beauty's kernels. outliers: a pixel holding one "
+          "sample worth a hundred of its neighbours is taken out of the network's input and "
+          "removed ('drop', as nfor's rule) or left in ('off'). previous, next: cross-frame, "
           "the neighbouring frames of the shot (nearest first, at most 4 each), aligned by "
           "the motion vectors and combined with this one where they agree before the "
           "network (mcdn/frames.h); the result keeps this frame's own variance and halves.");

@@ -6,7 +6,8 @@ Layers, lowest first (a file may include its own layer and those below it):
   0 foundation  lib/src/{core,aov,io,color,metrics,skip}/, mcdn/{aov,io,color,metrics,skip,
                 progress,
                 threads,version}.h: what every op stands on
-  1 engines     lib/src/{nl_means,nn}/: the NL-means filter and the network engine
+  1 engines     lib/src/{nl_means,nn,outliers}/: the NL-means filter, the network engine and
+                the heavy-tailed samples' detection
   2 stages      lib/src/{prefilter,nfor,cnn,sure,mix,frames}/ and their public headers
   3 chains      lib/src/chain/, mcdn/{chain,settings,denoise}.h: the only code that knows
                 every stage
@@ -18,7 +19,7 @@ import sys
 
 FOLDERS = {
     "core": 0, "aov": 0, "io": 0, "color": 0, "metrics": 0, "skip": 0,
-    "nl_means": 1, "nn": 1,
+    "nl_means": 1, "nn": 1, "outliers": 1,
     "prefilter": 2, "nfor": 2, "cnn": 2, "sure": 2, "mix": 2, "frames": 2,
     "chain": 3,
 }

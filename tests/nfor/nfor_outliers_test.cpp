@@ -1,4 +1,4 @@
-// Heavy-tailed samples (lib/src/nfor/outliers.h): a firefly planted in the box16 render, as
+// Heavy-tailed samples (lib/src/outliers/outliers.h): a firefly planted in the box16 render, as
 // one sample of a caustic path would land — in one half buffer, its mean and a variance to
 // match. NFOR keeps it out of the regressions: the neighbourhood is what it is without it,
 // and the excess is back at the pixel (keep) or gone (drop). Renders without such samples
@@ -8,6 +8,7 @@
 
 #include <OpenImageIO/imagebufalgo.h>
 
+#include "firefly.h"
 #include "fixtures.h"
 #include "mcdn/nfor.h"
 #include "partition.h"
@@ -20,42 +21,6 @@ namespace {
 
 constexpr int kX = 30, kY = 34;  // inside box16 (64×64), away from its edges
 
-/// The colour role's channels of `image` under `preset`: mean, variance, half A, half B.
-struct ColourChannels {
-    std::vector<int> mean, variance, half_a, half_b;
-};
-ColourChannels colour_channels(const ImageBuf& image, const AovSpec& spec)
-{
-    AovSet aovs;
-    std::string error;
-    EXPECT_TRUE(resolve_aovs(aovs, spec, image.spec(), error)) << error;
-    return { aovs.channels(Role::Color), aovs.channels(Role::ColorVariance),
-             aovs.channels(Role::ColorA), aovs.channels(Role::ColorB) };
-}
-
-/// One sample worth `times` the pixel's mean landed in half A at (x, y): the mean gains
-/// `excess`, half A twice that, and the variance of the mean the square of the excess
-/// (the spread of the seeds' means it would leave).
-ImageBuf with_firefly(const ImageBuf& src, const AovSpec& spec, int x, int y, float times,
-                      float* excess_out = nullptr)
-{
-    ImageBuf out;
-    out.copy(src);
-    const ColourChannels ch = colour_channels(src, spec);
-    std::vector<float> px(size_t(out.nchannels()));
-    out.getpixel(x, y, 0, px.data(), out.nchannels());
-    for (int c = 0; c < 3; ++c) {
-        const float excess = times * std::max(px[size_t(ch.mean[c])], 0.01f);
-        if (excess_out)
-            excess_out[c] = excess;
-        px[size_t(ch.mean[c])] += excess;
-        px[size_t(ch.half_a[c])] += 2.0f * excess;
-        px[size_t(ch.variance[c])] += excess * excess;
-    }
-    out.setpixel(x, y, 0, px.data(), out.nchannels());
-    return out;
-}
-
 NforOptions options(NforOptions::Outliers mode)
 {
     NforOptions o;
@@ -64,22 +29,8 @@ NforOptions options(NforOptions::Outliers mode)
     return o;
 }
 
-/// Largest |a − b| of the colour over the 37×37 pixels around (x, y) (NFOR's window reach),
-/// without (x, y) itself, relative to b + 0.05.
-float largest_change_around(const ImageBuf& a, const ImageBuf& b, const std::vector<int>& colour,
-                            int x, int y)
-{
-    float largest = 0.0f;
-    for (int v = std::max(0, y - 18); v <= std::min(a.spec().height - 1, y + 18); ++v)
-        for (int u = std::max(0, x - 18); u <= std::min(a.spec().width - 1, x + 18); ++u)
-            if (u != x || v != y)
-                for (int c : colour) {
-                    const float reference = b.getchannel(u, v, 0, c);
-                    largest = std::max(largest, std::fabs(a.getchannel(u, v, 0, c) - reference)
-                                                    / (std::fabs(reference) + 0.05f));
-                }
-    return largest;
-}
+/// NFOR's window reach around a pixel (37×37).
+constexpr int kNforReach = 18;
 
 }  // namespace
 
@@ -101,9 +52,9 @@ TEST(NforOutliers, AFireflyStaysAtItsPixelAndItsNeighboursAsWithout)
     // Kept out: the neighbours are within a few percent of the render without the firefly
     // (its median stands in for the pixel's own value); left in, the regression spreads it
     // over them many times over.
-    EXPECT_LT(largest_change_around(keep, clean_out, colour, kX, kY), 0.1f);
-    EXPECT_LT(largest_change_around(drop, clean_out, colour, kX, kY), 0.1f);
-    EXPECT_GT(largest_change_around(off, clean_out, colour, kX, kY), 1.0f);
+    EXPECT_LT(largest_change_around(keep, clean_out, colour, kX, kY, kNforReach), 0.1f);
+    EXPECT_LT(largest_change_around(drop, clean_out, colour, kX, kY, kNforReach), 0.1f);
+    EXPECT_GT(largest_change_around(off, clean_out, colour, kX, kY, kNforReach), 1.0f);
     for (int c = 0; c < 3; ++c) {
         const float base = clean_out.getchannel(kX, kY, 0, colour[c]);
         // keep: the whole excess is back at the pixel; drop: none of it.

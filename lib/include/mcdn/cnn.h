@@ -38,6 +38,18 @@ struct CnnOptions {
     /// memory: a 1080p frame's --cnn --sure --mix stays under 2 GB on two
     /// threads. The output does not depend on it.
     int tile_size = 384;
+    /// Heavy-tailed samples (a caustic path through glass, a firefly): a pixel whose one
+    /// sample outweighs its neighbourhood by far, by the rule and thresholds of NFOR's
+    /// (NforOptions::outliers, lib/src/outliers/outliers.h), is taken out before the
+    /// network: its colour and variance become its 5×5 neighbourhood's medians, its diffuse
+    /// and specular parts (and extras) are scaled with the colour, and its excess is dropped,
+    /// as a renderer's sample clamp would. Otherwise the kernels spread it over their reach:
+    /// a blotch. Needs the colour's variance (else nothing is taken out).
+    enum class Outliers {
+        Drop,  ///< taken out, their excess dropped (the default)
+        Off,   ///< every pixel as rendered
+    };
+    Outliers outliers = Outliers::Drop;
     /// Converged tiles are the render, untouched; the network runs only on rectangles
     /// holding non-converged tiles (each with its receptive-field halo), so pixels within
     /// the halo of a converged tile can differ from an unskipped run (mcdn/skip.h). Feature

@@ -61,7 +61,7 @@ struct NforOptions {
 
     /// Heavy-tailed samples: a caustic or firefly pixel whose mean holds one sample worth
     /// a hundred or more of its neighbours. The regressions would spread it over their
-    /// windows as blotches, black beside white (lib/src/nfor/outliers.h), so it is kept out
+    /// windows as blotches, black beside white (lib/src/outliers/outliers.h), so it is kept out
     /// of them: its inputs become its 5×5 neighbourhood's medians. It is an outlier when
     /// its variance of the mean exceeds outlier_variance_ratio times the neighbourhood's
     /// median, and its mean exceeds theirs by outlier_sigma of their standard deviations and

@@ -173,7 +173,7 @@ const std::vector<std::string>& setting_keys(const std::string& stage)
         { "nfor", { "window", "patch", "k", "mse", "selection", "features", "features-out",
                     "halves", "extras", "outliers", "fallback", "fallback-aov", "skip",
                     "converged" } },
-        { "cnn", { "weights", "tile", "extras", "skip", "converged" } },
+        { "cnn", { "weights", "tile", "extras", "outliers", "skip", "converged" } },
         { "sure", { "probes", "eps", "seed", "fallback", "fallback-aov", "skip", "converged" } },
         { "mix", { "model", "weights", "ttest", "alpha", "afloor", "outlier", "drop", "skip", "converged" } },
     };
@@ -234,6 +234,16 @@ bool apply_settings(CnnOptions& o, const Settings& s, std::string& error)
         .text("weights", o.weights)
         .positive_int("tile", o.tile_size)
         .flag("extras", o.denoise_extras)
+        .custom("outliers", "must be drop or off",
+                [&](const std::string& v) {
+                    if (v == "drop")
+                        o.outliers = CnnOptions::Outliers::Drop;
+                    else if (v == "off" || v == "0")
+                        o.outliers = CnnOptions::Outliers::Off;
+                    else
+                        return false;
+                    return true;
+                })
         .skip(o.skip)
         .ok();
 }

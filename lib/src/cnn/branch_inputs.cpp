@@ -140,7 +140,8 @@ Rect inputs_rect(const Rect& window, int frame_width, int frame_height)
 
 bool tile_inputs(const ImageBuf& src, const AovSet& aovs, const DepthRange& depth,
                  const std::vector<ExtraPlanes>& extras, const Rect& window,
-                 BranchInputs* diffuse, BranchInputs& specular, std::string& error)
+                 BranchInputs* diffuse, BranchInputs& specular, std::string& error,
+                 const DroppedOutliers* outliers)
 {
     const int image_channels = extras.empty() ? 3 : 3 * (2 + int(extras.size()));
     for (BranchInputs* b : { diffuse, &specular })
@@ -160,6 +161,8 @@ bool tile_inputs(const ImageBuf& src, const AovSet& aovs, const DepthRange& dept
             read = false;
             return;
         }
+        if (outliers)
+            drop_outliers(raw, *outliers);
         scale_depth(raw, depth);
         for (Branch branch : { Branch::diffuse, Branch::specular }) {
             BranchInputs* b = branch == Branch::diffuse ? diffuse : &specular;

@@ -18,13 +18,16 @@
 #include "cnn/extras_kernels.h"
 #include "cnn/worker_pool.h"
 #include "core/attributes.h"
+#include "core/color_planes.h"
 #include "core/frame_facts.h"
 #include "core/op_prepare.h"
 #include "core/progress.h"
 #include "core/trace.h"
 #include "nn/network_regions.h"
+#include "outliers/outliers.h"
 #include "skip/converged_tiles.h"
 #include "mcdn/color.h"
+#include "mcdn/nfor.h"
 
 namespace mcdn {
 
@@ -129,6 +132,50 @@ void pass_through_color(kpcn::OutputFrame& frame, const ImageBuf& dst,
                     frame.pixel(x, y)[c] = sanitize(frame.pixel(x, y)[c]);
 }
 
+/// CnnOptions::outliers: the heavy-tailed pixels of src by NFOR's rule and thresholds
+/// (outliers/outliers.h), taken out of `extras` too (each gives up its share of the excess).
+/// Without the colour's variance there is nothing to judge them by: none.
+kpcn::DroppedOutliers find_outliers(const ImageBuf& src, const AovSet& aovs,
+                                    std::vector<ExtraPlanes>& extras,
+                                    const ConvergedTiles& converged, int nthreads)
+{
+    kpcn::DroppedOutliers dropped;
+    if (!aovs.has(Role::ColorVariance))
+        return dropped;
+    const bool halves = aovs.has(Role::ColorA) && aovs.has(Role::ColorB);
+    ColorPlanes color;
+    read_color_planes(color, src, aovs, halves);
+    // The level floor from the frame's colour (a band's frame's: core/frame_facts.h).
+    FrameFacts facts;
+    const ColourSums frame = frame_facts(facts, src.spec())
+                                 ? facts.colour
+                                 : colour_sums(src, aovs.channels(Role::Color).data(),
+                                               aovs.channels(Role::ColorVariance).data());
+    const NforOptions nfor_options;  // the same thresholds as NFOR's
+    const OutlierRule rule = outlier_rule(nfor_options.outlier_sigma,
+                                          nfor_options.outlier_variance_ratio,
+                                          nfor_options.outlier_level_ratio, frame);
+    const OutlierPixels found = take_out_outliers(color.mean, color.variance,
+                                                  halves ? color.half_a : nullptr,
+                                                  halves ? color.half_b : nullptr, extras,
+                                                  converged, rule, nthreads);
+    for (size_t k = 0; k < found.pixels.size(); ++k) {
+        const uint32_t i = found.pixels[k];
+        std::array<float, 3> mean, variance, scale;
+        for (int c = 0; c < 3; ++c) {
+            mean[c] = color.mean[c].px[i];
+            variance[c] = color.variance[c].px[i];
+            const float rendered = mean[c] + found.excess[k][c];
+            scale[c] = rendered > 0.0f ? std::clamp(mean[c] / rendered, 0.0f, 1.0f) : 1.0f;
+        }
+        dropped.pixels.push_back(i);
+        dropped.mean.push_back(mean);
+        dropped.variance.push_back(variance);
+        dropped.scale.push_back(scale);
+    }
+    return dropped;
+}
+
 bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& options,
                           ROI roi, int nthreads)
 {
@@ -180,6 +227,11 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
     const ConvergedTiles converged = converged_tiles_of(src, aovs, options.skip);
     if (converged.all())
         return true;
+    // Heavy-tailed samples out of the network's input (CnnOptions::outliers).
+    const kpcn::DroppedOutliers outliers = options.outliers == CnnOptions::Outliers::Drop
+                                               ? find_outliers(src, aovs, extras, converged, nthreads)
+                                               : kpcn::DroppedOutliers {};
+    trace.mark("outliers");
     kpcn::OutputFrame frame(dst);
     if (!frame.valid()) {
         dst.errorfmt("cnn: the output frame is not in memory");
@@ -252,7 +304,7 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
             std::string tile_error;
             bool ok = kpcn::tile_inputs(src, aovs, depth, extras, tile.window,
                                         split ? &k.diffuse_inputs : nullptr, k.specular_inputs,
-                                        tile_error);
+                                        tile_error, outliers.empty() ? nullptr : &outliers);
             if (ok && split) {
                 ok = k.model.diffuse.run(k.diffuse_inputs.tensors, k.irradiance, tile_error);
                 k.model.diffuse.give_buffers(k.model.specular);  // same shapes: no new memory
@@ -306,7 +358,8 @@ int receptive_radius(const CnnOptions& options)
     const int radius = std::max(worker->model.diffuse.receptive_radius(),
                                 worker->model.specular.receptive_radius());
     kpcn::return_worker(std::move(worker));
-    return radius;
+    // Outliers are decided on the 5×5 neighbourhood of the input (outliers/outliers.h).
+    return radius + (options.outliers == CnnOptions::Outliers::Drop ? OutlierRule::radius : 0);
 }
 
 bool cnn(ImageBuf& dst, const ImageBuf& src, const CnnOptions& options, ROI roi, int nthreads)

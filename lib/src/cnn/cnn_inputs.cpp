@@ -323,6 +323,31 @@ DepthRange depth_range(const ImageBuf& src, const AovSet& aovs)
     return { lo, hi - lo, hi };
 }
 
+void drop_outliers(RawPlanes& raw, const DroppedOutliers& outliers)
+{
+    const Rect& r = raw.rect;
+    const uint32_t width = uint32_t(raw.frame_width);
+    // The outliers of the rows of raw.rect, those of its columns taken.
+    auto k = std::lower_bound(outliers.pixels.begin(), outliers.pixels.end(), uint32_t(r.y0) * width);
+    const auto end = std::lower_bound(k, outliers.pixels.end(), uint32_t(r.y1) * width);
+    for (; k != end; ++k) {
+        const int x = int(*k % width), y = int(*k / width);
+        if (x < r.x0 || x >= r.x1)
+            continue;
+        const size_t n = size_t(k - outliers.pixels.begin());
+        const size_t i = size_t(y - r.y0) * raw.width() + size_t(x - r.x0);
+        for (int c = 0; c < 3; ++c) {
+            const float s = outliers.scale[n][c];
+            raw.color[c].px[i] = outliers.mean[n][c];
+            raw.color_var[c].px[i] = outliers.variance[n][c];
+            raw.diffuse[c].px[i] *= s;
+            raw.diffuse_var[c].px[i] *= s * s;
+            raw.specular[c].px[i] = sanitize(raw.color[c].px[i] - raw.diffuse[c].px[i]);
+            raw.specular_var[c].px[i] *= s * s;
+        }
+    }
+}
+
 void scale_depth(RawPlanes& raw, const DepthRange& range)
 {
     const float lo = range.lo, span = range.span;

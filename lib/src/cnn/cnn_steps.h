@@ -3,6 +3,8 @@
 // and the two branch networks (§4.2). training/cnn/{data,model}.py compute the same.
 #pragma once
 
+#include <array>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -87,6 +89,17 @@ private:
     size_t pixel_bytes_, row_bytes_;
 };
 
+/// Heavy-tailed pixels taken out of the network's input (CnnOptions::outliers): the colour's
+/// mean and variance each gets (its neighbourhood's medians) and the factor its diffuse and
+/// specular parts are scaled by (that mean over the render's, per channel, in [0, 1]).
+struct DroppedOutliers {
+    std::vector<uint32_t> pixels;  // y * width + x in the frame, ascending
+    std::vector<std::array<float, 3>> mean, variance, scale;
+    bool empty() const { return pixels.empty(); }
+};
+/// Puts the outliers that lie in raw.rect into planes read by read_raw_planes.
+void drop_outliers(RawPlanes& raw, const DroppedOutliers& outliers);
+
 /// The frame pixels a network tile's inputs are computed from: the window clipped to the
 /// frame (past it, the last row and column stand for the rest), and one more column and row
 /// (the forward differences of its last ones).
@@ -111,12 +124,14 @@ struct BranchInputs {
 };
 
 /// The inputs of both branches on a tile's window (diffuse null: the specular branch alone,
-/// as without a split): read_raw_planes, scale_depth and branch_inputs in strips of rows,
+/// as without a split): read_raw_planes, drop_outliers (when given), scale_depth and
+/// branch_inputs in strips of rows,
 /// each strip read once for both and computed in cache, threaded; the extras' parts
 /// appended to the images (extras_kernels.h). The tensors' storage is reused.
 bool tile_inputs(const ImageBuf& src, const AovSet& aovs, const DepthRange& depth,
                  const std::vector<ExtraPlanes>& extras, const Rect& window,
-                 BranchInputs* diffuse, BranchInputs& specular, std::string& error);
+                 BranchInputs* diffuse, BranchInputs& specular, std::string& error,
+                 const DroppedOutliers* outliers = nullptr);
 
 /// The two branch networks of a weights file ("diffuse.*", "specular.*" tensors).
 struct Model {

@@ -7,7 +7,7 @@
 
 #include "skip/converged_tiles.h"
 #include "core/extra_aovs.h"
-#include "nfor/outliers.h"
+#include "outliers/outliers.h"
 #include "nfor/regression.h"
 
 namespace mcdn {

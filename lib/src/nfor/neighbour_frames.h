@@ -21,7 +21,7 @@
 #include "core/feature_channels.h"
 #include "core/planar.h"
 #include "mcdn/aov.h"
-#include "nfor/outliers.h"
+#include "outliers/outliers.h"
 #include "nfor/regression.h"
 #include "prefilter/feature_prefilter.h"
 

@@ -31,7 +31,7 @@
 #include "skip/worse_tiles.h"
 #include "nfor/mse_estimate.h"
 #include "nfor/neighbour_frames.h"
-#include "nfor/outliers.h"
+#include "outliers/outliers.h"
 #include "nfor/regression.h"
 #include "prefilter/feature_prefilter.h"
 
@@ -53,18 +53,10 @@ bool check_options(ImageBuf& dst, const NforOptions& o)
     return ok;
 }
 
-/// The options' outlier rule, its level floor from the frame's mean |colour| (three
-/// channels summed, as the rule compares them).
+/// The options' outlier rule (outliers/outliers.h).
 OutlierRule outlier_rule(const NforOptions& o, const ColourSums& frame)
 {
-    OutlierRule rule;
-    rule.sigma = o.outlier_sigma;
-    rule.variance_ratio = o.outlier_variance_ratio;
-    rule.level_ratio = o.outlier_level_ratio;
-    rule.level_floor = frame.n ? float(OutlierRule::kFloorOfMean * 3.0 * frame.sum_abs
-                                       / double(frame.n))
-                               : 0.0f;
-    return rule;
+    return outlier_rule(o.outlier_sigma, o.outlier_variance_ratio, o.outlier_level_ratio, frame);
 }
 
 /// What the op reads from src before anything is written (dst may be src).
@@ -489,7 +481,7 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     }
     probe_index.colour = probe_index.facts ? facts.colour : colour_sums(color);
     // Heavy-tailed samples are kept out of the regressions and put back after them
-    // (nfor/outliers.h).
+    // (outliers/outliers.h).
     OutlierPixels outliers;
     if (options.outliers != NforOptions::Outliers::Off)
         outliers = take_out_outliers(color.mean, color.variance,
@@ -618,7 +610,7 @@ int receptive_radius(const NforOptions& o, bool prefiltered)
                         ? 0
                         : p.window_radius + p.patch_radius + p.second_window_radius
                               + p.second_patch_radius;
-    // Outliers are decided on the 5×5 neighbourhood of the input (nfor/outliers.h).
+    // Outliers are decided on the 5×5 neighbourhood of the input (outliers/outliers.h).
     const int outliers = o.outliers != NforOptions::Outliers::Off ? OutlierRule::radius : 0;
     return outliers + prefilter + 2 * o.window_radius + o.patch_radius
            + 2 * (o.map_window_radius + o.map_patch_radius) + 2 * o.second_window_radius

@@ -1,5 +1,5 @@
 // Outliers taken out of NFOR's input and put back after it (outliers.h says why and when).
-#include "nfor/outliers.h"
+#include "outliers/outliers.h"
 
 #include <algorithm>
 #include <cmath>
@@ -49,6 +49,19 @@ float mean_without_largest(std::vector<float>& values, size_t drop)
 }
 
 }  // namespace
+
+OutlierRule outlier_rule(float sigma, float variance_ratio, float level_ratio,
+                         const ColourSums& frame)
+{
+    OutlierRule rule;
+    rule.sigma = sigma;
+    rule.variance_ratio = variance_ratio;
+    rule.level_ratio = level_ratio;
+    rule.level_floor = frame.n ? float(OutlierRule::kFloorOfMean * 3.0 * frame.sum_abs
+                                       / double(frame.n))
+                               : 0.0f;
+    return rule;
+}
 
 OutlierPixels take_out_outliers(Plane mean[3], Plane variance[3], Plane* half_a, Plane* half_b,
                                 std::vector<ExtraPlanes>& extras, const ConvergedTiles& converged,

@@ -1,5 +1,5 @@
-// Heavy-tailed samples before NFOR's regressions (issue 22): a caustic path through glass,
-// a firefly. Such a pixel's mean holds one sample worth hundreds or thousands of its
+// Heavy-tailed samples before NFOR's regressions and the KPCN's kernels (issue 22): a
+// caustic path through glass, a firefly. Such a pixel's mean holds one sample worth hundreds or thousands of its
 // neighbours, and its variance is as extreme. The regression cannot tell it from signal: the
 // huge variance makes its NL-means distance to every patch small (all weights near 1), and
 // the first-order fit of every window that holds it turns its energy into a ramp across
@@ -10,6 +10,9 @@
 // §5.4 their excess (render − that median) is added back at the pixel. The light stays
 // where the renderer put it, in the amount it put there: the result at such a pixel is
 // the denoised neighbourhood plus the render's outlier, never a spread of it.
+//
+// The KPCN op has the same problem: its kernels spread such a sample over their reach. It takes the same pixels out before the network (their
+// diffuse and specular parts scaled with the colour, lib/src/cnn) and drops their excess.
 //
 // A pixel is such an outlier when, against the 24 others of its 5×5 neighbourhood
 // (medians, so that one outlier does not hide another):
@@ -33,6 +36,7 @@
 #include <vector>
 
 #include "core/extra_aovs.h"
+#include "core/frame_facts.h"
 #include "core/planar.h"
 #include "skip/converged_tiles.h"
 
@@ -51,6 +55,11 @@ struct OutlierRule {
     /// Neighbourhood radius (5×5): how far the detection reaches into the image.
     static constexpr int radius = 2;
 };
+
+/// The rule of these thresholds, its level floor from the frame's colour (kFloorOfMean × the
+/// mean |colour|, three channels summed, as the rule compares them).
+OutlierRule outlier_rule(float sigma, float variance_ratio, float level_ratio,
+                         const ColourSums& frame);
 
 /// The pixels taken out and what to add back at each, per channel: the beauty's excess and
 /// each extra AOV's share of it.
