@@ -3,6 +3,7 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <unistd.h>
 #include <string>
 #include <vector>
 
@@ -28,12 +29,24 @@ inline std::string shared_data(const std::string& rel)
     if (var.empty())                                                                   \
         GTEST_SKIP() << "../shared/data/" << rel << " absent (user clone): skipped";
 
-/// A fresh empty directory for one test's outputs.
+/// A fresh empty directory for one test's outputs, of this process (two test runs at once
+/// on one machine do not share it), removed when the process exits.
 inline std::string temp_dir(const std::string& name)
 {
-    std::string dir = OIIO::Filesystem::temp_directory_path() + "/mcdn_test_" + name;
+    struct Made {
+        std::vector<std::string> dirs;
+        ~Made()
+        {
+            for (const std::string& dir : dirs)
+                OIIO::Filesystem::remove_all(dir);
+        }
+    };
+    static Made made;
+    std::string dir = OIIO::Filesystem::temp_directory_path() + "/mcdn_test_" + name + "_"
+                      + std::to_string(getpid());
     OIIO::Filesystem::remove_all(dir);
     OIIO::Filesystem::create_directory(dir);
+    made.dirs.push_back(dir);
     return dir;
 }
 
