@@ -135,6 +135,10 @@ def check_features(ck, im, name, var=None):
         # footprint spans edges, bump detail or sub-pixel strands. Where all seeds agree (seed
         # variance ~0) the footprint saw one normal: there it must be unit length.
         coherent = hit & (var.get(lay, "XYZ").sum(-1) < 1e-6)
+        if lay == "Denoising Normal" and im.has("TransCol"):
+            # Seen through smooth glass, Cycles writes the surface behind it scaled by the
+            # transmission (|n| ~ 0.12 through the sequences' glass): not a unit normal.
+            coherent &= im.get("TransCol").sum(-1) <= 0.01
         unit = float(np.mean(np.abs(n[coherent] - 1) < 0.02)) if coherent.any() else 1.0
         stats[lay] = (unit, int(coherent.sum()), int(hit.sum()))
         # A share of a few dozen pixels says little: a sub-pixel strand's footprint can hold
