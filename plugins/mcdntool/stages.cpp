@@ -1,6 +1,7 @@
 // The denoising stages as mcdntool commands: each maps its modifiers onto the stage's
 // Options. Denoisers (--prefilter, --nfor) queue up; the next command that needs pixels runs
 // them, and --sure takes the queued chain as the denoiser whose error it estimates.
+#include <algorithm>
 #include <iostream>
 
 #include <OpenImageIO/strutil.h>
@@ -227,10 +228,9 @@ bool run_denoise(Session& s, const Command& c, std::string& error)
 
 bool is_stage(const std::string& name)
 {
-    for (const char* stage : { "--denoise", "--prefilter", "--nfor", "--cnn", "--sure", "--mix" })
-        if (name == stage)
-            return true;
-    return false;
+    static const std::vector<CommandInfo> stages = stage_commands();
+    return std::any_of(stages.begin(), stages.end(),
+                       [&](const CommandInfo& stage) { return stage.name == name; });
 }
 
 std::vector<CommandInfo> stage_commands()

@@ -192,7 +192,8 @@ def main():
         adaptive = spec.get("adaptive_threshold") if tag.startswith("A") else None
         cpu, wall = render(scene, path, spp, seed, adaptive, sample_offset)
         log["renders"].append({"tag": tag, "level_spp": n, "K": k, "index": s, "spp": spp,
-                               "seed": seed, "sample_offset": sample_offset, "file": os.path.basename(path),
+                               "seed": seed, "sample_offset": sample_offset,
+                               "file": os.path.basename(path),
                                "cpu_s": round(cpu, 3), "wall_s": round(wall, 3)})
         print(f"[datagen] {tag} seed {seed} {spp} spp: {wall:.2f} s wall, {cpu:.2f} s cpu",
               flush=True)

@@ -147,10 +147,7 @@ kpcn::DroppedOutliers find_outliers(const ImageBuf& src, const AovSet& aovs,
     read_color_planes(color, src, aovs, halves);
     // The level floor from the frame's colour (a band's frame's: core/frame_facts.h).
     FrameFacts facts;
-    const ColourSums frame = frame_facts(facts, src.spec())
-                                 ? facts.colour
-                                 : colour_sums(src, aovs.channels(Role::Color).data(),
-                                               aovs.channels(Role::ColorVariance).data());
+    const ColourSums frame = frame_facts(facts, src.spec()) ? facts.colour : colour_sums(color);
     const NforOptions nfor_options;  // the same thresholds as NFOR's
     const OutlierRule rule = outlier_rule(nfor_options.outlier_sigma,
                                           nfor_options.outlier_variance_ratio,
@@ -228,9 +225,9 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
     if (converged.all())
         return true;
     // Heavy-tailed samples out of the network's input (CnnOptions::outliers).
-    const kpcn::DroppedOutliers outliers = options.outliers == CnnOptions::Outliers::Drop
-                                               ? find_outliers(src, aovs, extras, converged, nthreads)
-                                               : kpcn::DroppedOutliers {};
+    kpcn::DroppedOutliers outliers;
+    if (options.outliers == CnnOptions::Outliers::Drop)
+        outliers = find_outliers(src, aovs, extras, converged, nthreads);
     trace.mark("outliers");
     kpcn::OutputFrame frame(dst);
     if (!frame.valid()) {

@@ -328,7 +328,8 @@ void drop_outliers(RawPlanes& raw, const DroppedOutliers& outliers)
     const Rect& r = raw.rect;
     const uint32_t width = uint32_t(raw.frame_width);
     // The outliers of the rows of raw.rect, those of its columns taken.
-    auto k = std::lower_bound(outliers.pixels.begin(), outliers.pixels.end(), uint32_t(r.y0) * width);
+    auto k = std::lower_bound(outliers.pixels.begin(), outliers.pixels.end(),
+                              uint32_t(r.y0) * width);
     const auto end = std::lower_bound(k, outliers.pixels.end(), uint32_t(r.y1) * width);
     for (; k != end; ++k) {
         const int x = int(*k % width), y = int(*k / width);

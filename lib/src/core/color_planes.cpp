@@ -1,5 +1,7 @@
 #include "core/color_planes.h"
 
+#include <cmath>
+
 namespace mcdn {
 
 void read_color_planes(ColorPlanes& color, const OIIO::ImageBuf& src, const AovSet& aovs,
@@ -25,6 +27,17 @@ void read_color_planes(ColorPlanes& color, const OIIO::ImageBuf& src, const AovS
             }
         }
     }
+}
+
+ColourSums colour_sums(const ColorPlanes& color)
+{
+    ColourSums part[3];
+    for (int c = 0; c < 3; ++c)
+        for (size_t i = 0; i < color.mean[c].size(); ++i, ++part[c].n) {
+            part[c].sum_abs += std::fabs(color.mean[c].px[i]);
+            part[c].sum_sd += std::sqrt(color.variance[c].px[i]);
+        }
+    return combined(part);
 }
 
 }  // namespace mcdn

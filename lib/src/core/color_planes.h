@@ -3,6 +3,7 @@
 
 #include <OpenImageIO/imagebuf.h>
 
+#include "core/frame_facts.h"
 #include "core/planar.h"
 #include "mcdn/aov.h"
 
@@ -18,5 +19,9 @@ struct ColorPlanes {
 /// caller has checked that src has one or the other).
 void read_color_planes(ColorPlanes& color, const OIIO::ImageBuf& src, const AovSet& aovs,
                        bool halves);
+
+/// The sums core/frame_facts.h takes of the colour (a channel at a time, then added), from
+/// the planes read already: sum_abs, sum_sd and n; sum and sum2 stay 0.
+ColourSums colour_sums(const ColorPlanes& color);
 
 }  // namespace mcdn

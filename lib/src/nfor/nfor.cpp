@@ -247,17 +247,6 @@ struct ProbeIndex {
     ColourSums colour;  // the frame's (facts->colour), else the planes' as read
 };
 
-ColourSums colour_sums(const ColorPlanes& color)
-{
-    ColourSums part[3];  // as core/frame_facts.h sums them: a channel at a time, then added
-    for (int c = 0; c < 3; ++c)
-        for (size_t i = 0; i < color.mean[c].size(); ++i, ++part[c].n) {
-            part[c].sum_abs += std::fabs(color.mean[c].px[i]);
-            part[c].sum_sd += std::sqrt(color.variance[c].px[i]);
-        }
-    return combined(part);
-}
-
 /// Without half buffers (a renderer's colour and its variance, as Arnold and RenderMan
 /// write them), §5.2 fits the render itself with its own weights and the mean features for
 /// both candidates, and once more probed by eps b, b = sqrt(Var) n (n standard normal, from

@@ -1,4 +1,4 @@
-// Outliers taken out of NFOR's input and put back after it (outliers.h says why and when).
+// Outliers taken out of NFOR's and the KPCN's input (outliers.h says why and when).
 #include "outliers/outliers.h"
 
 #include <algorithm>

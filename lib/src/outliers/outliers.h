@@ -1,9 +1,10 @@
 // Heavy-tailed samples before NFOR's regressions and the KPCN's kernels (issue 22): a
-// caustic path through glass, a firefly. Such a pixel's mean holds one sample worth hundreds or thousands of its
-// neighbours, and its variance is as extreme. The regression cannot tell it from signal: the
-// huge variance makes its NL-means distance to every patch small (all weights near 1), and
-// the first-order fit of every window that holds it turns its energy into a ramp across
-// the window — blotches of 20–40 px, negative beside positive, far worse than the render.
+// caustic path through glass, a firefly. Such a pixel's mean holds one sample worth
+// hundreds or thousands of its neighbours, and its variance is as extreme. The regression
+// cannot tell it from signal: the huge variance makes its NL-means distance to every patch
+// small (all weights near 1), and the first-order fit of every window that holds it turns
+// its energy into a ramp across the window — blotches of 20–40 px, negative beside
+// positive, far worse than the render.
 //
 // So such pixels are taken out before §5.2: their mean, halves and variance become the
 // medians of their neighbourhood, NFOR filters the rest as if they were ordinary, and after
@@ -11,8 +12,9 @@
 // where the renderer put it, in the amount it put there: the result at such a pixel is
 // the denoised neighbourhood plus the render's outlier, never a spread of it.
 //
-// The KPCN op has the same problem: its kernels spread such a sample over their reach. It takes the same pixels out before the network (their
-// diffuse and specular parts scaled with the colour, lib/src/cnn) and drops their excess.
+// The KPCN op has the same problem: its kernels spread such a sample over their reach. It
+// takes the same pixels out before the network (their diffuse and specular parts scaled
+// with the colour, lib/src/cnn) and drops their excess.
 //
 // A pixel is such an outlier when, against the 24 others of its 5×5 neighbourhood
 // (medians, so that one outlier does not hide another):
