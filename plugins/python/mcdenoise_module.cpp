@@ -376,33 +376,47 @@ PYBIND11_MODULE(_mcdenoise, m)
 
     m.def("metrics",
           [](const ImageBuf& image, const ImageBuf& reference, std::vector<int> channels,
-             std::vector<int> reference_channels, bool trim) {
+             std::vector<int> reference_channels, bool trim, const ImageBuf* reference_variance) {
               mcdn::MetricsOptions o;
               o.image_channels = channels;
               o.reference_channels = reference_channels.empty() ? channels : reference_channels;
               o.trim = trim;
               mcdn::Metrics r;
+              mcdn::ReferenceNoise noise;
               std::string error;
               bool ok;
               {
                   py::gil_scoped_release release;
-                  ok = mcdn::compute_metrics(r, image, reference, o, error);
+                  ok = mcdn::compute_metrics(r, image, reference, o, error)
+                       && (!reference_variance
+                           || mcdn::compute_reference_noise(noise, reference, *reference_variance,
+                                                            o, error));
               }
               if (!ok)
                   throw std::runtime_error(error);
-              return std::map<std::string, double> { { "mse", r.mse }, { "rmse", r.rmse },
-                                                     { "relmse", r.relmse }, { "smape", r.smape },
-                                                     { "psnr", r.psnr }, { "ssim", r.ssim } };
+              std::map<std::string, double> out { { "mse", r.mse }, { "rmse", r.rmse },
+                                                  { "relmse", r.relmse }, { "smape", r.smape },
+                                                  { "psnr", r.psnr }, { "ssim", r.ssim } };
+              if (reference_variance) {
+                  out["mse_reference_noise"] = noise.mse;
+                  out["relmse_reference_noise"] = noise.relmse;
+              }
+              return out;
           },
           py::arg("image"), py::arg("reference"), py::arg("channels") = std::vector<int> { 0, 1, 2 },
           py::arg("reference_channels") = std::vector<int>(), py::arg("trim") = false,
-          "MSE, RMSE, relMSE, SMAPE, PSNR, SSIM as a dict.");
+          py::arg("reference_variance") = nullptr,
+          "MSE, RMSE, relMSE, SMAPE, PSNR, SSIM as a dict; with the reference's variance of the "
+          "mean (laid out as the reference), also mse_reference_noise and "
+          "relmse_reference_noise: what the reference's own noise adds to mse and relmse "
+          "(mcdn/metrics.h ReferenceNoise).");
 
     m.def("temporal_metrics",
           [](const ImageBuf& image, const ImageBuf& previous, const ImageBuf& reference,
              const ImageBuf& previous_reference, const ImageBuf* motion, std::vector<int> channels,
              std::vector<int> reference_channels, std::vector<int> motion_channels,
-             std::pair<double, double> motion_scale, bool trim) {
+             std::pair<double, double> motion_scale, bool trim,
+             const ImageBuf* reference_variance, const ImageBuf* previous_reference_variance) {
               mcdn::TemporalOptions o;
               o.metrics.image_channels = channels;
               o.metrics.reference_channels = reference_channels.empty() ? channels
@@ -414,18 +428,31 @@ PYBIND11_MODULE(_mcdenoise, m)
               o.motion_y = motion_channels[1];
               o.motion_scale_x = motion_scale.first;
               o.motion_scale_y = motion_scale.second;
+              if (bool(reference_variance) != bool(previous_reference_variance))
+                  throw std::runtime_error("temporal_metrics: give both references' variances "
+                                           "or neither");
               mcdn::TemporalMetrics r;
+              mcdn::ReferenceNoise noise;
               std::string error;
               bool ok;
               {
                   py::gil_scoped_release release;
                   ok = mcdn::compute_temporal_metrics(r, image, previous, reference,
-                                                      previous_reference, motion, o, error);
+                                                      previous_reference, motion, o, error)
+                       && (!reference_variance
+                           || mcdn::compute_temporal_reference_noise(
+                               noise, reference, *reference_variance,
+                               *previous_reference_variance, motion, o, error));
               }
               if (!ok)
                   throw std::runtime_error(error);
-              return std::map<std::string, double> { { "mse", r.mse }, { "relmse", r.relmse },
-                                                     { "pixels", double(r.pixels) } };
+              std::map<std::string, double> out { { "mse", r.mse }, { "relmse", r.relmse },
+                                                  { "pixels", double(r.pixels) } };
+              if (reference_variance) {
+                  out["mse_reference_noise"] = noise.mse;
+                  out["relmse_reference_noise"] = noise.relmse;
+              }
+              return out;
           },
           py::arg("image"), py::arg("previous"), py::arg("reference"),
           py::arg("previous_reference"), py::arg("motion") = nullptr,
@@ -433,9 +460,12 @@ PYBIND11_MODULE(_mcdenoise, m)
           py::arg("reference_channels") = std::vector<int>(),
           py::arg("motion_channels") = std::vector<int> { 0, 1 },
           py::arg("motion_scale") = std::pair<double, double>(1.0, 1.0),
-          py::arg("trim") = false,
+          py::arg("trim") = false, py::arg("reference_variance") = nullptr,
+          py::arg("previous_reference_variance") = nullptr,
           "Flicker of frame `image` after `previous` against their references (mcdn/metrics.h): "
           "temporal MSE and relMSE of the frame-to-frame difference after warping the previous "
           "frame by `motion` (pixel p was at p + motion_scale * motion[p] before, per axis, +y "
-          "down; Cycles' Vector X, Y: motion_scale=(1, -1); None: still).");
+          "down; Cycles' Vector X, Y: motion_scale=(1, -1); None: still). With both "
+          "references' variances of the mean (laid out as `reference`), also "
+          "mse_reference_noise and relmse_reference_noise: what their own noise adds.");
 }

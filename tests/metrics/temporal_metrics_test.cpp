@@ -100,3 +100,38 @@ TEST(TemporalMetrics, MismatchedOrNonFiniteInputsAreErrors)
                                           frame(0, false), &bad, TemporalOptions(), error));
     EXPECT_NE(error.find("'X'"), std::string::npos) << error;
 }
+
+TEST(TemporalMetrics, AReferenceNoiseIsWhatItsVarianceSays)
+{
+    // A perfect image against references that are renders themselves (noise of variance v):
+    // all the error measured is the references' noise, which ReferenceNoise predicts from
+    // their variance. With a half-pixel motion the warp averages two pixels of frame t-1,
+    // whose noise then counts v / 2.
+    const float v = 0.05f * 0.05f;
+    const ImageBuf r0 = frame(0, false), r1 = frame(1, false);
+    const ImageBuf n0 = noisy(r0, 3), n1 = noisy(r1, 4);
+    const ImageBuf var = make_image(kW, kH, { "R", "G", "B" }, [=](int, int, int) { return v; });
+    const ImageBuf half = make_image(kW, kH, { "X", "Y" }, [](int, int, int c) { return c == 0 ? -2.5f : 0.0f; });
+    Metrics m;
+    ReferenceNoise noise;
+    std::string error;
+    ASSERT_TRUE(compute_metrics(m, r1, n1, {}, error)) << error;
+    ASSERT_TRUE(compute_reference_noise(noise, n1, var, {}, error)) << error;
+    EXPECT_NEAR(noise.mse, v, 1e-9);
+    EXPECT_NEAR(m.mse, noise.mse, 0.1 * v);
+    EXPECT_NEAR(m.relmse, noise.relmse, 0.1 * noise.relmse);
+
+    const TemporalMetrics t = temporal(r1, r0, n1, n0, &half);
+    ASSERT_TRUE(compute_temporal_reference_noise(noise, n1, var, var, &half, {}, error)) << error;
+    EXPECT_NEAR(noise.mse, 1.5 * v, 1e-9);
+    EXPECT_NEAR(t.mse, noise.mse, 0.1 * noise.mse);
+    EXPECT_NEAR(t.relmse, noise.relmse, 0.1 * noise.relmse);
+
+    // Without the motion the warp takes one pixel: v + v.
+    ASSERT_TRUE(compute_temporal_reference_noise(noise, n1, var, var, nullptr, {}, error)) << error;
+    EXPECT_NEAR(noise.mse, 2 * v, 1e-9);
+    // A variance of another size is an error.
+    const ImageBuf small = make_image(8, 8, { "R", "G", "B" }, [=](int, int, int) { return v; });
+    EXPECT_FALSE(compute_reference_noise(noise, n1, small, {}, error));
+    EXPECT_FALSE(compute_temporal_reference_noise(noise, n1, var, small, nullptr, {}, error));
+}

@@ -205,6 +205,19 @@ class OpsTakeAndReturnImageBufs(unittest.TestCase):
         self.assertGreater(mcdenoise.temporal_metrics(x1, x0, r1, r0)["mse"], 1e-6)
         with self.assertRaises(RuntimeError):
             mcdenoise.temporal_metrics(x1, x0, r1, r0, motion, motion_channels=[0])
+        # The references' own noise, from a variance of the mean of 0.01 on every pixel: v per
+        # frame, v + v for a pair of frames moved by whole pixels.
+        variance = oiio.ImageBuf(oiio.ImageSpec(96, 96, 3, oiio.FLOAT))
+        oiio.ImageBufAlgo.fill(variance, (0.01, 0.01, 0.01))
+        per_frame = mcdenoise.metrics(x1, r1, reference_variance=variance)
+        self.assertAlmostEqual(per_frame["mse_reference_noise"], 0.01, places=9)
+        self.assertGreater(per_frame["relmse_reference_noise"], 0.01)
+        pair = mcdenoise.temporal_metrics(x1, x0, r1, r0, motion, reference_variance=variance,
+                                          previous_reference_variance=variance)
+        self.assertAlmostEqual(pair["mse_reference_noise"], 0.02, places=9)
+        self.assertNotIn("mse_reference_noise", still)
+        with self.assertRaises(RuntimeError):
+            mcdenoise.temporal_metrics(x1, x0, r1, r0, motion, reference_variance=variance)
 
 
 if __name__ == "__main__":

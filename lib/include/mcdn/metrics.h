@@ -76,6 +76,31 @@ bool compute_temporal_metrics(TemporalMetrics& result, const ImageBuf& image,
                               const TemporalOptions& options, std::string& error,
                               int nthreads = 0);
 
+/// What a reference's own noise adds to the squared-error metrics. A reference that is
+/// itself a render, with variance of the mean v at a pixel, adds v to the expected squared
+/// error there, whatever the image is (the image's error is independent of the reference's
+/// noise): per frame mean v and mean v / (r^2 + 0.01); per pair of frames mean
+/// (v_t + W2 v_{t-1}) and that over (r_t^2 + 0.01), with W2 the warp by the squared bilinear
+/// weights, over the pixels the temporal metrics keep. Subtracted from the untrimmed
+/// Metrics::mse and ::relmse (TemporalMetrics's), they estimate the error against a
+/// converged reference (for relMSE to first order: r in the denominator is the noisy one).
+/// A metric near this floor says the reference cannot tell the image's error apart.
+struct ReferenceNoise {
+    double mse = 0, relmse = 0;
+};
+
+/// `variance` is laid out as the reference (options.reference_channels index both).
+bool compute_reference_noise(ReferenceNoise& result, const ImageBuf& reference,
+                             const ImageBuf& variance, const MetricsOptions& options,
+                             std::string& error, ROI roi = {}, int nthreads = 0);
+
+/// The same for compute_temporal_metrics: the variances of reference t and of reference t-1,
+/// laid out as reference t; the motion and options as there.
+bool compute_temporal_reference_noise(ReferenceNoise& result, const ImageBuf& reference,
+                                      const ImageBuf& variance, const ImageBuf& previous_variance,
+                                      const ImageBuf* motion, const TemporalOptions& options,
+                                      std::string& error, int nthreads = 0);
+
 /// Which per-pixel error a heatmap shows.
 enum class ErrorKind { RelMSE, SquaredError, AbsoluteError, SMAPE };
 

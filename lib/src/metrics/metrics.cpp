@@ -210,18 +210,75 @@ bool compute_metrics(Metrics& m, const ImageBuf& image, const ImageBuf& referenc
 
 namespace {
 
-// Bilinear sample of a plane at (x, y) in pixel-centre coordinates; false outside.
-bool sample(const std::vector<float>& plane, int w, int h, double x, double y, double& value)
+// The four pixels around (x, y) in pixel-centre coordinates and the fractions between them;
+// false outside the plane. The last row and column interpolate towards themselves (fx or fy
+// is then 1 or 0).
+bool bilinear(int w, int h, double x, double y, size_t at[4], double& fx, double& fy)
 {
     if (!(x >= 0 && y >= 0 && x <= w - 1 && y <= h - 1))
         return false;
-    // The last row and column interpolate towards themselves (fx or fy is then 1 or 0).
     const int x0 = std::min(int(x), std::max(0, w - 2)), y0 = std::min(int(y), std::max(0, h - 2));
     const int x1 = std::min(x0 + 1, w - 1), y1 = std::min(y0 + 1, h - 1);
-    const double fx = x - x0, fy = y - y0;
-    auto at = [&](int xi, int yi) { return double(plane[size_t(yi) * w + xi]); };
-    value = (1 - fy) * ((1 - fx) * at(x0, y0) + fx * at(x1, y0))
-            + fy * ((1 - fx) * at(x0, y1) + fx * at(x1, y1));
+    fx = x - x0;
+    fy = y - y0;
+    at[0] = size_t(y0) * w + x0;
+    at[1] = size_t(y0) * w + x1;
+    at[2] = size_t(y1) * w + x0;
+    at[3] = size_t(y1) * w + x1;
+    return true;
+}
+
+// Bilinear sample of a plane at (x, y); false outside.
+bool sample(const std::vector<float>& plane, int w, int h, double x, double y, double& value)
+{
+    size_t at[4];
+    double fx, fy;
+    if (!bilinear(w, h, x, y, at, fx, fy))
+        return false;
+    auto v = [&](int i) { return double(plane[at[i]]); };
+    value = (1 - fy) * ((1 - fx) * v(0) + fx * v(1)) + fy * ((1 - fx) * v(2) + fx * v(3));
+    return true;
+}
+
+// The variance of that sample for a plane of independent values of variance `var`: the
+// squared weights times the variances.
+bool sample_variance(const std::vector<float>& var, int w, int h, double x, double y,
+                     double& value)
+{
+    size_t at[4];
+    double fx, fy;
+    if (!bilinear(w, h, x, y, at, fx, fy))
+        return false;
+    auto v = [&](int i) { return std::max(0.0, double(var[at[i]])); };
+    const double gx = 1 - fx, gy = 1 - fy;
+    value = gy * gy * (gx * gx * v(0) + fx * fx * v(1)) + fy * fy * (gx * gx * v(2) + fx * fx * v(3));
+    return true;
+}
+
+// The motion planes (m_x, m_y) in pixels, zero without a motion buffer.
+bool motion_planes(std::vector<float>& mx, std::vector<float>& my, const ImageBuf* motion, int w,
+                   int h, const TemporalOptions& o, std::string& error)
+{
+    mx.assign(size_t(w) * h, 0.0f);
+    my.assign(mx.size(), 0.0f);
+    if (!motion)
+        return true;
+    const ImageSpec& ms = motion->spec();
+    if (ms.width != w || ms.height != h || o.motion_x < 0 || o.motion_y < 0
+        || std::max(o.motion_x, o.motion_y) >= ms.nchannels) {
+        error = format("metrics: the motion vectors ({}x{}, {} channels) do not match the "
+                       "{}x{} frame or channels {}, {}", ms.width, ms.height, ms.nchannels, w,
+                       h, o.motion_x, o.motion_y);
+        return false;
+    }
+    mx = plane(*motion, motion->roi(), o.motion_x);
+    my = plane(*motion, motion->roi(), o.motion_y);
+    for (const auto* v : { &mx, &my })
+        if (std::any_of(v->begin(), v->end(), [](float f) { return !std::isfinite(f); })) {
+            error = format("metrics: motion channel '{}' is not finite",
+                           ms.channel_name(v == &mx ? o.motion_x : o.motion_y));
+            return false;
+        }
     return true;
 }
 
@@ -245,25 +302,9 @@ bool compute_temporal_metrics(TemporalMetrics& m, const ImageBuf& image, const I
                        before.height, w, h);
         return false;
     }
-    std::vector<float> mx(size_t(w) * h, 0.0f), my(mx.size(), 0.0f);
-    if (motion) {
-        const ImageSpec& ms = motion->spec();
-        if (ms.width != w || ms.height != h || o.motion_x < 0 || o.motion_y < 0
-            || std::max(o.motion_x, o.motion_y) >= ms.nchannels) {
-            error = format("metrics: the motion vectors ({}x{}, {} channels) do not match the "
-                           "{}x{} frame or channels {}, {}", ms.width, ms.height, ms.nchannels, w,
-                           h, o.motion_x, o.motion_y);
-            return false;
-        }
-        mx = plane(*motion, motion->roi(), o.motion_x);
-        my = plane(*motion, motion->roi(), o.motion_y);
-        for (const auto* v : { &mx, &my })
-            if (std::any_of(v->begin(), v->end(), [](float f) { return !std::isfinite(f); })) {
-                error = format("metrics: motion channel '{}' is not finite",
-                               ms.channel_name(v == &mx ? o.motion_x : o.motion_y));
-                return false;
-            }
-    }
+    std::vector<float> mx, my;
+    if (!motion_planes(mx, my, motion, w, h, o, error))
+        return false;
     // Per pixel inside frame t-1: (e_t - W e_{t-1})^2, mean over channels, and its relative
     // form (one pass, cheap beside reading the frames).
     const size_t n = size_t(w) * h, nc = now.image.size();
@@ -277,7 +318,7 @@ bool compute_temporal_metrics(TemporalMetrics& m, const ImageBuf& image, const I
             double sq = 0, rel = 0;
             bool ok = true;
             for (size_t c = 0; c < nc && ok; ++c) {
-                double x_before, r_before;
+                double x_before = 0, r_before = 0;
                 ok = sample(before.image[c], w, h, px, py, x_before)
                      && sample(before.reference[c], w, h, px, py, r_before);
                 const double r = now.reference[c][p];
@@ -303,6 +344,78 @@ bool compute_temporal_metrics(TemporalMetrics& m, const ImageBuf& image, const I
         error = "metrics: no pixel of this frame was inside the previous one";
         return false;
     }
+    return true;
+}
+
+bool compute_reference_noise(ReferenceNoise& result, const ImageBuf& reference,
+                             const ImageBuf& variance, const MetricsOptions& o,
+                             std::string& error, ROI roi, int nthreads)
+{
+    MetricsOptions both = o;
+    both.image_channels = o.reference_channels;
+    Planes planes;  // image: the reference, reference: its variance
+    if (!check_threads(nthreads, error) || !gather(planes, reference, variance, both, roi, error))
+        return false;
+    const size_t n = size_t(planes.width) * planes.height, nc = planes.image.size();
+    std::vector<double> squared(n, 0.0), relative(n, 0.0);
+    for (size_t c = 0; c < nc; ++c)
+        for (size_t p = 0; p < n; ++p) {
+            const double r = planes.image[c][p], v = std::max(0.0, double(planes.reference[c][p]));
+            squared[p] += v / double(nc);
+            relative[p] += v / (r * r + o.relmse_epsilon) / double(nc);
+        }
+    result.mse = mean(squared, false, 0, nullptr);
+    result.relmse = mean(relative, false, 0, nullptr);
+    return true;
+}
+
+bool compute_temporal_reference_noise(ReferenceNoise& result, const ImageBuf& reference,
+                                      const ImageBuf& variance, const ImageBuf& previous_variance,
+                                      const ImageBuf* motion, const TemporalOptions& o,
+                                      std::string& error, int nthreads)
+{
+    MetricsOptions both = o.metrics;
+    both.image_channels = o.metrics.reference_channels;
+    Planes now, before;  // image: the reference, reference: the variance
+    if (!check_threads(nthreads, error) || !gather(now, reference, variance, both, {}, error))
+        return false;
+    if (!gather(before, reference, previous_variance, both, {}, error)) {
+        error = "previous frame: " + error;
+        return false;
+    }
+    const int w = now.width, h = now.height;
+    std::vector<float> mx, my;
+    if (!motion_planes(mx, my, motion, w, h, o, error))
+        return false;
+    // The pixels compute_temporal_metrics keeps: those inside frame t-1.
+    const size_t nc = now.image.size();
+    std::vector<double> squared, relative;
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            const size_t p = size_t(y) * w + x;
+            const double px = x + o.motion_scale_x * mx[p];
+            const double py = double(y) + o.motion_scale_y * my[p];
+            double sq = 0, rel = 0;
+            bool ok = true;
+            for (size_t c = 0; c < nc && ok; ++c) {
+                double v_before = 0;
+                ok = sample_variance(before.reference[c], w, h, px, py, v_before);
+                const double r = now.image[c][p];
+                const double v = std::max(0.0, double(now.reference[c][p])) + v_before;
+                sq += v / double(nc);
+                rel += v / (r * r + o.metrics.relmse_epsilon) / double(nc);
+            }
+            if (ok) {
+                squared.push_back(sq);
+                relative.push_back(rel);
+            }
+        }
+    if (squared.empty()) {
+        error = "metrics: no pixel of this frame was inside the previous one";
+        return false;
+    }
+    result.mse = mean(squared, false, 0, nullptr);
+    result.relmse = mean(relative, false, 0, nullptr);
     return true;
 }
 
