@@ -282,6 +282,37 @@ bool motion_planes(std::vector<float>& mx, std::vector<float>& my, const ImageBu
     return true;
 }
 
+// Per pixel p of frame t whose position in frame t-1 (p + m(p)) lies inside it, in pixel
+// order: the mean over channels of a squared term, plain into `squared` and over
+// r_t(p)^2 + epsilon into `relative`. term(c, p, px, py, value) sets channel c's term; false
+// outside frame t-1.
+template<class Term>
+void warped_means(int w, int h, const std::vector<std::vector<float>>& r, const std::vector<float>& mx,
+                  const std::vector<float>& my, const TemporalOptions& o,
+                  std::vector<double>& squared, std::vector<double>& relative, Term term)
+{
+    const size_t nc = r.size();
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            const size_t p = size_t(y) * w + x;
+            const double px = x + o.motion_scale_x * mx[p];
+            const double py = double(y) + o.motion_scale_y * my[p];
+            double sq = 0, rel = 0;
+            bool ok = true;
+            for (size_t c = 0; c < nc && ok; ++c) {
+                double v = 0;
+                ok = term(c, p, px, py, v);
+                const double rc = r[c][p];
+                sq += v / double(nc);
+                rel += v / (rc * rc + o.metrics.relmse_epsilon) / double(nc);
+            }
+            if (ok) {
+                squared.push_back(sq);
+                relative.push_back(rel);
+            }
+        }
+}
+
 }  // namespace
 
 bool compute_temporal_metrics(TemporalMetrics& m, const ImageBuf& image, const ImageBuf& previous,
@@ -307,39 +338,21 @@ bool compute_temporal_metrics(TemporalMetrics& m, const ImageBuf& image, const I
         return false;
     // Per pixel inside frame t-1: (e_t - W e_{t-1})^2, mean over channels, and its relative
     // form (one pass, cheap beside reading the frames).
-    const size_t n = size_t(w) * h, nc = now.image.size();
-    std::vector<double> squared(n, 0.0), relative(n, 0.0);
-    std::vector<char> inside(n, 0);
-    for (int y = 0; y < h; ++y)
-        for (int x = 0; x < w; ++x) {
-            const size_t p = size_t(y) * w + x;
-            const double px = x + o.motion_scale_x * mx[p];
-            const double py = double(y) + o.motion_scale_y * my[p];
-            double sq = 0, rel = 0;
-            bool ok = true;
-            for (size_t c = 0; c < nc && ok; ++c) {
-                double x_before = 0, r_before = 0;
-                ok = sample(before.image[c], w, h, px, py, x_before)
-                     && sample(before.reference[c], w, h, px, py, r_before);
-                const double r = now.reference[c][p];
-                const double d = (double(now.image[c][p]) - r) - (x_before - r_before);
-                sq += d * d / double(nc);
-                rel += d * d / (r * r + o.metrics.relmse_epsilon) / double(nc);
-            }
-            inside[p] = ok;
-            squared[p] = sq;
-            relative[p] = rel;
-        }
-    auto kept = [&](const std::vector<double>& map) {
-        std::vector<double> out;
-        for (size_t p = 0; p < n; ++p)
-            if (inside[p])
-                out.push_back(map[p]);
-        return out;
-    };
+    std::vector<double> squared, relative;
+    warped_means(w, h, now.reference, mx, my, o, squared, relative,
+                 [&](size_t c, size_t p, double px, double py, double& value) {
+                     double x_before = 0, r_before = 0;
+                     if (!sample(before.image[c], w, h, px, py, x_before)
+                         || !sample(before.reference[c], w, h, px, py, r_before))
+                         return false;
+                     const double r = now.reference[c][p];
+                     const double d = (double(now.image[c][p]) - r) - (x_before - r_before);
+                     value = d * d;
+                     return true;
+                 });
     m = TemporalMetrics();
-    m.mse = mean(kept(squared), o.metrics.trim, o.metrics.trim_fraction, &m.pixels);
-    m.relmse = mean(kept(relative), o.metrics.trim, o.metrics.trim_fraction, nullptr);
+    m.mse = mean(squared, o.metrics.trim, o.metrics.trim_fraction, &m.pixels);
+    m.relmse = mean(relative, o.metrics.trim, o.metrics.trim_fraction, nullptr);
     if (m.pixels == 0) {
         error = "metrics: no pixel of this frame was inside the previous one";
         return false;
@@ -388,28 +401,15 @@ bool compute_temporal_reference_noise(ReferenceNoise& result, const ImageBuf& re
     if (!motion_planes(mx, my, motion, w, h, o, error))
         return false;
     // The pixels compute_temporal_metrics keeps: those inside frame t-1.
-    const size_t nc = now.image.size();
     std::vector<double> squared, relative;
-    for (int y = 0; y < h; ++y)
-        for (int x = 0; x < w; ++x) {
-            const size_t p = size_t(y) * w + x;
-            const double px = x + o.motion_scale_x * mx[p];
-            const double py = double(y) + o.motion_scale_y * my[p];
-            double sq = 0, rel = 0;
-            bool ok = true;
-            for (size_t c = 0; c < nc && ok; ++c) {
-                double v_before = 0;
-                ok = sample_variance(before.reference[c], w, h, px, py, v_before);
-                const double r = now.image[c][p];
-                const double v = std::max(0.0, double(now.reference[c][p])) + v_before;
-                sq += v / double(nc);
-                rel += v / (r * r + o.metrics.relmse_epsilon) / double(nc);
-            }
-            if (ok) {
-                squared.push_back(sq);
-                relative.push_back(rel);
-            }
-        }
+    warped_means(w, h, now.image, mx, my, o, squared, relative,
+                 [&](size_t c, size_t p, double px, double py, double& value) {
+                     double v_before = 0;
+                     if (!sample_variance(before.reference[c], w, h, px, py, v_before))
+                         return false;
+                     value = std::max(0.0, double(now.reference[c][p])) + v_before;
+                     return true;
+                 });
     if (squared.empty()) {
         error = "metrics: no pixel of this frame was inside the previous one";
         return false;
