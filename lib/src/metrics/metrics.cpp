@@ -282,6 +282,27 @@ bool motion_planes(std::vector<float>& mx, std::vector<float>& my, const ImageBu
     return true;
 }
 
+// Frame t's and frame t-1's planes (gather's pairs: image and reference each) and the motion
+// between them, checked.
+bool gather_frames(Planes& now, Planes& before, std::vector<float>& mx, std::vector<float>& my,
+                   const ImageBuf& image, const ImageBuf& reference, const ImageBuf& previous,
+                   const ImageBuf& previous_reference, const ImageBuf* motion,
+                   const MetricsOptions& channels, const TemporalOptions& o, std::string& error)
+{
+    if (!gather(now, image, reference, channels, {}, error))
+        return false;
+    if (!gather(before, previous, previous_reference, channels, {}, error)) {
+        error = "previous frame: " + error;
+        return false;
+    }
+    if (before.width != now.width || before.height != now.height) {
+        error = format("metrics: the previous frame is {}x{} but this one is {}x{}", before.width,
+                       before.height, now.width, now.height);
+        return false;
+    }
+    return motion_planes(mx, my, motion, now.width, now.height, o, error);
+}
+
 // Per pixel p of frame t whose position in frame t-1 (p + m(p)) lies inside it, in pixel
 // order: the mean over channels of a squared term, plain into `squared` and over
 // r_t(p)^2 + epsilon into `relative`. term(c, p, px, py, value) sets channel c's term; false
@@ -321,21 +342,12 @@ bool compute_temporal_metrics(TemporalMetrics& m, const ImageBuf& image, const I
                               std::string& error, int nthreads)
 {
     Planes now, before;
-    if (!check_threads(nthreads, error) || !gather(now, image, reference, o.metrics, {}, error))
-        return false;
-    if (!gather(before, previous, previous_reference, o.metrics, {}, error)) {
-        error = "previous frame: " + error;
-        return false;
-    }
-    const int w = now.width, h = now.height;
-    if (before.width != w || before.height != h) {
-        error = format("metrics: the previous frame is {}x{} but this one is {}x{}", before.width,
-                       before.height, w, h);
-        return false;
-    }
     std::vector<float> mx, my;
-    if (!motion_planes(mx, my, motion, w, h, o, error))
+    if (!check_threads(nthreads, error)
+        || !gather_frames(now, before, mx, my, image, reference, previous, previous_reference,
+                          motion, o.metrics, o, error))
         return false;
+    const int w = now.width, h = now.height;
     // Per pixel inside frame t-1: (e_t - W e_{t-1})^2, mean over channels, and its relative
     // form (one pass, cheap beside reading the frames).
     std::vector<double> squared, relative;
@@ -390,16 +402,12 @@ bool compute_temporal_reference_noise(ReferenceNoise& result, const ImageBuf& re
     MetricsOptions both = o.metrics;
     both.image_channels = o.metrics.reference_channels;
     Planes now, before;  // image: the reference, reference: the variance
-    if (!check_threads(nthreads, error) || !gather(now, reference, variance, both, {}, error))
-        return false;
-    if (!gather(before, reference, previous_variance, both, {}, error)) {
-        error = "previous frame: " + error;
-        return false;
-    }
-    const int w = now.width, h = now.height;
     std::vector<float> mx, my;
-    if (!motion_planes(mx, my, motion, w, h, o, error))
+    if (!check_threads(nthreads, error)
+        || !gather_frames(now, before, mx, my, reference, variance, reference, previous_variance,
+                          motion, both, o, error))
         return false;
+    const int w = now.width, h = now.height;
     // The pixels compute_temporal_metrics keeps: those inside frame t-1.
     std::vector<double> squared, relative;
     warped_means(w, h, now.image, mx, my, o, squared, relative,
