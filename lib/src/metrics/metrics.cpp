@@ -251,7 +251,8 @@ bool sample_variance(const std::vector<float>& var, int w, int h, double x, doub
         return false;
     auto v = [&](int i) { return std::max(0.0, double(var[at[i]])); };
     const double gx = 1 - fx, gy = 1 - fy;
-    value = gy * gy * (gx * gx * v(0) + fx * fx * v(1)) + fy * fy * (gx * gx * v(2) + fx * fx * v(3));
+    value = gy * gy * (gx * gx * v(0) + fx * fx * v(1))
+            + fy * fy * (gx * gx * v(2) + fx * fx * v(3));
     return true;
 }
 
@@ -308,9 +309,10 @@ bool gather_frames(Planes& now, Planes& before, std::vector<float>& mx, std::vec
 // r_t(p)^2 + epsilon into `relative`. term(c, p, px, py, value) sets channel c's term; false
 // outside frame t-1.
 template<class Term>
-void warped_means(int w, int h, const std::vector<std::vector<float>>& r, const std::vector<float>& mx,
-                  const std::vector<float>& my, const TemporalOptions& o,
-                  std::vector<double>& squared, std::vector<double>& relative, Term term)
+void warped_means(int w, int h, const std::vector<std::vector<float>>& r,
+                  const std::vector<float>& mx, const std::vector<float>& my,
+                  const TemporalOptions& o, std::vector<double>& squared,
+                  std::vector<double>& relative, Term term)
 {
     const size_t nc = r.size();
     for (int y = 0; y < h; ++y)
