@@ -143,12 +143,20 @@ Command split_command(const std::string& typed)
     Command command;
     auto parts = OIIO::Strutil::splits(typed, ":");
     command.name = parts.empty() ? typed : parts[0];
+    std::string last;  // the modifier that took the last value
     for (size_t i = 1; i < parts.size(); ++i) {
         size_t eq = parts[i].find('=');
-        if (eq == std::string::npos)
+        // A number after a value continues it, as in oiiotool's compression=zip:5 and
+        // compression=dwaa:45: a level, not a modifier of its own.
+        if (eq == std::string::npos && !last.empty() && OIIO::Strutil::string_is_int(parts[i]))
+            command.modifiers[last] += ":" + parts[i];
+        else if (eq == std::string::npos) {
             command.modifiers[parts[i]] = "1";
-        else
-            command.modifiers[parts[i].substr(0, eq)] = parts[i].substr(eq + 1);
+            last.clear();
+        } else {
+            last = parts[i].substr(0, eq);
+            command.modifiers[last] = parts[i].substr(eq + 1);
+        }
     }
     return command;
 }

@@ -218,6 +218,14 @@ bool is_sequence(const std::string& name, std::string& normalized, std::string& 
     return width.size() <= 2 && (width.empty() || std::stoi(width) <= 10);
 }
 
+int frame_patterns(const std::string& name)
+{
+    // Runs of # or @ (oiiotool's padding characters) and printf conversions %d, %04d.
+    static const std::regex pattern("[#@]+|%0?[0-9]*d");
+    return int(std::distance(std::sregex_iterator(name.begin(), name.end(), pattern),
+                             std::sregex_iterator()));
+}
+
 std::string frame_name(const std::string& normalized, int frame)
 {
     std::vector<std::string> names;

@@ -41,6 +41,8 @@ bool parse_command_line(int argc, const char** argv, CommandLine& line, std::str
 bool is_sequence(const std::string& name, std::string& normalized, std::string& framespec);
 /// The name of one frame of a normalized pattern.
 std::string frame_name(const std::string& normalized, int frame);
+/// How many frame patterns (runs of # or @, %d / %04d) `name` holds: a name takes one.
+int frame_patterns(const std::string& name);
 
 /// The frames a --frames or pattern range spec names (1-10, 1-100x5, 3,7,9); false with
 /// `error` for a malformed spec or one naming more than `max_frames` frames.

@@ -6,6 +6,7 @@
 // Commands run left to right on one frame; file names with #, @ or %04d make a sequence
 // and the whole command line runs once per frame.
 #include <algorithm>
+#include <cstdlib>
 #include <iostream>
 #include <new>
 #include <atomic>
@@ -43,6 +44,11 @@ bool find_frames(const std::vector<Command>& commands, const std::string& frames
     for (const auto& c : commands)
         for (const auto& arg : c.args) {
             std::string normalized, framespec;
+            if (frame_patterns(arg) > 1) {
+                error = format("{} {}: {} frame patterns in one name; a name takes one (#, @ "
+                               "or %04d), e.g. out.####.exr", c.name, arg, frame_patterns(arg));
+                return false;
+            }
             if (!is_sequence(arg, normalized, framespec))
                 continue;
             any_sequence = true;
@@ -81,6 +87,15 @@ bool find_frames(const std::vector<Command>& commands, const std::string& frames
                        first_input_pattern.empty() ? "the output pattern" : first_input_pattern);
         return false;
     }
+    // shot.1.exr and shot.0001.exr both match shot.@.exr: the same frame twice.
+    for (size_t i = 0; i < frames.size(); ++i)
+        for (size_t j = i + 1; j < frames.size(); ++j)
+            if (frames[i] == frames[j]) {
+                error = format("{} and {} are both frame {} of '{}': padded differently; "
+                               "give the padding (# is 4 digits, @ one) or --frames",
+                               files[i], files[j], frames[i], first_input_pattern);
+                return false;
+            }
     return true;
 }
 
@@ -113,6 +128,23 @@ std::vector<Command> frame_commands(std::vector<Command> commands, int frame)
                     arg = frame_name(normalized, frame);
             }
     return commands;
+}
+
+// Every file the frame reads (-i, --metrics, --heatmap:ref) is a regular file (or, for -i,
+// a Tungsten buffer folder): a FIFO or a device would hang the first header read (OIIO
+// probes a file by reading it), before anything could say so.
+bool check_inputs(const std::vector<Command>& commands, std::string& error)
+{
+    for (const auto& c : commands) {
+        std::string path;
+        if ((c.name == "-i" && !Filesystem::is_directory(c.args[0])) || c.name == "--metrics")
+            path = c.args[0];
+        else if (c.name == "--heatmap" && c.has("ref"))
+            path = c.modifier("ref");
+        if (!path.empty() && !mcdn::check_input_file(path, error))
+            return false;
+    }
+    return true;
 }
 
 // True when the frame writes something and all of it exists (--skip-existing).
@@ -180,7 +212,8 @@ bool run_frame(const std::vector<Command>& commands, const std::string& history,
                int all_threads, int parallel, bool verbose, std::string& error,
                std::function<bool(int, std::vector<mcdn::InputFile>&)> neighbour_inputs = {})
 {
-    if (!check_outputs(commands, error) || !check_memory(commands, all_threads, parallel, error))
+    if (!check_inputs(commands, error) || !check_outputs(commands, error)
+        || !check_memory(commands, all_threads, parallel, error))
         return false;
     Session session;
     session.neighbour_inputs = std::move(neighbour_inputs);
@@ -316,6 +349,10 @@ int main(int argc, const char** argv)
 {
     install_signal_handlers();
     keep_freed_memory();
+    // Debian's OIIO prints its debug channel ("OIIO DEBUG: ImageBuf unable to allocate ...")
+    // by default: what it says, an error line says; $OPENIMAGEIO_DEBUG still turns it on.
+    if (!std::getenv("OPENIMAGEIO_DEBUG"))
+        OIIO::attribute("debug", 0);
     Filesystem::convert_native_arguments(argc, argv);
     if (wants_version(argc, argv)) {
         std::cout << "mcdntool " << mcdn::version() << "\n";

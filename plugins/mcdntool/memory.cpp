@@ -129,8 +129,13 @@ bool check_memory(const std::vector<Command>& commands, int threads, int paralle
         if (c.name != "-i")
             continue;
         auto in = OIIO::ImageInput::open(c.args[0]);
-        if (!in)
-            return true;  // a directory, or unreadable: reading will say
+        if (!in) {
+            // A directory, or unreadable: reading will say, naming the file. OIIO's message
+            // is taken here, or it would print it at exit without the name ("Subsampled
+            // channels are not supported").
+            OIIO::geterror();
+            return true;
+        }
         const std::string kind = c.modifier("as", "mean");
         int file_channels = 0;
         for (int s = 0; in->seek_subimage(s, 0); ++s) {

@@ -3,6 +3,7 @@
 #include "session.h"
 
 #include <algorithm>
+#include <cmath>
 #include <iostream>
 #include <tuple>
 
@@ -137,6 +138,15 @@ void add_fallback_counts(OIIO::ImageSpec& sum, const OIIO::ImageSpec& band)
         sum.attribute(count, sum.get_int_attribute(count, 0) + band.get_int_attribute(count, 0));
 }
 
+void report_repaired_halves(int tiles)
+{
+    if (tiles > 0)
+        std::cerr << format("mcdntool: {} tile(s) of {}x{} pixels: the half buffers disagree "
+                            "with the render there (a corrupt block?); their halves are the "
+                            "render's colour\n",
+                            tiles, mcdn::kConvergedTileSize, mcdn::kConvergedTileSize);
+}
+
 void report_fallback(const OIIO::ImageSpec& result)
 {
     for (const auto& [stage, attribute, estimate] :
@@ -204,9 +214,13 @@ bool Session::read_neighbours(int radius, std::vector<std::shared_ptr<ImageBuf>>
                 error = frame->geterror();
                 return false;
             }
+            int repaired = 0;
             if (!mcdn::resolve_aovs(aovs, aov_spec, frame->spec(), error)
-                || !mcdn::validate_inputs(*frame, aovs, error))
+                || !mcdn::validate_inputs(*frame, aovs, error)
+                || !mcdn::check_halves(*frame, aovs, repaired, error))
                 return false;
+            if (verbose)
+                report_repaired_halves(repaired);
             frames.push_back(std::move(frame));
         }
     }
@@ -222,8 +236,12 @@ bool Session::load_inputs(std::string& error)
     if (!open_rows(rows, error)
         || !rows.read(merged, rows.spec().y, rows.spec().y + rows.spec().height, error))
         return false;
-    if (!mcdn::validate_inputs(merged, m_aovs, error))
+    int repaired = 0;
+    if (!mcdn::validate_inputs(merged, m_aovs, error)
+        || !mcdn::check_halves(merged, m_aovs, repaired, error))
         return false;
+    if (verbose)
+        report_repaired_halves(repaired);
     m_image = std::move(merged);
     m_loaded = true;
     return true;
@@ -631,8 +649,23 @@ bool run_fixnan(Session& s, const Command& c, std::string& error)
     int fixed = 0;
     ImageBuf& image = s.image();
     if (!OIIO::ImageBufAlgo::fixNonFinite(image, image, fix, &fixed, {}, s.nthreads)) {
-        error = format("--fixnan {}: {}", mode,
-                       image.has_error() ? image.geterror() : std::string("non-finite values"));
+        // OIIO says only that something is not finite: the first such value, by channel.
+        std::string where = image.has_error() ? image.geterror() : "non-finite values";
+        image.geterror();  // cleared
+        const OIIO::ImageSpec& spec = image.spec();
+        for (OIIO::ImageBuf::ConstIterator<float> it(image); !it.done(); ++it) {
+            int c = 0;
+            while (c < spec.nchannels && std::isfinite(it[c]))
+                ++c;
+            if (c < spec.nchannels) {
+                where = format("{}: channel '{}' has {} at pixel ({}, {})",
+                               mcdn::channel_source(spec, spec.channelnames[c]),
+                               spec.channelnames[c], std::isnan(it[c]) ? "NaN" : "Inf", it.x(),
+                               it.y());
+                break;
+            }
+        }
+        error = format("--fixnan {}: {}", mode, where);
         return false;
     }
     if (s.verbose)

@@ -129,6 +129,8 @@ bool check_fixnan(const Command&, std::string& error);
 /// The -v lines of the safety nets (nfor's, sure's): how many tiles each sent back to the
 /// render, from the counts on `result` (none: no line) (session.cpp).
 void report_fallback(const OIIO::ImageSpec& result);
+/// The -v line of mcdn::check_halves's repaired tiles (none: no line) (session.cpp).
+void report_repaired_halves(int tiles);
 /// Adds a band's safety-net counts to `sum`, which report_fallback then reads (session.cpp).
 void add_fallback_counts(OIIO::ImageSpec& sum, const OIIO::ImageSpec& band);
 

@@ -12,6 +12,7 @@
 // Relative paths in a recipe file are relative to the recipe's folder.
 #include <condition_variable>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <vector>
 
@@ -42,9 +43,11 @@ bool denoise(const Recipe& recipe, ImageBuf& result, std::string& error)
         return false;
     }
     mcdn::AovSet aovs;
+    int repaired = 0;  // no -v in oiiotool: said on the result (mcdn:halves_repaired)
     if (!mcdn::resolve_aovs(aovs, job.chain.aovs, merged.spec(), error)
         || !aovs.require({ mcdn::Role::Color }, merged.spec(), error)
-        || !mcdn::validate_inputs(merged, aovs, error))
+        || !mcdn::validate_inputs(merged, aovs, error)
+        || !mcdn::check_halves(merged, aovs, repaired, error))
         return false;
     ImageBuf chained;
     if (!mcdn::run_chain(chained, merged, job.chain, {}, job.threads)) {
@@ -72,6 +75,8 @@ bool denoise(const Recipe& recipe, ImageBuf& result, std::string& error)
     // What made the image, as oiiotool's own output records it: the version in the
     // plugin's attribute, and appended to the render's Software.
     spec.attribute("mcdn:Version", mcdn::version());
+    if (repaired > 0)
+        spec.attribute("mcdn:halves_repaired", repaired);
     std::string software = spec.get_string_attribute("Software");
     spec.attribute("Software", (software.empty() ? "" : software + "; ") + mcdn::software_name());
     return true;
@@ -82,26 +87,28 @@ public:
     const char* format_name() const override { return "mcdn"; }
     int supports(string_view feature) const override { return feature == "procedural"; }
 
+    // Every name.mcdn is ours: a recipe that does not parse opens with its error (open())
+    // rather than as OIIO's "File does not exist".
     bool valid_file(const std::string& filename) const override
     {
-        Recipe recipe;
-        std::string error;
-        return is_recipe_name(filename) && mcdn_plugin::parse_recipe(filename, recipe, error);
+        return is_recipe_name(filename);
     }
 
     // oiiotool (2.4) treats a procedural input whose open() fails as "file not found" and
     // then aborts. So a recipe that fails opens as a 1x1 placeholder and the error surfaces
-    // from the first read, as an ordinary oiiotool read error. The result is computed once
-    // per process and recipe: oiiotool and its ImageCache open an input several times.
+    // from the first read, as an ordinary oiiotool read error (and mcdntool, reading a
+    // recipe, reports the placeholder's mcdn:error). The result is computed once per
+    // recipe and state of its files (computed()): oiiotool and its ImageCache open an input
+    // several times.
     bool open(const std::string& name, ImageSpec& newspec) override
     {
         if (!is_recipe_name(name)) {
             errorfmt("{}: not an mcdn recipe (name.mcdn or name.mcdn?in=...)", name);
             return false;
         }
-        m_result = computed(name, m_error);
+        m_entry = computed(name, m_error);
         if (m_error.empty())
-            m_spec = m_result.spec();
+            m_spec = m_entry->result.spec();
         else {
             // The placeholder says what went wrong wherever its spec is shown (--info -v,
             // iinfo -v): the error is also the first read's.
@@ -116,7 +123,7 @@ public:
 
     bool close() override
     {
-        m_result.clear();
+        m_entry.reset();
         return true;
     }
 
@@ -126,10 +133,10 @@ public:
             errorfmt("mcdn: {}", m_error);
             return false;
         }
-        if (subimage != 0 || miplevel != 0)
+        if (subimage != 0 || miplevel != 0 || !m_entry)
             return false;
         ROI row(m_spec.x, m_spec.x + m_spec.width, y, y + 1, z, z + 1, 0, m_spec.nchannels);
-        return m_result.get_pixels(row, TypeDesc::FLOAT, data);
+        return m_entry->result.get_pixels(row, TypeDesc::FLOAT, data);
     }
 
 private:
@@ -139,36 +146,46 @@ private:
         return Strutil::iends_with(file, ".mcdn");
     }
 
-    // A recipe's `in` may itself be a recipe: the inner one is computed (and cached) by the
-    // same thread, inside the outer one's read. The cache's lock is not held while a recipe
-    // is computed, so nesting works; a loop or too deep a nesting is an error instead of a
-    // hang (RecipeNesting).
     struct Computed {
         bool done = false;
         ImageBuf result;
         std::string error;
     };
+    // Results no open input holds that stay for the next open (oiiotool opens an input
+    // several times); older ones are freed, so a process reading many recipes holds a few.
+    static constexpr int kKeptResults = 2;
 
-    static ImageBuf computed(const std::string& typed, std::string& error)
+    // A recipe's `in` may itself be a recipe: the inner one is computed (and cached) by the
+    // same thread, inside the outer one's read. The cache's lock is not held while a recipe
+    // is computed, so nesting works; a loop or too deep a nesting is an error instead of a
+    // hang (RecipeNesting). Results are keyed by the recipe and the state of its files on
+    // disk (recipe_stamp): an edited recipe or a changed input is computed again.
+    static std::shared_ptr<Computed> computed(const std::string& typed, std::string& error)
     {
         const std::string name = mcdn_plugin::recipe_key(typed);
+        const std::string key = name + "\n" + mcdn_plugin::recipe_stamp(typed);
         static std::mutex mutex;
         static std::condition_variable finished;
-        static std::map<std::string, Computed> results;
+        static std::map<std::string, std::shared_ptr<Computed>> results;
+        static std::vector<std::string> order;  // the keys of `results`, oldest first
         thread_local mcdn_plugin::RecipeNesting computing;
         if (!computing.enter(name, error))
-            return {};
+            return nullptr;
+        std::shared_ptr<Computed> entry;
         {
             std::unique_lock<std::mutex> lock(mutex);
-            auto it = results.find(name);
+            auto it = results.find(key);
             if (it != results.end()) {
                 // Another thread may be computing it: wait for its result.
-                finished.wait(lock, [&] { return results.at(name).done; });
+                entry = it->second;
+                finished.wait(lock, [&] { return entry->done; });
                 computing.leave();
-                error = results.at(name).error;
-                return results.at(name).result;
+                error = entry->error;
+                return entry;
             }
-            results.emplace(name, Computed());
+            entry = std::make_shared<Computed>();
+            results.emplace(key, entry);
+            order.push_back(key);
         }
         ImageBuf result;
         std::string why;
@@ -182,17 +199,27 @@ private:
         computing.leave();
         {
             std::lock_guard<std::mutex> lock(mutex);
-            Computed& entry = results.at(name);
-            entry.done = true;
-            entry.result = result;
-            entry.error = why;
+            entry->done = true;
+            entry->result = std::move(result);
+            entry->error = why;
+            // Newest first: results nobody holds (the map's is the only reference) beyond
+            // kKeptResults are freed.
+            int kept = 0;
+            for (size_t i = order.size(); i-- > 0;) {
+                auto found = results.find(order[i]);
+                const bool unheld = found->second->done && found->second.use_count() == 1;
+                if (unheld && ++kept > kKeptResults) {
+                    results.erase(found);
+                    order.erase(order.begin() + long(i));
+                }
+            }
         }
         finished.notify_all();
         error = why;
-        return result;
+        return entry;
     }
 
-    ImageBuf m_result;
+    std::shared_ptr<Computed> m_entry;
     std::string m_error;
 };
 

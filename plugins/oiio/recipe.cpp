@@ -6,6 +6,8 @@
 #include <filesystem>
 #include <fstream>
 
+#include <sys/stat.h>
+
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/strutil.h>
 
@@ -154,6 +156,51 @@ std::string recipe_key(const std::string& name)
     std::filesystem::path file = std::filesystem::weakly_canonical(
         std::filesystem::absolute(name.substr(0, query), ec), ec);
     return file.string() + (query == std::string::npos ? "" : name.substr(query));
+}
+
+namespace {
+
+// A file as it is now: inode, size and modification time (ns); "-" where it is missing.
+std::string file_stamp(const std::string& path)
+{
+    struct stat st;
+    if (::stat(path.c_str(), &st) != 0)
+        return "-";
+    return format("{}:{}:{}.{}", st.st_ino, st.st_size, st.st_mtim.tv_sec, st.st_mtim.tv_nsec);
+}
+
+bool is_recipe_file_name(const std::string& name)
+{
+    return Strutil::iends_with(name.substr(0, name.find('?')), ".mcdn");
+}
+
+void add_stamps(const std::string& name, int depth, std::string& stamps)
+{
+    const std::string file = name.substr(0, name.find('?'));
+    if (!file.empty())
+        stamps += file_stamp(file) + ";";
+    Recipe recipe;
+    std::string error;
+    if (!parse_recipe(name, recipe, error))
+        return;
+    for (const char* key : { "in", "variance", "halfA", "halfB" }) {
+        auto it = recipe.find(key);
+        if (it == recipe.end())
+            continue;
+        if (is_recipe_file_name(it->second) && depth < RecipeNesting::kMaxNesting)
+            add_stamps(it->second, depth + 1, stamps);
+        else
+            stamps += file_stamp(it->second) + ";";
+    }
+}
+
+}  // namespace
+
+std::string recipe_stamp(const std::string& name)
+{
+    std::string stamps;
+    add_stamps(name, 0, stamps);
+    return stamps;
 }
 
 bool RecipeNesting::enter(const std::string& key, std::string& error)

@@ -47,6 +47,11 @@ bool job_from_recipe(const Recipe& recipe, Job& job, std::string& error);
 /// One name per recipe however it is spelt (./a.mcdn, a.mcdn, /abs/a.mcdn; the query kept).
 std::string recipe_key(const std::string& name);
 
+/// What a recipe's result depends on, as it is on disk now: the recipe file's and each of
+/// its input files' inode, size and modification time (a nested recipe's own, recursively).
+/// A result cached under recipe_key() + recipe_stamp() is one of the files as they are.
+std::string recipe_stamp(const std::string& name);
+
 /// The recipes one thread is computing, outermost first: a recipe whose `in` is a recipe is
 /// computed inside the outer one's read. enter() refuses a recipe already on the stack (a
 /// loop) or one more than kMaxNesting deep, with `error` naming the chain of recipes.

@@ -55,19 +55,90 @@ std::string text(int value) { return std::to_string(value); }
 std::string text(bool value) { return value ? "1" : "0"; }
 std::string text(float value) { return OIIO::Strutil::fmt::format("{}", value); }
 
-// Runs an op in OIIO's shape, without the GIL; its error becomes a RuntimeError.
-template<class Op> ImageBuf run(const ImageBuf& src, Op op)
+// Which half buffers an op reads, as mcdntool decides what to read (its InputSelection):
+// NFOR's always, the other stages' only where there is no colour variance (they take the
+// halves' difference then), a stage's result's never (its colour is denoised).
+enum class Halves { Read, WithoutVariance, Never };
+
+// What mcdntool and the plugin check of their inputs before any stage, for an image a
+// Python step hands an op: its values (mcdn::validate_inputs: NaN, Inf, huge values, a
+// negative variance, a normal that is no direction, in any channel a stage reads) and the
+// half buffers the op reads (mcdn::check_halves). A RuntimeError names the file and
+// channel; tiles whose halves were repaired are a RuntimeWarning. Returns the image to run
+// on: `src`, or `repaired` (a copy) where halves were repaired. An AOV set that does not
+// resolve is left to the op to report.
+const ImageBuf& checked(const ImageBuf& src, const mcdn::AovSpec& spec, ImageBuf& repaired,
+                        Halves halves)
 {
+    mcdn::AovSet set;
+    std::string error;
+    if (!mcdn::resolve_aovs(set, spec, src.spec(), error))
+        return src;
+    const bool local = src.localpixels() && src.spec().format == OIIO::TypeDesc::FLOAT;
+    ImageBuf copy;
+    if (!local && !copy.copy(src, OIIO::TypeDesc::FLOAT))
+        throw std::runtime_error(copy.geterror());
+    const ImageBuf& values = local ? src : copy;
+    const bool reads_halves = set.has(mcdn::Role::ColorA) && set.has(mcdn::Role::ColorB)
+                              && (halves == Halves::Read
+                                  || (halves == Halves::WithoutVariance
+                                      && !set.has(mcdn::Role::ColorVariance)));
+    int tiles = 0;
+    {
+        py::gil_scoped_release release;
+        if (mcdn::validate_inputs(values, set, error) && reads_halves) {
+            if (local)
+                copy.copy(src);
+            if (!mcdn::check_halves(copy, set, tiles, error))
+                tiles = -1;
+        }
+    }
+    if (!error.empty())
+        throw std::runtime_error(error);
+    if (tiles <= 0)
+        return src;
+    py::module_::import("warnings").attr("warn")(
+        std::to_string(tiles) + " tile(s) of 32x32 pixels: the half buffers disagree with the "
+            "render there (a corrupt block?); their halves are the render's colour",
+        py::module_::import("builtins").attr("RuntimeWarning"));
+    repaired = std::move(copy);
+    return repaired;
+}
+
+// Runs an op in OIIO's shape on `src` as checked() passes it, without the GIL; its error
+// becomes a RuntimeError.
+template<class Op>
+ImageBuf run(const ImageBuf& src, const mcdn::AovSpec& spec, Halves halves, Op op)
+{
+    ImageBuf repaired;
+    const ImageBuf& in = checked(src, spec, repaired, halves);
     ImageBuf dst;
     bool ok;
     {
         py::gil_scoped_release release;
-        ok = op(dst, src);
+        ok = op(dst, in);
     }
     if (!ok)
         throw std::runtime_error(dst.geterror());
     return dst;
 }
+
+// checked() of the neighbouring frames of a cross-frame op, held with any repaired copies.
+struct CheckedFrames {
+    std::vector<ImageBuf> repaired;  // reserved up front: the pointers point into it
+    std::vector<const ImageBuf*> previous, next;
+
+    CheckedFrames(const std::vector<ImageBuf*>& before, const std::vector<ImageBuf*>& after,
+                  const mcdn::AovSpec& spec, Halves halves)
+    {
+        repaired.reserve(before.size() + after.size());
+        for (auto [from, to] : { std::pair { &before, &previous }, std::pair { &after, &next } })
+            for (ImageBuf* frame : *from) {
+                repaired.emplace_back();
+                to->push_back(&checked(*frame, spec, repaired.back(), halves));
+            }
+    }
+};
 
 // A denoiser by name, and how far it reaches (SureOptions::denoiser_radius).
 mcdn::Denoiser named_denoiser(const std::string& chain, const mcdn::AovSpec& spec,
@@ -177,7 +248,7 @@ PYBIND11_MODULE(_mcdenoise, m)
                   "prefilter", aov_spec(preset, aovs, colorspace),
                   { { "window", text(window) }, { "patch", text(patch) }, { "k", text(k) }, { "skip", text(skip) },
                     { "converged", text(converged) } });
-              return run(src, [&](ImageBuf& d, const ImageBuf& s) {
+              return run(src, o.aovs, Halves::Read, [&](ImageBuf& d, const ImageBuf& s) {
                   return mcdn::prefilter(d, s, o, {}, nthreads);
               });
           },
@@ -201,9 +272,10 @@ PYBIND11_MODULE(_mcdenoise, m)
                     { "outliers", outliers }, { "fallback", text(fallback) },
                     { "skip", text(skip) }, { "converged", text(converged) } });
               o.prefilter.aovs = o.aovs;
-              o.previous_frames.assign(previous.begin(), previous.end());
-              o.next_frames.assign(next.begin(), next.end());
-              return run(src, [&](ImageBuf& d, const ImageBuf& s) {
+              const CheckedFrames checked_frames(previous, next, o.aovs, Halves::Read);
+              o.previous_frames = checked_frames.previous;
+              o.next_frames = checked_frames.next;
+              return run(src, o.aovs, Halves::Read, [&](ImageBuf& d, const ImageBuf& s) {
                   return mcdn::nfor(d, s, o, {}, nthreads);
               });
           },
@@ -237,9 +309,12 @@ PYBIND11_MODULE(_mcdenoise, m)
                     { "skip", text(skip) }, { "converged", text(converged) } });
               mcdn::CombineFramesOptions frames;
               frames.aovs = o.aovs;
-              frames.previous_frames.assign(previous.begin(), previous.end());
-              frames.next_frames.assign(next.begin(), next.end());
-              return run(src, [&](ImageBuf& d, const ImageBuf& s) {
+              const CheckedFrames checked_frames(previous, next, o.aovs,
+                                                 Halves::WithoutVariance);
+              frames.previous_frames = checked_frames.previous;
+              frames.next_frames = checked_frames.next;
+              return run(src, o.aovs, Halves::WithoutVariance,
+                         [&](ImageBuf& d, const ImageBuf& s) {
                   if (previous.empty() && next.empty())
                       return mcdn::cnn(d, s, o, {}, nthreads);
                   return mcdn::denoise_with_frames(d, s, frames,
@@ -276,6 +351,11 @@ PYBIND11_MODULE(_mcdenoise, m)
                     { "fallback", text(fallback) }, { "skip", text(skip) },
                     { "converged", text(converged) } });
               mcdn::Denoiser f;
+              // NFOR reads the halves; a callable may (without a variance, the stages do).
+              const Halves reads = py::isinstance<py::str>(denoiser)
+                                           && denoiser.cast<std::string>() != "cnn"
+                                       ? Halves::Read
+                                       : Halves::WithoutVariance;
               if (py::isinstance<py::str>(denoiser))
                   f = named_denoiser(denoiser.cast<std::string>(), o.aovs, o.skip, nthreads,
                                      o.denoiser_radius);
@@ -293,7 +373,7 @@ PYBIND11_MODULE(_mcdenoise, m)
                       }
                   };
               }
-              return run(src, [&](ImageBuf& d, const ImageBuf& s) {
+              return run(src, o.aovs, reads, [&](ImageBuf& d, const ImageBuf& s) {
                   return mcdn::sure(d, s, f, o, {}, nthreads);
               });
           },
@@ -318,7 +398,7 @@ PYBIND11_MODULE(_mcdenoise, m)
                   { { "model", model }, { "weights", weights }, { "ttest", text(t_test) },
                     { "alpha", text(alpha) }, { "skip", text(skip) },
                     { "converged", text(converged) } });
-              return run(src, [&](ImageBuf& d, const ImageBuf& s) {
+              return run(src, o.aovs, Halves::Never, [&](ImageBuf& d, const ImageBuf& s) {
                   return mcdn::mix(d, s, o, {}, nthreads);
               });
           },
@@ -349,7 +429,8 @@ PYBIND11_MODULE(_mcdenoise, m)
                           e.discard_as_unraisable("mcdenoise.denoise progress");
                       }
                   };
-              return run(src, [&](ImageBuf& d, const ImageBuf& s) {
+              return run(src, o.aovs, Halves::WithoutVariance,
+                         [&](ImageBuf& d, const ImageBuf& s) {
                   return mcdn::denoise(d, s, o, {}, nthreads);
               });
           },

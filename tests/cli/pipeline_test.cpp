@@ -422,9 +422,10 @@ TEST(Pipeline, CrossFrameReadsNeighboursAcrossTheChunkAndWritesNone)
     EXPECT_NE(run.output.find("no frame -1"), std::string::npos) << run.output;
 
     // Without motion vectors, and with too many frames: one line each, nothing written.
+    // (A half file is no render: as the render, its halves are itself.)
     const std::string plain = "-i " + quote(dir + "/shot_A.#.exr") + " -i:as=halfA "
                               + quote(dir + "/shot_A.#.exr") + " -i:as=halfB "
-                              + quote(dir + "/shot_B.#.exr");
+                              + quote(dir + "/shot_A.#.exr");
     run = run_mcdntool(plain + " --frames 2 --nfor:frames=1 -o " + quote(dir + "/plain.#.exr"));
     EXPECT_NE(run.exit_code, 0);
     EXPECT_NE(run.output.find("motion"), std::string::npos) << run.output;

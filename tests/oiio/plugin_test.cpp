@@ -81,7 +81,7 @@ TEST(OiioPlugin, ErrorsAreOiiotoolErrorsNotCrashes)
              { box_query("mix"), "mix needs sure before it" },
              { box_query("nfor") + "&nfor.windw=19", "windw=19: unknown setting of nfor" },
              { box_query("nfor") + "&nfor.window=4", "nfor.window=4 must be an odd width" },
-             { box_query("nfor") + "&nfr.window=19", "nfr.window=19: not a stage setting" },
+             { box_query("nfor") + "&nfr.window=19", "'nfr.window': not a stage setting" },
          }) {
         auto run = oiiotool(quote(query) + " -o " + quote(dir + "/out.exr"));
         EXPECT_NE(run.exit_code, 0) << query;

@@ -220,5 +220,82 @@ class OpsTakeAndReturnImageBufs(unittest.TestCase):
             mcdenoise.temporal_metrics(x1, x0, r1, r0, motion, reference_variance=variance)
 
 
+def with_value(image, channel, value, x=7, y=5):
+    """A copy of `image` with `channel` of pixel (x, y) set to `value`."""
+    out = oiio.ImageBuf(image.spec())
+    out.copy(image, oiio.FLOAT)
+    c = out.spec().channelindex(channel)
+    assert c >= 0, channel
+    pixel = list(out.getpixel(x, y))
+    pixel[c] = value
+    out.setpixel(x, y, pixel)
+    return out
+
+
+class BadInputRaisesInEveryOp(unittest.TestCase):
+    """What mcdntool and the plugin refuse, every op refuses (one validation, issue 43)."""
+
+    OPS = {
+        "denoise": lambda i: mcdenoise.denoise(i),
+        "cnn": lambda i: mcdenoise.cnn(i),
+        "nfor": lambda i: mcdenoise.nfor(i),
+        "prefilter": lambda i: mcdenoise.prefilter(i),
+        "sure": lambda i: mcdenoise.sure(i, denoiser="nfor"),
+    }
+
+    def setUp(self):
+        self.render = box_inputs()
+
+    def test_values_no_render_holds(self):
+        cases = [
+            ("ViewLayer.Combined.R", float("inf"), "Inf"),
+            ("ViewLayer.Combined.G", float("nan"), "NaN"),
+            ("ViewLayer.Combined.B", -1e30, "huge value"),
+            ("ViewLayer.Combined.R", 1e16, "huge value"),
+            ("variance.ViewLayer.Combined.G", -1.0, "negative variance"),
+            ("variance.ViewLayer.Combined.G", float("nan"), "NaN"),
+            ("A.ViewLayer.Combined.R", float("nan"), "NaN"),
+            ("ViewLayer.Denoising Depth.Z", float("nan"), "NaN"),
+            ("ViewLayer.Denoising Normal.X", float("inf"), "Inf"),
+            ("ViewLayer.Denoising Normal.X", 1e10, "a normal of length"),
+        ]
+        for channel, value, problem in cases:
+            image = with_value(self.render, channel, value)
+            for name, op in self.OPS.items():
+                with self.subTest(channel=channel, value=value, op=name):
+                    with self.assertRaises(RuntimeError) as caught:
+                        op(image)
+                    self.assertIn("channel '%s'" % channel, str(caught.exception))
+                    self.assertIn(problem, str(caught.exception))
+
+    def test_halves_of_another_render_raise(self):
+        render = box_inputs()
+        mirrored = oiio.ImageBufAlgo.flip(render)
+        names = render.spec().channelnames
+        # The render's own channels from box16, the halves from the mirrored frame.
+        both = oiio.ImageBufAlgo.channel_append(render, mirrored)
+        picks = tuple(i + (render.nchannels if names[i].startswith(("A.", "B.")) else 0)
+                      for i in range(render.nchannels))
+        image = oiio.ImageBufAlgo.channels(both, picks, newchannelnames=tuple(names))
+        image.specmod().attribute("mcdn:inputs", render.spec().get_string_attribute("mcdn:inputs"))
+        for name in ("nfor", "prefilter", "sure"):
+            with self.subTest(op=name):
+                with self.assertRaises(RuntimeError) as caught:
+                    self.OPS[name](image)
+                self.assertIn("the halves' mean is not the render", str(caught.exception))
+
+    def test_a_corrupt_block_in_a_half_is_a_warning_not_the_image(self):
+        image = self.render
+        for y in range(8, 11):  # inside one 32x32 tile of the four
+            for x in range(8, 11):
+                image = with_value(image, "A.ViewLayer.Combined.R", 1e6, x, y)
+        with self.assertWarns(RuntimeWarning) as caught:
+            out = mcdenoise.nfor(image)
+        self.assertIn("the half buffers disagree with the render", str(caught.warning))
+        stats = oiio.ImageBufAlgo.computePixelStats(out)
+        r = out.spec().channelindex("ViewLayer.Combined.R")
+        self.assertLess(stats.max[r], 100.0)
+
+
 if __name__ == "__main__":
     unittest.main(verbosity=2)

@@ -190,10 +190,12 @@ TEST(Output, TemporariesOfAKilledRunAreRemovedByTheNextWrite)
 {
     std::string dir = temp_dir("out_stale");
     std::string render = copy_box(dir);
-    // A PID that runs (this test) keeps its file; one that does not (beyond pid_max) loses it.
-    std::string alive = dir + "/.out.exr.mcdn-tmp-" + std::to_string(::getpid()) + "-0";
-    std::string dead = dir + "/.out.exr.mcdn-tmp-99999999-0";
-    std::string other = dir + "/.other.exr.mcdn-tmp-99999999-0";
+    // A PID that runs (this test) keeps its file; one that does not (beyond pid_max) loses it
+    // (on this host, in this PID namespace: RealFiles.AnotherHostsTemporaryIsNotRemoved).
+    const std::string owner = "-0-" + mcdn::temporary_owner();
+    std::string alive = dir + "/.out.exr.mcdn-tmp-" + std::to_string(::getpid()) + owner;
+    std::string dead = dir + "/.out.exr.mcdn-tmp-99999999" + owner;
+    std::string other = dir + "/.other.exr.mcdn-tmp-99999999" + owner;
     for (const auto& f : { alive, dead, other })
         std::ofstream(f) << "partial";
     mcdn_test::Run run = run_mcdntool("-i " + quote(render) + " -o " + quote(dir + "/out.exr"));

@@ -149,5 +149,9 @@ std::string channel_source(const ImageSpec& merged, string_view channel);
 
 /// One-line list of a buffer's channel names for error messages, shortened past `max`.
 std::string channel_list(const ImageSpec& spec, int max = 16);
+/// channel_list of the channels from the same face (render, variance or a half) as
+/// `channel`: what the file channel_source names holds (every channel when no such file
+/// was given).
+std::string source_channel_list(const ImageSpec& merged, string_view channel, int max = 16);
 
 }  // namespace mcdn

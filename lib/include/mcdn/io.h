@@ -30,6 +30,11 @@ struct InputFile {
     }
 };
 
+/// Checks that `path` is a regular file this process can read, before anything opens it:
+/// a FIFO, socket or device (/dev/zero) would hang a reader or feed it without end, a
+/// folder is not a file. False with a one-line `error` naming the path.
+bool check_input_file(const std::string& path, std::string& error);
+
 /// Reads every channel of every subimage (multi-part EXR) of `path` into a float buffer.
 /// The first part's channels keep their names (the beauty, in a renderer's multi-part file);
 /// the other parts' are prefixed with their part name unless they already carry it.
@@ -100,11 +105,26 @@ private:
 std::vector<InputFile> merged_input_files(const ImageSpec& merged);
 
 /// Checks the values an op will read: NaN, Inf, |v| > kHugeValue in colour, halves and
-/// features, negative variance. Feature variances may hold NaN (renderers leave pixels
-/// without a feature sample; Tungsten does): those are allowed and treated as unknown.
-/// The error names the file, the channel and the first bad pixel.
-constexpr float kHugeValue = 1e20f;  // squares of larger values overflow float
+/// features, negative variance, a normal longer than kMaxNormalLength. Feature variances
+/// may hold NaN (renderers leave pixels without a feature sample; Tungsten does): those
+/// are allowed and treated as unknown. The error names the file, the channel and the first
+/// bad pixel. Nothing an op reads is changed silently: what passes here reaches the ops as
+/// it is.
+constexpr float kHugeValue = 1e15f;  // squares and window sums of such values stay finite
+/// A normal is a direction (unit, or shorter where a pixel averages several): one longer
+/// than this is not one, and would swamp the networks' and the regressions' features.
+constexpr float kMaxNormalLength = 2.0f;
 bool validate_inputs(const ImageBuf& merged, const AovSet& aovs, std::string& error);
+
+/// Checks that the colour's half buffers are this render's: their mean (A+B)/2 is the
+/// render's colour up to its noise (the variance, or ((A-B)/2)^2 without one) and rounding.
+/// Over the whole buffer (a band's rows, streamed) a mismatch is an error naming the half
+/// files (halves of another frame, mirrored, another render): NFOR would output the halves'
+/// image. A 32x32 tile (kConvergedTileSize) with a pixel far off (a corrupt block in one
+/// half) has its colour halves set to the render there: `repaired_tiles` counts them, for
+/// the caller to say (a fallback is never silent). True without halves.
+bool check_halves(ImageBuf& merged, const AovSet& aovs, int& repaired_tiles,
+                  std::string& error);
 
 struct WriteOptions {
     /// half or float. Half keeps file sizes small; variances may underflow in half.
@@ -132,11 +152,18 @@ bool check_compression(const std::string& compression, std::string& error);
 bool check_output_path(const std::string& path, const std::vector<std::string>& inputs,
                        std::string& error);
 
+/// Who writes a temporary output: this PID namespace's inode and this host's name
+/// ("4026531836-node07"), as temporaries' names carry it after the writer's PID.
+const std::string& temporary_owner();
+
 /// Writes `src` to `path` through a temporary file in the same directory
-/// (`.NAME.mcdn-tmp-PID-N`), renamed into place only when complete: a failed write never
-/// leaves a partial `path`. Refuses what check_output_path refuses, with `src`'s own input
-/// files (its "mcdn:inputs") as the inputs. Temporaries that a killed run left for the same
-/// `path` (their process is gone) are removed first. Metadata of `src` is kept (mcdn:*
+/// (`.NAME.mcdn-tmp-PID-N-OWNER`, temporary_owner()), renamed into place only when
+/// complete: a failed write never leaves a partial `path`; a replaced file keeps its mode.
+/// Refuses what check_output_path refuses, with `src`'s own input files (its "mcdn:inputs")
+/// as the inputs. Temporaries that a killed run left for the same `path` are removed first:
+/// those of this owner whose PID no longer runs, and those of any other owner (another
+/// host or container on shared storage: its PID cannot be checked here) only when not
+/// written for 24 hours. Metadata of `src` is kept (mcdn:*
 /// bookkeeping attributes excepted). Errors go to `error`; `warnings`, when given, gets a
 /// line per channel that is written with NaN or Inf values (they came with the input: no op
 /// makes them) and per channel whose values beyond half's range were clamped to +-65504

@@ -406,7 +406,8 @@ bool resolve_aovs(AovSet& set, const AovSpec& spec, const ImageSpec& merged,
         if (indices.empty()) {
             error = OIIO::Strutil::fmt::format(
                 "aov override {}={}: channel not found in {}; channels there: {}", role_str,
-                join(names, ","), channel_source(merged, names[0]), channel_list(merged));
+                join(names, ","), channel_source(merged, names[0]),
+                source_channel_list(merged, names[0]));
             return false;
         }
         set.m_channels[int(role)] = indices;
@@ -523,19 +524,44 @@ bool AovSet::require(const std::vector<Role>& required, const ImageSpec& merged,
         error = OIIO::Strutil::fmt::format(
             "aov preset '{}': role '{}' not found, looked for {} in {}; channels there: {}; "
             "{}{}=ch1,...",
-            m_preset, role_name(role), wanted, source, channel_list(merged), fix,
+            m_preset, role_name(role), wanted, source,
+            source_channel_list(merged, candidates.empty() ? std::string(prefix)
+                                                           : candidates[0][0]),
+            fix,
             role_name(role));
         return false;
     }
     return true;
 }
 
-std::string channel_source(const ImageSpec& merged, string_view channel)
+namespace {
+
+// The face a merged buffer's channel belongs to, by its prefix.
+InputKind kind_of_channel(string_view channel)
 {
-    InputKind kind = InputKind::Mean;
     for (InputKind k : { InputKind::Variance, InputKind::HalfA, InputKind::HalfB })
         if (OIIO::Strutil::starts_with(channel, input_kind_prefix(k)))
-            kind = k;
+            return k;
+    return InputKind::Mean;
+}
+
+}  // namespace
+
+std::string source_channel_list(const ImageSpec& merged, string_view channel, int max)
+{
+    const InputKind kind = kind_of_channel(channel);
+    ImageSpec same;
+    for (const std::string& name : merged.channelnames)
+        if (kind_of_channel(name) == kind)
+            same.channelnames.push_back(name);
+    same.nchannels = int(same.channelnames.size());
+    // No such file given: the channels an --aov override could name are all of them.
+    return channel_list(same.nchannels ? same : merged, max);
+}
+
+std::string channel_source(const ImageSpec& merged, string_view channel)
+{
+    const InputKind kind = kind_of_channel(channel);
     std::vector<std::string> files;
     for (const InputFile& file : merged_input_files(merged))
         if (file.kind == kind)

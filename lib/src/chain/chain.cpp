@@ -49,7 +49,7 @@ bool check_settings(const ChainOptions& o, std::string& error)
         std::string stage = key.substr(0, key.find('.'));
         if (key.find('.') == std::string::npos
             || std::find(kStages.begin(), kStages.end(), stage) == kStages.end()) {
-            error = format("{}={}: not a stage setting (stage.key, stages: {})", key, value,
+            error = format("'{}': not a stage setting (stage.key, stages: {})", key,
                            Strutil::join(kStages, ", "));
             return false;
         }
@@ -193,7 +193,10 @@ bool run_chain_into(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, i
             ImageSpec frame = spec;
             frame.y = src.spec().y;
             frame.height = src.spec().height;
-            allocate_frame(out, frame, false);
+            if (!allocate_frame(out, frame, false)) {
+                error = "chain: " + out.geterror();
+                return false;
+            }
         }
         if (spec.nchannels != out.nchannels() || spec.channelnames != out.spec().channelnames) {
             error = "chain: a band's result has other channels than the band above";
@@ -356,7 +359,7 @@ bool run_stages(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOp
             ok = mix(out, *current, m, roi, nthreads);
         }
         if (!ok) {
-            dst.errorfmt("{}: {}", name, out.geterror());
+            dst.errorfmt("{}", stage_error(name, out.geterror()));
             return false;
         }
         if (&out == &next)
@@ -378,7 +381,7 @@ bool run_stages(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOp
         // their planes before they write, the cnn keeps the colour it reads apart).
         for (const auto& [name, stage] : pending)
             if (!stage(*own, *own)) {
-                dst.errorfmt("{}: {}", name, own->geterror());
+                dst.errorfmt("{}", stage_error(name, own->geterror()));
                 return false;
             }
         dst = std::move(*own);

@@ -379,7 +379,10 @@ bool run_chain(const ImageSpec& frame, const RowReader& read, const ChainOptions
             for (const std::string& name : room)
                 spec.channelnames.push_back(name);
             spec.nchannels = int(spec.channelnames.size());
-            allocate_frame(input, spec, true);
+            if (!allocate_frame(input, spec, true)) {
+                error = "chain: " + input.geterror();
+                return false;
+            }
         }
         return read(input, whole.ybegin, whole.yend, {}, error)
                && run_whole(input, &input, o, sink, error, nthreads);

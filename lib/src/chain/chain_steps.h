@@ -1,6 +1,8 @@
 // What the chain's files share (chain.cpp runs stages, chain_bands.cpp cuts frames into bands).
 #pragma once
 
+#include <string>
+
 #include "mcdn/chain.h"
 
 namespace mcdn {
@@ -11,5 +13,12 @@ namespace mcdn {
 /// after the last sure (or with none) run in place on it. A band then costs no frame-sized
 /// copy of itself. src is left empty or changed; nothing else may read it meanwhile.
 bool run_chain_on_own(ImageBuf& dst, ImageBuf& src, const ChainOptions& options, int nthreads);
+
+/// A stage's error as the chain reports it: behind the stage's name, once (the stages name
+/// themselves in some of their errors: "cnn: cnn: ..." otherwise).
+inline std::string stage_error(const std::string& stage, const std::string& error)
+{
+    return error.compare(0, stage.size() + 2, stage + ": ") == 0 ? error : stage + ": " + error;
+}
 
 }  // namespace mcdn

@@ -1,6 +1,7 @@
 // Stage options from text settings (mcdn/settings.h).
 #include "mcdn/settings.h"
 
+#include "chain/chain_steps.h"
 #include "core/attributes.h"
 
 #include <algorithm>
@@ -340,7 +341,7 @@ Denoiser composed(std::vector<std::pair<std::string, Denoiser>> stages, bool in_
                 ok = stage(next, unmarked);
             }
             if (!ok) {
-                dst.errorfmt("{}: {}", name, next.geterror());
+                dst.errorfmt("{}", stage_error(name, next.geterror()));
                 return false;
             }
             current = std::move(next);

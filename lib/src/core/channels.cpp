@@ -30,9 +30,10 @@ OIIO::ImageBuf copy_with_channels(const OIIO::ImageBuf& src, const std::vector<s
             ++spec.nchannels;
         }
     OIIO::ImageBuf dst;
-    allocate_frame(dst, spec, false);
-    if (!dst.localpixels())
+    if (!allocate_frame(dst, spec, false)) {
+        dst.geterror();  // the callers say it (no pixels), naming their step
         return dst;
+    }
     const int nch = spec.nchannels;
     // Row by row straight into dst's pixels with its strides, the new channels zeroed there.
     parallel_for_index(rows.height(), nthreads, [&](int r) {

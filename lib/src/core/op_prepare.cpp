@@ -13,14 +13,20 @@
 
 namespace mcdn {
 
-void allocate_frame(ImageBuf& dst, const ImageSpec& spec, bool zero)
+bool allocate_frame(ImageBuf& dst, const ImageSpec& spec, bool zero)
 {
     dst.reset(spec, OIIO::InitializePixels::No);
-    if (!dst.localpixels())
-        return;
+    if (!dst.localpixels()) {
+        // OIIO leaves a buffer without pixels and its own message: ours says the frame.
+        dst.geterror();
+        dst.errorfmt("out of memory for a {}x{} frame of {} channels ({:.2f} GB)", spec.width,
+                     spec.height, spec.nchannels, double(spec.image_bytes()) / 1e9);
+        return false;
+    }
     advise_huge_pages(dst.localpixels(), dst.spec().image_bytes());
     if (zero)
         std::memset(dst.localpixels(), 0, dst.spec().image_bytes());
+    return true;
 }
 
 bool check_op_threads(ImageBuf& dst, int nthreads, const char* op)
@@ -77,8 +83,11 @@ bool prepare_op(ImageBuf& dst, const ImageBuf& src, const AovSpec& spec, AovSet&
     // pixel by pixel, slow on many-channel frames).
     if (const float* pixels = float_frame_pixels(src)) {
         // Not zero-filled: zeroing would fault every 4 KB page before the advice.
-        dst.reset(src.spec(), OIIO::InitializePixels::No);
-        advise_huge_pages(dst.localpixels(), src.spec().image_bytes());
+        if (!allocate_frame(dst, src.spec(), false)) {
+            std::string why = dst.geterror();
+            dst.errorfmt("{}: {}", op, why);
+            return false;
+        }
         // In 2 MB pieces (a huge page each), as many at once as there are threads.
         constexpr size_t kPiece = size_t(2) << 20;
         const size_t bytes = src.spec().image_bytes();

@@ -9,7 +9,8 @@ namespace mcdn {
 
 /// dst's pixels for `spec`, zero-filled or not, with transparent huge pages asked for
 /// before the first write (a fresh frame otherwise costs a page fault per 4 KB written).
-void allocate_frame(ImageBuf& dst, const ImageSpec& spec, bool zero);
+/// False, with an error on dst saying the size, when memory runs out.
+bool allocate_frame(ImageBuf& dst, const ImageSpec& spec, bool zero);
 
 /// The checks of prepare_op without the copy (for ops that read src in bands): on failure
 /// `error` names `op`.

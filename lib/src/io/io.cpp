@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
+#include <chrono>
+#include <cctype>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -65,6 +67,14 @@ bool same_window(const ROI& a, const ROI& b)
 std::string roi_text(const ROI& roi)
 {
     return format("{}x{} at ({},{})", roi.width(), roi.height(), roi.xbegin, roi.ybegin);
+}
+
+// An OIIO error as one line of ours: it may hold several, one per problem it found.
+std::string one_line(std::string text)
+{
+    while (!text.empty() && (text.back() == '\n' || text.back() == ' '))
+        text.pop_back();
+    return Strutil::replace(text, "\n", "; ", true);
 }
 
 // A part's channel as the merged buffer names it: behind the part's name unless it is the
@@ -143,18 +153,11 @@ std::vector<Part> parse_parts(const std::string& text)
 bool read_layout(FileLayout& layout, const std::string& path, const std::string& part,
                  std::string& error)
 {
-    if (!Filesystem::exists(path)) {
-        error = format("{}: no such file", path);
+    if (!check_input_file(path, error))
         return false;
-    }
-    // OIIO reports an unreadable file as not being in any format it knows.
-    if (::access(path.c_str(), R_OK) != 0) {
-        error = format("{}: cannot read: {}", path, std::strerror(errno));
-        return false;
-    }
     auto in = ImageInput::open(path);
     if (!in) {
-        error = format("{}: cannot read: {}", path, OIIO::geterror());
+        error = format("{}: cannot read: {}", path, one_line(OIIO::geterror()));
         return false;
     }
     layout = { path, {}, {}, {}, std::string(in->format_name()) == "openexr" };
@@ -164,13 +167,21 @@ bool read_layout(FileLayout& layout, const std::string& path, const std::string&
         part_names.push_back(spec.get_string_attribute("name"));
         if (!part.empty() && part_names.back() != part)
             continue;  // -i:part=NAME reads that part alone
+        // A recipe read through the mcdn format plugin opens as a placeholder that carries
+        // its error (OIIO's procedural inputs cannot fail to open): that error is the file's.
+        if (const std::string failed = spec.get_string_attribute("mcdn:error");
+            !failed.empty()) {
+            error = format("{}: {}", path, failed);
+            return false;
+        }
         if (spec.deep) {
             error = format("{}: deep images are not supported (subimage {})", path, s);
             return false;
         }
-        if (s > 0 && !same_window(spec.roi(), layout.parts[0].roi())) {
-            error = format("{}: part {} has data window {}, part 0 has {}", path, s,
-                           roi_text(spec.roi()), roi_text(layout.parts[0].roi()));
+        if (!layout.parts.empty() && !same_window(spec.roi(), layout.parts[0].roi())) {
+            error = format("{}: part {} has data window {}, part {} has {}", path, s,
+                           roi_text(spec.roi()), layout.subimages[0],
+                           roi_text(layout.parts[0].roi()));
             return false;
         }
         spec.set_format(TypeDesc::FLOAT);
@@ -264,7 +275,7 @@ bool read_pixels_into(ImageBuf& dst, int first, const FileLayout& layout, ImageI
 {
     auto failed = [&] {
         error = format("{}: cannot read pixels (truncated or corrupt?): {}", layout.path,
-                       in.geterror());
+                       one_line(in.geterror()));
         return false;
     };
     const int total = dst.nchannels();
@@ -288,7 +299,7 @@ bool read_pixels_into(ImageBuf& dst, int first, const FileLayout& layout, ImageI
         // block through a buffer it allocates with new[] and frees with delete.
         const bool tiled = part.tile_width > 0 && part.tile_height > 0;
         const int aligned = tiled ? part.tile_height : core ? core_block_rows(part) : 1;
-        if (aligned == 1 && int(kept.size()) == n) {
+        if (!tiled && aligned == 1 && int(kept.size()) == n) {
             if (!in.read_scanlines(layout.subimages[s], 0, y0, y1, part.z, 0, n, TypeDesc::FLOAT,
                                    out, pixel, pixel * part.width))
                 return failed();
@@ -325,6 +336,35 @@ bool read_pixels_into(ImageBuf& dst, int first, const FileLayout& layout, ImageI
 
 }  // namespace
 
+bool check_input_file(const std::string& path, std::string& error)
+{
+    struct stat st;
+    if (::stat(path.c_str(), &st) != 0) {
+        error = errno == ENOENT ? format("{}: no such file", path)
+                                : format("{}: cannot read: {}", path, std::strerror(errno));
+        return false;
+    }
+    if (S_ISDIR(st.st_mode)) {
+        error = format("{}: is a folder, not a file", path);
+        return false;
+    }
+    // OIIO probes a file by reading it: a FIFO or a device would block it, or feed it
+    // without end.
+    if (!S_ISREG(st.st_mode)) {
+        error = format("{}: not a regular file ({}): give a file on disk", path,
+                       S_ISFIFO(st.st_mode)   ? "a FIFO"
+                       : S_ISSOCK(st.st_mode) ? "a socket"
+                                              : "a device");
+        return false;
+    }
+    // OIIO reports an unreadable file as not being in any format it knows.
+    if (::access(path.c_str(), R_OK) != 0) {
+        error = format("{}: cannot read: {}", path, std::strerror(errno));
+        return false;
+    }
+    return true;
+}
+
 bool read_image(ImageBuf& dst, const std::string& path)
 {
     FileLayout layout;
@@ -336,7 +376,7 @@ bool read_image(ImageBuf& dst, const std::string& path)
     ImageBuf out(layout.merged_spec());
     auto in = open_for_pixels(layout);
     if (!in) {
-        dst.errorfmt("{}: cannot read: {}", path, OIIO::geterror());
+        dst.errorfmt("{}: cannot read: {}", path, one_line(OIIO::geterror()));
         return false;
     }
     const ROI window = layout.parts[0].roi();
@@ -665,9 +705,11 @@ bool InputRows::read(ImageBuf& dst, int ybegin, int yend, std::string& error,
         out = std::move(dst);
         out.set_origin(spec.x, spec.y, spec.z);
     } else {
-        allocate_frame(out, spec, !every_file);
-        if (!allocated(out, f.inputs[0].path, error))
+        if (!allocate_frame(out, spec, !every_file)) {
+            out.geterror();  // said below, naming the file
+            allocated(out, f.inputs[0].path, error);
             return false;
+        }
     }
     for (size_t i = 0; i < f.inputs.size(); ++i) {
         const int first = f.first[i];
@@ -685,7 +727,8 @@ bool InputRows::read(ImageBuf& dst, int ybegin, int yend, std::string& error,
         // stay beside the band through the stages. Headers are read again for each band.
         std::unique_ptr<ImageInput> in = open_for_pixels(f.layouts[i]);
         if (!in) {
-            error = format("{}: cannot read: {}", f.layouts[i].path, OIIO::geterror());
+            error = format("{}: cannot read: {}", f.layouts[i].path,
+                           one_line(OIIO::geterror()));
             return false;
         }
         const ImageSpec& part = f.layouts[i].parts[0];
@@ -757,7 +800,7 @@ bool validate_inputs(const ImageBuf& merged, const AovSet& aovs, std::string& er
         if (std::isinf(v))
             return "Inf";
         if (std::fabs(v) > kHugeValue)
-            return "a huge value (|v| > 1e20)";
+            return "a huge value (|v| > 1e15)";
         if (is_variance(role) && v < 0.0f)
             return "a negative variance";
         return nullptr;
@@ -780,6 +823,23 @@ bool validate_inputs(const ImageBuf& merged, const AovSet& aovs, std::string& er
                 clean = false;
                 break;
             }
+    // Normals: their length (a sum over three channels), in the same pass's order.
+    const std::vector<int>& normal = aovs.channels(Role::Normal);
+    for (size_t p = 0; p < npixels && clean && normal.size() == 3; ++p) {
+        const float* px = pixels + p * nch;
+        const float length = std::sqrt(px[normal[0]] * px[normal[0]]
+                                       + px[normal[1]] * px[normal[1]]
+                                       + px[normal[2]] * px[normal[2]]);
+        if (length > kMaxNormalLength) {
+            int x = spec.x + int(p % spec.width), y = spec.y + int(p / spec.width);
+            error = format("{}: channel '{}' (role normal) has a normal of length {:.3g} at "
+                           "pixel ({}, {}), not a direction (at most {}): give unit normals, "
+                           "or drop the pass",
+                           channel_source(spec, spec.channelnames[normal[0]]),
+                           spec.channelnames[normal[0]], length, x, y, kMaxNormalLength);
+            return false;
+        }
+    }
     if (clean)
         return true;
     for (int r = 0; r < kRoleCount; ++r) {
@@ -852,20 +912,43 @@ std::string temporary_prefix(const std::string& path)
     return (p.parent_path() / ("." + p.filename().string() + ".mcdn-tmp-")).string();
 }
 
-// Removes the temporaries of `path` whose process (the PID in their name) no longer runs:
-// what SIGKILL, a power cut or a crash left behind.
+// How long a temporary nobody can be shown to own is left alone: a writer on another host
+// (or in another container) touches its file at least once a band, far more often.
+constexpr auto kStaleTemporaryAge = std::chrono::hours(24);
+
+// Removes the temporaries of `path` that a dead writer left: what SIGKILL, a power cut or a
+// crash left behind. A temporary's name holds its writer's PID and temporary_owner(); a PID
+// is only checked where it means this host's process, in this PID namespace (on shared
+// storage another node's or another container's PID names nothing here: its live writer
+// would lose its work). A temporary of another owner, or an unowned one, goes only when it
+// has not been written for kStaleTemporaryAge.
 void remove_stale_temporaries(const std::string& path)
 {
     const std::string prefix = temporary_prefix(path);
     const fs::path dir = fs::path(prefix).parent_path();
     const std::string start = fs::path(prefix).filename().string();
+    const std::string owner = temporary_owner();
     std::error_code ec;
     for (const auto& entry : fs::directory_iterator(dir.empty() ? fs::path(".") : dir, ec)) {
         std::string name = entry.path().filename().string();
         if (name.compare(0, start.size(), start) != 0)
             continue;
-        long pid = std::strtol(name.c_str() + start.size(), nullptr, 10);
-        if (pid > 0 && pid != long(::getpid()) && ::kill(pid_t(pid), 0) != 0 && errno == ESRCH)
+        // PID-N-OWNER
+        const char* text = name.c_str() + start.size();
+        char* end = nullptr;
+        const long pid = std::strtol(text, &end, 10);
+        if (*end == '-')
+            std::strtol(end + 1, &end, 10);
+        const bool ours = *end == '-' && owner == end + 1;
+        bool stale = false;
+        if (ours)
+            stale = pid > 0 && pid != long(::getpid()) && ::kill(pid_t(pid), 0) != 0
+                    && errno == ESRCH;
+        else {
+            const auto written = fs::last_write_time(entry.path(), ec);
+            stale = !ec && fs::file_time_type::clock::now() - written > kStaleTemporaryAge;
+        }
+        if (stale)
             fs::remove(entry.path(), ec);
     }
 }
@@ -882,6 +965,30 @@ bool same_file(const std::string& a, const std::string& b)
 }
 
 }  // namespace
+
+const std::string& temporary_owner()
+{
+    static const std::string owner = [] {
+        char host[256] = {};
+        ::gethostname(host, sizeof(host) - 1);
+        std::string name;
+        for (const char* c = host; *c; ++c)
+            name += std::isalnum(static_cast<unsigned char>(*c)) || *c == '.' || *c == '_'
+                        ? *c
+                        : '_';
+        // "pid:[4026531836]": the namespace's inode, the same for every process in it.
+        char link[64] = {};
+        std::string ns = "0";
+        if (::readlink("/proc/self/ns/pid", link, sizeof(link) - 1) > 0) {
+            std::string text(link);
+            size_t open = text.find('['), close = text.find(']');
+            if (open != std::string::npos && close != std::string::npos)
+                ns = text.substr(open + 1, close - open - 1);
+        }
+        return format("{}-{}", ns, name.empty() ? "host" : name);
+    }();
+    return owner;
+}
 
 bool check_output_path(const std::string& path, const std::vector<std::string>& inputs,
                        std::string& error)
@@ -917,6 +1024,14 @@ bool check_output_path(const std::string& path, const std::vector<std::string>& 
     if (fs::exists(status) && ::access(path.c_str(), W_OK) != 0) {
         error = format("{}: exists and cannot be written ({}): not replacing it", path,
                        std::strerror(errno));
+        return false;
+    }
+    // root may write anything: a file nobody may write is still not replaced (cp -i and
+    // oiiotool's users expect a read-only golden image to stay).
+    struct stat st;
+    if (fs::exists(status) && ::stat(path.c_str(), &st) == 0 && (st.st_mode & 0222) == 0) {
+        error = format("{}: exists and is read-only (mode {:04o}): not replacing it", path,
+                       st.st_mode & 07777);
         return false;
     }
     return true;
@@ -1068,6 +1183,14 @@ bool output_layout(OutputLayout& layout, const ImageSpec& in_spec, const std::st
         spec.erase_attribute(name);
     spec.set_format(options.datatype);
     spec.channelformats.clear();
+    // Written in scanlines, as the stages make rows: a tiled or MIP-mapped input (Arnold's
+    // and RenderMan's usual EXRs) gives a plain image of its level 0, as oiiotool's -o
+    // without --tile does.
+    spec.tile_width = spec.tile_height = 0;
+    spec.tile_depth = 1;
+    for (const char* name : { "openexr:levelmode", "openexr:roundingmode", "textureformat",
+                              "wrapmodes" })
+        spec.erase_attribute(name);
     spec.attribute("compression", options.compression);
     if (!options.software.empty()) {
         std::string software = spec.get_string_attribute("Software");
@@ -1091,11 +1214,17 @@ std::string temporary_for(const std::string& path)
 {
     static std::atomic<int> counter { 0 };
     remove_stale_temporaries(path);
-    return format("{}{}-{}", temporary_prefix(path), ::getpid(), counter++);
+    return format("{}{}-{}-{}", temporary_prefix(path), ::getpid(), counter++,
+                  temporary_owner());
 }
 
+// Renames the finished temporary over `path`; a file it replaces keeps its mode (a 0600
+// output stays private).
 bool put_in_place(const std::string& tmp, const std::string& path, std::string& error)
 {
+    struct stat st;
+    if (::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode))
+        ::chmod(tmp.c_str(), st.st_mode & 07777);
     std::string rename_error;
     if (!Filesystem::rename(tmp, path, rename_error)) {
         error = format("{}: cannot rename temporary file into place: {}", path, rename_error);
@@ -1142,7 +1271,7 @@ bool write_image(const ImageBuf& src, const std::string& path, const WriteOption
     // temporary's name says which output and which process it belongs to.
     auto output = ImageOutput::create(path);
     if (!output) {
-        error = format("{}: cannot write this format: {}", path, OIIO::geterror());
+        error = format("{}: cannot write this format: {}", path, one_line(OIIO::geterror()));
         return false;
     }
     const std::string tmp = temporary_for(path);
@@ -1175,7 +1304,7 @@ bool write_image(const ImageBuf& src, const std::string& path, const WriteOption
                                     pixel * spec.width);
     ok = output->close() && ok;
     if (!ok) {
-        error = format("{}: write failed: {}", path, output->geterror());
+        error = format("{}: write failed: {}", path, one_line(output->geterror()));
         Filesystem::remove(tmp);
         return false;
     }
@@ -1217,7 +1346,7 @@ bool RowWriter::open(const ImageSpec& image, const std::string& path, const Writ
     }
     m->output = ImageOutput::create(path);
     if (!m->output) {
-        error = format("{}: cannot write this format: {}", path, OIIO::geterror());
+        error = format("{}: cannot write this format: {}", path, one_line(OIIO::geterror()));
         return false;
     }
     m->tmp = temporary_for(path);
@@ -1297,7 +1426,7 @@ bool RowWriter::write_rows(const ImageBuf& band, const ROI& own, std::string& er
         m->counts.inspect(m->rows.data(), npixels, nch, m->to_half);
         if (!m->output->write_scanlines(chunk.ybegin, chunk.yend, 0, TypeDesc::FLOAT,
                                         m->rows.data())) {
-            error = format("{}: write failed: {}", m->path, m->output->geterror());
+            error = format("{}: write failed: {}", m->path, one_line(m->output->geterror()));
             return false;
         }
     }

@@ -8,8 +8,13 @@
 #include <set>
 #include <sstream>
 
-#include "nn/nn.h"
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "mcdn/io.h"
 #include "mcdn/version.h"
+#include "nn/nn.h"
 
 namespace mcdn {
 namespace nn {
@@ -23,6 +28,7 @@ constexpr char weights_magic[8] = { 'M', 'C', 'D', 'N', 'N', 'W', 'T', 'S' };
 // multi-gigabyte allocation.
 constexpr uint32_t max_rank = 8;
 constexpr uint32_t max_name_bytes = 1 << 16;
+constexpr uint64_t max_file_bytes = uint64_t(1) << 31;
 
 bool host_is_little_endian()
 {
@@ -101,17 +107,52 @@ bool read_weights(const std::string& path, Weights& weights, std::string& error)
         error = path + ": weights files are little-endian and this host is not (unsupported)";
         return false;
     }
-    std::ifstream file(path, std::ios::binary);
-    if (!file) {
-        error = path + ": cannot open the weights file (" + std::strerror(errno) + ")";
+    // A regular file, its magic checked before its size is trusted and read: /dev/zero or
+    // /proc/self/mem must be an error, not gigabytes read or an exception.
+    if (!check_input_file(path, error))
         return false;
+    const std::string not_weights
+        = path + ": not a mcdenoise weights file (it does not start with \"MCDNNWTS\")";
+    std::string bytes;
+    {
+        const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+        struct stat st;
+        if (fd < 0 || ::fstat(fd, &st) != 0) {
+            error = path + ": cannot open the weights file (" + std::strerror(errno) + ")";
+            if (fd >= 0)
+                ::close(fd);
+            return false;
+        }
+        char magic[8] = {};
+        const bool is_weights = ::read(fd, magic, 8) == 8
+                                && std::memcmp(magic, weights_magic, 8) == 0;
+        if (!is_weights || uint64_t(st.st_size) > max_file_bytes) {
+            ::close(fd);
+            error = is_weights ? path + ": " + std::to_string(st.st_size)
+                                     + " bytes, more than any network's weights (corrupt?)"
+                               : not_weights;
+            return false;
+        }
+        bytes.assign(magic, 8);
+        bytes.resize(size_t(st.st_size));
+        size_t done = 8;
+        while (done < bytes.size()) {
+            const ssize_t n = ::read(fd, &bytes[done], bytes.size() - done);
+            if (n <= 0)
+                break;
+            done += size_t(n);
+        }
+        ::close(fd);
+        if (done != bytes.size()) {
+            error = path + ": cannot read the weights file (it changed while read?)";
+            return false;
+        }
     }
-    const std::string bytes((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
     ByteReader in(bytes);
 
     char magic[8];
     if (!in.read(magic, 8) || std::memcmp(magic, weights_magic, 8) != 0) {
-        error = path + ": not a mcdenoise weights file (it does not start with \"MCDNNWTS\")";
+        error = not_weights;
         return false;
     }
     uint32_t metadata_bytes = 0;

@@ -23,7 +23,7 @@ using OIIO::Strutil::fmt::format;
 // (an existing one of the same name is reused, as add_channels does). Zero-filled only when
 // sure's channels are not written everywhere (they are zero outside `where`): the bands
 // write every row of the rest.
-void allocate_output(ImageBuf& dst, const ImageSpec& denoised, const SureFrame& frame)
+bool allocate_output(ImageBuf& dst, const ImageSpec& denoised, const SureFrame& frame)
 {
     ImageSpec spec = denoised;
     spec.set_format(OIIO::TypeDesc::FLOAT);
@@ -39,15 +39,17 @@ void allocate_output(ImageBuf& dst, const ImageSpec& denoised, const SureFrame& 
     const ROI& w = frame.where;
     const bool written_everywhere = w.xbegin <= frame.whole.xbegin && w.xend >= frame.whole.xend
                                     && w.ybegin <= frame.whole.ybegin && w.yend >= frame.whole.yend;
-    allocate_frame(dst, spec, !written_everywhere);
+    return allocate_frame(dst, spec, !written_everywhere);
 }
 
 // The denoised band's own rows, every channel, into the leading channels of dst.
 bool write_denoised_rows(ImageBuf& dst, const ImageBuf& denoised, const Band& band,
                          const SureFrame& frame, std::string& error)
 {
-    if (!dst.initialized())
-        allocate_output(dst, denoised.spec(), frame);
+    if (!dst.initialized() && !allocate_output(dst, denoised.spec(), frame)) {
+        error = "sure: " + dst.geterror();
+        return false;
+    }
     const ImageSpec& spec = denoised.spec();
     const std::vector<std::string>& names = dst.spec().channelnames;
     if (spec.x != frame.whole.xbegin || spec.width != frame.whole.width()
