@@ -70,7 +70,7 @@ bool denoise(const Recipe& recipe, ImageBuf& result, std::string& error)
     }
     result = ImageBufAlgo::channels(chained, int(order.size()), order);
     ImageSpec& spec = result.specmod();
-    for (const char* bookkeeping : { "mcdn:inputs", "mcdn:output_channels" })
+    for (const char* bookkeeping : { mcdn::kInputsAttribute, "mcdn:output_channels" })
         spec.erase_attribute(bookkeeping);
     // What made the image, as oiiotool's own output records it: the version in the
     // plugin's attribute, and appended to the render's Software.

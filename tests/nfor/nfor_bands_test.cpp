@@ -1,9 +1,9 @@
-// Large frames run in horizontal bands (core/bands.h): the result must equal the
+// Large frames run in horizontal bands (ops/bands.h): the result must equal the
 // whole-frame run, which holds only when each band's halo covers the op's receptive radius —
 // too small a radius shows up as seams at the band edges.
 #include <OpenImageIO/imagebufalgo.h>
 
-#include "core/bands.h"
+#include "ops/bands.h"
 #include "mcdn/io.h"
 #include "mcdn/nfor.h"
 #include "mcdn/prefilter.h"

@@ -1,4 +1,4 @@
-// Comparing an op's banded result with its whole-frame run (core/bands.h).
+// Comparing an op's banded result with its whole-frame run (ops/bands.h).
 #pragma once
 
 #include <algorithm>

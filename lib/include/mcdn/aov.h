@@ -38,7 +38,7 @@ enum class Role {
     GlossyColor, GlossyDirect, GlossyIndirect,
     Emission, Environment,
     // Motion vectors, 4 channels: towards the previous frame (x, y) and from the next
-    // (x, y), in pixels, y up (Blender's Vector pass; core/motion.h). Read by the
+    // (x, y), in pixels, y up (Blender's Vector pass; ops/motion.h). Read by the
     // cross-frame modes only.
     Motion,
     Count
@@ -59,13 +59,35 @@ enum class Face { Mean, Variance, HalfA, HalfB };
 /// Only Color, Albedo, Normal, Depth and Visibility have faces.
 Role face_of(Role base, Face face);
 
-/// Where an input file's channels go in the merged buffer (io.h).
-enum class InputKind { Mean, Variance, HalfA, HalfB };
+/// Which face of the render an input file holds, so where its channels go in the merged
+/// buffer (mcdn/io.h read_inputs): a face, by the name -i:as= gives it.
+using InputKind = Face;
 /// "mean", "variance", "halfA", "halfB" (the -i:as= values).
 const char* input_kind_name(InputKind kind);
 std::optional<InputKind> input_kind_from_name(string_view name);
 /// "", "variance.", "A.", "B.": prefix given to that input's channel names.
 const char* input_kind_prefix(InputKind kind);
+
+/// One file given with `-i[:as=KIND] PATH`. For the tungsten preset PATH may be a
+/// directory of `color.pfm`, `colorA.pfm`, ... (read_tungsten_directory).
+struct InputFile {
+    std::string path;
+    InputKind kind = InputKind::Mean;
+    /// A multi-part EXR's part to read alone (-i:part=NAME); empty: every part.
+    std::string part;
+
+    InputFile() = default;
+    InputFile(std::string path_, InputKind kind_ = InputKind::Mean, std::string part_ = {})
+        : path(std::move(path_)), kind(kind_), part(std::move(part_))
+    {
+    }
+};
+
+/// The attribute read_inputs (mcdn/io.h) sets on a merged buffer: one "kind=path" line per
+/// file it was read from, in order (ops keep it on their results).
+constexpr const char* kInputsAttribute = "mcdn:inputs";
+/// The files a merged buffer was read from, from its kInputsAttribute.
+std::vector<InputFile> merged_input_files(const ImageSpec& merged);
 
 /// What the user asked for: a preset plus per-role overrides.
 struct AovSpec {
@@ -144,7 +166,7 @@ bool resolve_aovs(AovSet& set, const AovSpec& spec, const ImageSpec& merged,
                   std::string& error);
 
 /// Names the input file a channel of the merged buffer came from, for error messages
-/// ("box_var.exr (-i:as=variance)"), from the "mcdn:inputs" attribute read_inputs sets.
+/// ("box_var.exr (-i:as=variance)"), from merged_input_files.
 std::string channel_source(const ImageSpec& merged, string_view channel);
 
 /// One-line list of a buffer's channel names for error messages, shortened past `max`.

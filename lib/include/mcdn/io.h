@@ -15,21 +15,6 @@
 
 namespace mcdn {
 
-/// One file given with `-i[:as=KIND] PATH`. For the tungsten preset PATH may be a
-/// directory of `color.pfm`, `colorA.pfm`, ... (read_tungsten_directory).
-struct InputFile {
-    std::string path;
-    InputKind kind = InputKind::Mean;
-    /// A multi-part EXR's part to read alone (-i:part=NAME); empty: every part.
-    std::string part;
-
-    InputFile() = default;
-    InputFile(std::string path_, InputKind kind_ = InputKind::Mean, std::string part_ = {})
-        : path(std::move(path_)), kind(kind_), part(std::move(part_))
-    {
-    }
-};
-
 /// Checks that `path` is a regular file this process can read, before anything opens it:
 /// a FIFO, socket or device (/dev/zero) would hang a reader or feed it without end, a
 /// folder is not a file. False with a one-line `error` naming the path.
@@ -48,7 +33,7 @@ bool read_tungsten_directory(ImageBuf& dst, const std::string& dir);
 
 /// Reads all inputs and merges them into one float buffer: channels of `InputKind::Mean`
 /// files keep their names, the others get the prefix of their kind (aov.h). Sizes and data
-/// windows must agree. Sets "mcdn:inputs" (which file gave which prefix) and
+/// windows must agree. Sets kInputsAttribute (mcdn/aov.h: which file gave which prefix) and
 /// "mcdn:output_channels" (the channels -o writes by default: those of the mean inputs).
 bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs);
 
@@ -99,10 +84,6 @@ private:
     std::unique_ptr<Files> m_files;
     ImageSpec m_spec;
 };
-
-/// The files a merged buffer was read from, in order: its "mcdn:inputs" attribute, one
-/// "kind=path" line per file (read_inputs sets it; ops keep it on their results).
-std::vector<InputFile> merged_input_files(const ImageSpec& merged);
 
 /// Checks the values an op will read: NaN, Inf, |v| > kHugeValue in colour, halves and
 /// features, negative variance, a normal longer than kMaxNormalLength. Feature variances
@@ -159,7 +140,7 @@ const std::string& temporary_owner();
 /// Writes `src` to `path` through a temporary file in the same directory
 /// (`.NAME.mcdn-tmp-PID-N-OWNER`, temporary_owner()), renamed into place only when
 /// complete: a failed write never leaves a partial `path`; a replaced file keeps its mode.
-/// Refuses what check_output_path refuses, with `src`'s own input files (its "mcdn:inputs")
+/// Refuses what check_output_path refuses, with `src`'s own input files (merged_input_files)
 /// as the inputs. Temporaries that a killed run left for the same `path` are removed first:
 /// those of this owner whose PID no longer runs, and those of any other owner (another
 /// host or container on shared storage: its PID cannot be checked here) only when not

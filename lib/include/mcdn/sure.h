@@ -55,7 +55,7 @@ struct SureOptions {
     /// band_pixels run in horizontal bands, each with this many rows of halo (rounded up to
     /// whole converged tiles): the probe step and the probes' random numbers are the whole
     /// frame's, so the result is the whole-frame run's, and memory follows the band
-    /// (core/bands.h). -1 (not known: a Python callable): the whole frame at once.
+    /// (ops/bands.h). -1 (not known: a Python callable): the whole frame at once.
     int denoiser_radius = -1;
     /// The denoiser may run on its input itself (dst = src), where it changes only the
     /// colour and the RGB extra AOVs, and reads no extra AOV when probed (the CNN; mcdntool

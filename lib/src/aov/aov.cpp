@@ -1,7 +1,6 @@
 // AOV channel sets: role names, the presets' channel names, resolution against a merged
 // buffer and the error messages that tell a user what is missing.
 #include "mcdn/aov.h"
-#include "mcdn/io.h"
 
 #include <algorithm>
 
@@ -421,7 +420,7 @@ bool resolve_aovs(AovSet& set, const AovSpec& spec, const ImageSpec& merged,
         Role role = Role(r);
         auto faced = split_face(role);
         Role base = faced ? faced->first : role;
-        const char* prefix = faced ? input_kind_prefix(InputKind(int(faced->second))) : "";
+        const char* prefix = faced ? input_kind_prefix(faced->second) : "";
         Candidates candidates;
         if (faced && faced->second != Face::Mean && overridden[int(base)])
             candidates = { set.m_names[int(base)] };  // faces follow an overridden mean
@@ -498,7 +497,7 @@ bool AovSet::require(const std::vector<Role>& required, const ImageSpec& merged,
             continue;
         auto faced = split_face(role);
         Role base = faced ? faced->first : role;
-        const char* prefix = faced ? input_kind_prefix(InputKind(int(faced->second))) : "";
+        const char* prefix = faced ? input_kind_prefix(faced->second) : "";
         std::string layer = m_preset == "cycles" ? find_cycles_layer(merged) : "";
         Candidates candidates = faced ? preset_face_candidates(m_preset, base, faced->second)
                                       : Candidates();
@@ -532,6 +531,20 @@ bool AovSet::require(const std::vector<Role>& required, const ImageSpec& merged,
         return false;
     }
     return true;
+}
+
+std::vector<InputFile> merged_input_files(const ImageSpec& merged)
+{
+    std::vector<InputFile> files;
+    const std::string lines = merged.get_string_attribute(kInputsAttribute);
+    for (const auto& line : OIIO::Strutil::splits(lines, "\n")) {
+        size_t eq = line.find('=');
+        auto kind = eq == std::string::npos ? std::nullopt
+                                            : input_kind_from_name(line.substr(0, eq));
+        if (kind)
+            files.push_back({ line.substr(eq + 1), *kind });
+    }
+    return files;
 }
 
 namespace {

@@ -11,7 +11,7 @@
 
 #include "chain/chain_steps.h"
 #include "cnn/cnn_steps.h"
-#include "core/bands.h"
+#include "ops/bands.h"
 #include "core/channels.h"
 #include "core/frame_facts.h"
 #include "core/op_prepare.h"

@@ -12,8 +12,6 @@
 
 #include <OpenImageIO/imagebuf.h>
 
-#include "mcdn/io.h"
-
 namespace mcdn {
 
 /// One channel of an image, row-major, origin at the data window's corner.
@@ -48,8 +46,9 @@ std::vector<Rect> make_tiles(int width, int height, int tile_size);
 void parallel_for_index(int n, int nthreads, const std::function<void(int)>& body);
 
 /// Largest magnitude an op lets into its arithmetic: squares and window sums of
-/// (differences of) such values stay finite in float. validate_inputs refuses larger ones.
-constexpr float kMaxMagnitude = kHugeValue;
+/// (differences of) such values stay finite in float. validate_inputs refuses larger ones
+/// (mcdn/io.h kHugeValue, the same number: io.cpp checks it).
+constexpr float kMaxMagnitude = 1e15f;
 
 /// Finite and clamped to +-kMaxMagnitude; NaN becomes `nan_value`.
 inline float sanitize(float v, float nan_value = 0.0f)

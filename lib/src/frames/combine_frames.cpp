@@ -1,4 +1,4 @@
-// mcdn::combine_frames (mcdn/frames.h): the neighbours aligned (core/motion.h), one NL-means
+// mcdn::combine_frames (mcdn/frames.h): the neighbours aligned (ops/motion.h), one NL-means
 // weight per neighbour and pixel from the colour's patches, then every noisy light channel
 // averaged over the frames with those weights.
 #include "mcdn/frames.h"
@@ -8,7 +8,7 @@
 #include <set>
 
 #include "core/color_planes.h"
-#include "core/motion.h"
+#include "ops/motion.h"
 #include "core/op_prepare.h"
 #include "core/planar.h"
 #include "mcdn/color.h"

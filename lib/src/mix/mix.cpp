@@ -7,7 +7,7 @@
 
 #include <OpenImageIO/strutil.h>
 
-#include "core/bands.h"
+#include "ops/bands.h"
 #include "core/channels.h"
 #include "core/frame_facts.h"
 #include "core/attributes.h"

@@ -15,7 +15,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
-#include "core/bands.h"
+#include "ops/bands.h"
 #include "core/frame_facts.h"
 #include "mix/mix_steps.h"
 #include "mix/window_sums.h"

@@ -1,6 +1,6 @@
 #include "nfor/neighbour_frames.h"
 
-#include "core/motion.h"
+#include "ops/motion.h"
 
 namespace mcdn {
 
@@ -73,16 +73,16 @@ void align(NeighbourFrame& f, const FrameAlignment& a, bool halves)
     f.offset_feature = Plane(a.width, a.height, float(f.offset));
 }
 
-const Plane* face(const ColorPlanes& c, FirstPassFace f, int channel)
+const Plane* face(const ColorPlanes& c, Face f, int channel)
 {
-    return f == FirstPassFace::HalfA   ? &c.half_a[channel]
-           : f == FirstPassFace::HalfB ? &c.half_b[channel]
+    return f == Face::HalfA   ? &c.half_a[channel]
+           : f == Face::HalfB ? &c.half_b[channel]
                                        : &c.mean[channel];
 }
 
-const Plane* face(const FeaturePlanes& p, FirstPassFace f)
+const Plane* face(const FeaturePlanes& p, Face f)
 {
-    return f == FirstPassFace::HalfA ? &p.half_a : f == FirstPassFace::HalfB ? &p.half_b : &p.mean;
+    return f == Face::HalfA ? &p.half_a : f == Face::HalfB ? &p.half_b : &p.mean;
 }
 
 }  // namespace
@@ -116,7 +116,7 @@ bool read_neighbour_frames(std::vector<NeighbourFrame>& frames, const ImageBuf& 
 }
 
 void add_neighbour_frames(RegressionInputs& in, const std::vector<NeighbourFrame>& frames,
-                          FirstPassFace image, FirstPassFace guide, FirstPassFace features,
+                          Face image, Face guide, Face features,
                           const Plane& zero_offset)
 {
     if (frames.empty())

@@ -5,7 +5,7 @@
 //
 // Each neighbouring frame is read as this one is (colour, variance, halves, features), its
 // outliers taken out and its features prefiltered (§5.1) in its own pixels, then aligned to
-// this frame by the motion vectors (core/motion.h: the paper did not, its §9 expects them to
+// this frame by the motion vectors (ops/motion.h: the paper did not, its §9 expects them to
 // help). Where the alignment leaves the other frame, the guide is set far from any colour,
 // so that no patch reaching there gets weight. The first pass (§5.2) fits every window over
 // all the frames, the frame offset one more feature; the fits are evaluated on this frame.
@@ -57,14 +57,10 @@ bool read_neighbour_frames(std::vector<NeighbourFrame>& frames, const ImageBuf& 
                            const std::vector<const ImageBuf*>& next,
                            const NeighbourReading& reading, int nthreads, std::string& error);
 
-/// The faces of a frame that one regression of the first pass reads.
-enum class FirstPassFace { HalfA, HalfB, Mean };
-
 /// Adds the neighbours to a first-pass regression of this frame: their `image` and `guide`
 /// colour faces, their features' `features` face with the offset feature last (the caller
-/// adds this frame's: `zero_offset`, a plane of 0).
+/// adds this frame's: `zero_offset`, a plane of 0). Faces: Mean, HalfA or HalfB.
 void add_neighbour_frames(RegressionInputs& in, const std::vector<NeighbourFrame>& frames,
-                          FirstPassFace image, FirstPassFace guide, FirstPassFace features,
-                          const Plane& zero_offset);
+                          Face image, Face guide, Face features, const Plane& zero_offset);
 
 }  // namespace mcdn

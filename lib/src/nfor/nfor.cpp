@@ -21,7 +21,7 @@
 #include "core/feature_channels.h"
 #include "core/frame_facts.h"
 #include "nl_means/nl_means.h"
-#include "core/bands.h"
+#include "ops/bands.h"
 #include "core/op_prepare.h"
 #include "core/progress.h"
 #include "core/random.h"
@@ -208,10 +208,10 @@ FirstPass first_pass(const ColorPlanes& color, std::vector<FeaturePlanes>& featu
     // §8: the neighbouring frames' windows join every fit.
     const Plane zero_offset = neighbours.empty() ? Plane()
                                                  : Plane(color.mean[0].width, color.mean[0].height);
-    add_neighbour_frames(first_a, neighbours, FirstPassFace::HalfA, FirstPassFace::HalfB,
-                         FirstPassFace::HalfB, zero_offset);
-    add_neighbour_frames(first_b, neighbours, FirstPassFace::HalfB, FirstPassFace::HalfA,
-                         FirstPassFace::HalfA, zero_offset);
+    add_neighbour_frames(first_a, neighbours, Face::HalfA, Face::HalfB,
+                         Face::HalfB, zero_offset);
+    add_neighbour_frames(first_b, neighbours, Face::HalfB, Face::HalfA,
+                         Face::HalfA, zero_offset);
     FirstPass pass;
     take_candidates(pass.fit_a, collaborative_regression(first_a, nthreads));
     take_candidates(pass.fit_b, collaborative_regression(first_b, nthreads));
@@ -265,8 +265,8 @@ FirstPass first_pass_one_buffer(const ColorPlanes& color, std::vector<FeaturePla
     // this frame's).
     const Plane zero_offset = neighbours.empty() ? Plane()
                                                  : Plane(color.mean[0].width, color.mean[0].height);
-    add_neighbour_frames(first, neighbours, FirstPassFace::Mean, FirstPassFace::Mean,
-                         FirstPassFace::Mean, zero_offset);
+    add_neighbour_frames(first, neighbours, Face::Mean, Face::Mean,
+                         Face::Mean, zero_offset);
     const double eps = relative_probe_step(probe_index.colour, 1e-3);
     Plane probe[3], probed[3];
     for (int c = 0; c < 3; ++c) {

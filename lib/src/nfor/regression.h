@@ -30,7 +30,7 @@ struct RegressionInputs {
     const Plane* variance[3] = {};  // variance of the guide (× variance_scale)
     std::vector<const Plane*> features;
     /// A spatio-temporal window (NFOR §8): other frames, aligned to this one (warped by the
-    /// motion vectors, core/motion.h), whose (2R+1)² windows join every fit, weighted by the
+    /// motion vectors, ops/motion.h), whose (2R+1)² windows join every fit, weighted by the
     /// patch distance between this frame's guide at p and theirs at q. Each has the same
     /// features in the same order (the caller adds the frame offset as one). The fits are
     /// evaluated on this frame only: the result is this frame's.

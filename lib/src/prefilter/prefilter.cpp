@@ -5,7 +5,7 @@
 #include "skip/constant_features.h"
 #include "skip/converged_tiles.h"
 #include "core/feature_channels.h"
-#include "core/bands.h"
+#include "ops/bands.h"
 #include "core/op_prepare.h"
 #include "core/progress.h"
 #include "core/trace.h"

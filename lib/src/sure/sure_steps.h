@@ -11,7 +11,7 @@
 
 #include <OpenImageIO/imagebuf.h>
 
-#include "core/bands.h"
+#include "ops/bands.h"
 #include "mcdn/aov.h"
 #include "mcdn/sure.h"
 

@@ -1,4 +1,4 @@
-#include "core/motion.h"
+#include "ops/motion.h"
 
 #include <cmath>
 

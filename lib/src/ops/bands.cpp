@@ -1,5 +1,5 @@
 // Large frames in bands (bands.h).
-#include "core/bands.h"
+#include "ops/bands.h"
 
 #include <algorithm>
 #include <cstring>
