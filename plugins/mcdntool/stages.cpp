@@ -122,7 +122,7 @@ bool queue_nfor(Session& s, const Command& c, std::string& error)
     int frames;
     if (!stage_and_frames(c, o, frames, error))
         return false;
-    o.aovs = o.prefilter.aovs = s.aov_spec;
+    o.aovs = s.aov_spec;
     o.progress = s.progress();
     s.features_out |= o.features_out;
     // The neighbours are read now and kept with the stage (SURE may run it again).

@@ -160,21 +160,16 @@ mcdn::Denoiser named_denoiser(const std::string& chain, const mcdn::AovSpec& spe
             mcdn::NforOptions o;
             o.aovs = spec;
             o.skip = skip;
-            o.prefilter.aovs = spec;
             return mcdn::nfor(dst, src, o, {}, nthreads);
         };
     }
     throw std::runtime_error("sure: unknown denoiser '" + chain + "' (use 'nfor', 'cnn' or a callable)");
 }
 
-}  // namespace
 
-PYBIND11_MODULE(_mcdenoise, m)
+// Read_inputs, write, validate: files in and out, and the checks mcdntool makes.
+void bind_files(py::module_& m)
 {
-    m.doc() = "mcdenoise: Monte Carlo render denoisers on OpenImageIO.ImageBuf";
-    py::module_::import("OpenImageIO");  // registers ImageBuf with pybind11
-    m.attr("__version__") = mcdn::version();
-
     m.def("read_inputs",
           [](const std::vector<std::pair<std::string, std::string>>& files) {
               std::vector<mcdn::InputFile> inputs;
@@ -238,7 +233,11 @@ PYBIND11_MODULE(_mcdenoise, m)
           py::arg("image"), py::arg("preset") = "",
           py::arg("aovs") = std::map<std::string, std::string>(),
           "Raise if the colour, halves or features hold NaN, Inf or huge values.");
+}
 
+// Prefilter, nfor and cnn, the denoisers.
+void bind_denoisers(py::module_& m)
+{
     m.def("prefilter",
           [](const ImageBuf& src, const std::string& preset,
              const std::map<std::string, std::string>& aovs, const std::string& colorspace,
@@ -271,7 +270,6 @@ PYBIND11_MODULE(_mcdenoise, m)
                     { "selection", text(selection) }, { "extras", text(extras) },
                     { "outliers", outliers }, { "fallback", text(fallback) },
                     { "skip", text(skip) }, { "converged", text(converged) } });
-              o.prefilter.aovs = o.aovs;
               const CheckedFrames checked_frames(previous, next, o.aovs, Halves::Read);
               o.previous_frames = checked_frames.previous;
               o.next_frames = checked_frames.next;
@@ -339,7 +337,11 @@ PYBIND11_MODULE(_mcdenoise, m)
           "network (mcdn/frames.h); the result keeps this frame's own variance and halves.");
     m.def("release_cnn_workers", &mcdn::release_cnn_workers,
           "Frees the networks and buffers cnn() keeps for its next call (~350 MB per thread).");
+}
 
+// Sure and mix: the error estimate of any denoiser and the progressive mix (PD).
+void bind_progressive(py::module_& m)
+{
     m.def("sure",
           [](const ImageBuf& src, py::object denoiser, const std::string& preset,
              const std::map<std::string, std::string>& aovs, const std::string& colorspace,
@@ -411,7 +413,11 @@ PYBIND11_MODULE(_mcdenoise, m)
           "model='net' (the default; 'analytic': eq. 9) and no weights: the network trained for the denoiser named in the "
           "image's 'mcdn:denoiser' attribute (set by nfor and cnn; models/mix_cnn.mcdnw for "
           "'cnn', else models/mix.mcdnw).");
+}
 
+// Denoise and plan: the best chain the inputs allow.
+void bind_chains(py::module_& m)
+{
     m.def("denoise",
           [](const ImageBuf& src, const std::string& preset,
              const std::map<std::string, std::string>& aovs, const std::string& colorspace,
@@ -454,7 +460,11 @@ PYBIND11_MODULE(_mcdenoise, m)
           py::arg("image"), py::arg("preset") = "",
           py::arg("aovs") = std::map<std::string, std::string>(),
           "One line: the chain denoise() runs on this image, and why.");
+}
 
+// Metrics against a reference, per frame and between frames.
+void bind_metrics(py::module_& m)
+{
     m.def("metrics",
           [](const ImageBuf& image, const ImageBuf& reference, std::vector<int> channels,
              std::vector<int> reference_channels, bool trim, const ImageBuf* reference_variance) {
@@ -549,4 +559,18 @@ PYBIND11_MODULE(_mcdenoise, m)
           "down; Cycles' Vector X, Y: motion_scale=(1, -1); None: still). With both "
           "references' variances of the mean (laid out as `reference`), also "
           "mse_reference_noise and relmse_reference_noise: what their own noise adds.");
+}
+
+}  // namespace
+
+PYBIND11_MODULE(_mcdenoise, m)
+{
+    m.doc() = "mcdenoise: Monte Carlo render denoisers on OpenImageIO.ImageBuf";
+    py::module_::import("OpenImageIO");  // registers ImageBuf with pybind11
+    m.attr("__version__") = mcdn::version();
+    bind_files(m);
+    bind_denoisers(m);
+    bind_progressive(m);
+    bind_chains(m);
+    bind_metrics(m);
 }

@@ -272,7 +272,7 @@ TEST(SkipNfor, ConvergedTilesPassThroughAndTheRestIsUnchangedAwayFromThem)
 {
     const ImageBuf src = half_converged_box();
     NforOptions on, off;
-    on.aovs = off.aovs = on.prefilter.aovs = off.prefilter.aovs = cycles();
+    on.aovs = off.aovs = cycles();
     off.skip.enabled = false;
     ImageBuf skipped = nfor(src, on, {}, 2), full = nfor(src, off, {}, 2);
     ASSERT_FALSE(skipped.has_error()) << skipped.geterror();
@@ -296,7 +296,7 @@ TEST(SkipNfor, NothingConvergedIsTheUnskippedFilter)
 {
     const ImageBuf src = read_examples_box();
     NforOptions on, off;
-    on.aovs = off.aovs = on.prefilter.aovs = off.prefilter.aovs = cycles();
+    on.aovs = off.aovs = cycles();
     off.skip.enabled = false;
     ImageBuf a = nfor(src, on, {}, 2), b = nfor(src, off, {}, 2);
     EXPECT_EQ(max_color_difference(a, b, 0, 128), 0.0f);
@@ -320,7 +320,7 @@ TEST(SkipNfor, ConstantFeatureIsDroppedNotFitted)
     EXPECT_EQ(features.size(), 1u);
 
     NforOptions on, off;
-    on.aovs = off.aovs = on.prefilter.aovs = off.prefilter.aovs = cycles();
+    on.aovs = off.aovs = cycles();
     off.skip.enabled = false;
     ImageBuf dropped = nfor(src, on, {}, 2), fitted = nfor(src, off, {}, 2);
     ASSERT_FALSE(dropped.has_error()) << dropped.geterror();
@@ -395,7 +395,7 @@ TEST(SkipSureMix, ConvergedTilesAreTheRenderWithTheirExactError)
 {
     const ImageBuf src = half_converged_box();
     NforOptions n;
-    n.aovs = n.prefilter.aovs = cycles();
+    n.aovs = cycles();
     Denoiser denoiser = [&](ImageBuf& dst, const ImageBuf& in) { return nfor(dst, in, n, {}, 2); };
     SureOptions s;
     s.aovs = cycles();

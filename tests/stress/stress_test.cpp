@@ -150,7 +150,7 @@ TEST(Stress, Nfor)
     for (const auto& k : cases()) {
         ImageBuf src = input(k), out;
         NforOptions o;
-        o.aovs = o.prefilter.aovs = generic();
+        o.aovs = generic();
         o.output_mse = o.output_selection = true;
         check("nfor", k, nfor(out, src, o), out, src);
     }
@@ -179,7 +179,7 @@ TEST(Stress, SeveralThreadsAgreeOnBadInput)
     for (const auto& k : cases()) {
         ImageBuf src = input(k), one, two;
         NforOptions o;
-        o.aovs = o.prefilter.aovs = generic();
+        o.aovs = generic();
         bool ok1 = nfor(one, src, o, {}, 1), ok2 = nfor(two, src, o, {}, 2);
         ASSERT_EQ(ok1, ok2) << k.name;
         if (ok1) {

@@ -22,13 +22,17 @@ namespace mcdn {
 using OIIO::ImageBuf;
 using OIIO::ROI;
 
+/// relMSE's offset: errors relative to the reference's r^2 + kRelMseOffset, so that dark
+/// pixels do not dominate (NFOR, KPCN, PD). Every relative error in the library uses it.
+constexpr double kRelMseOffset = 0.01;
+
 struct MetricsOptions {
     /// Channels of the image and of the reference, in matching order (3 for RGB).
     std::vector<int> image_channels = { 0, 1, 2 };
     std::vector<int> reference_channels = { 0, 1, 2 };
     bool trim = false;
     double trim_fraction = 1e-4;  // KPCN: drop 0.01% best and worst
-    double relmse_epsilon = 0.01;
+    double relmse_epsilon = kRelMseOffset;
     double smape_epsilon = 0.01;
 };
 

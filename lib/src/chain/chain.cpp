@@ -88,7 +88,6 @@ std::pair<std::string, Denoiser> denoiser_stage(const std::string& name, const C
     }
     NforOptions n;
     stage_options(n, o, name, unused);
-    n.prefilter.aovs = o.aovs;
     reach = stage_reach(n);
     return { name, [n, nthreads](ImageBuf& dst, const ImageBuf& src) {
                 return nfor(dst, src, n, {}, nthreads);

@@ -173,22 +173,11 @@ kpcn::DroppedOutliers find_outliers(const ImageBuf& src, const AovSet& aovs,
     return dropped;
 }
 
-bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& options,
-                          ROI roi, int nthreads)
+// dst as the op writes it, `aovs` resolved on src: a copy of src (prepare_op), or for a SURE
+// probe's colour-only result its colour channels alone. The error goes on dst.
+bool prepare_output(ImageBuf& dst, const ImageBuf& src, const CnnOptions& options,
+                    bool colour_only, AovSet& aovs, int nthreads)
 {
-    // A SURE probe's result is read for its colour alone (core/attributes.h): then dst is
-    // the colour channels, not a copy of every channel of the frame.
-    const bool colour_only = src.spec().get_int_attribute(kColourOnlyAttribute, 0) == 1;
-    // In place, the tiles read the render's colour around them while others write theirs:
-    // the colour is made in a frame of its own and then written into dst (the extras' inputs
-    // are planes of their own already, read_extras). Else on a copy of the render.
-    const bool in_place = &dst == &src;
-    if (in_place && (colour_only || !float_frame_pixels(src))) {
-        const ImageBuf render = src.copy(OIIO::TypeDesc::FLOAT);
-        return cnn_in_working_space(dst, render, options, roi, nthreads);
-    }
-    StageTrace trace("cnn");
-    AovSet aovs;
     std::string error;
     if (colour_only) {
         if (!check_op_input(src, options.aovs, aovs, "cnn", error)
@@ -207,11 +196,64 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
     } else if (!prepare_op(dst, src, options.aovs, aovs, "cnn", nthreads)) {
         return false;
     }
-    trace.mark("copy src to dst");
     if (!aovs.require({ Role::Color }, src.spec(), error)) {
         dst.errorfmt("cnn: {}", error);
         return false;
     }
+    return true;
+}
+
+// The network's tiles (nn/tiled.cpp) that write a pixel of `where`, only over tiles that are
+// not converged (nn/network_regions.h).
+bool network_tiles(std::vector<nn::Tile>& tiles, const nn::Net& net,
+                   const ConvergedTiles& converged, const CnnOptions& options,
+                   const ImageBuf& src, const ImageBuf& dst, const ROI& where,
+                   std::string& error)
+{
+    nn::TileOptions tile_options;
+    tile_options.tile_size = options.tile_size;
+    tile_options.regions = network_regions(converged, net, options.tile_size);
+    std::vector<nn::Tile> planned;
+    if (!nn::plan_tiles(net, src.spec().height, src.spec().width, tile_options, planned, error))
+        return false;
+    tiles.clear();
+    for (const nn::Tile& tile : planned)
+        if (!output_rect(tile.core, dst, where).empty())
+            tiles.push_back(tile);
+    return true;
+}
+
+// In place, the colour made in a frame of its own (colour channels 0-2) into the output's
+// colour channels, inside `where`.
+void copy_colour(kpcn::OutputFrame& frame, const std::vector<int>& out_color,
+                 kpcn::OutputFrame& colour_frame, const ImageBuf& dst, const ROI& where)
+{
+    for (int y = where.ybegin - dst.spec().y; y < where.yend - dst.spec().y; ++y)
+        for (int x = where.xbegin - dst.spec().x; x < where.xend - dst.spec().x; ++x)
+            for (int c = 0; c < 3; ++c)
+                frame.pixel(x, y)[out_color[c]] = colour_frame.pixel(x, y)[c];
+}
+
+bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& options,
+                          ROI roi, int nthreads)
+{
+    // A SURE probe's result is read for its colour alone (core/attributes.h): then dst is
+    // the colour channels, not a copy of every channel of the frame.
+    const bool colour_only = src.spec().get_int_attribute(kColourOnlyAttribute, 0) == 1;
+    // In place, the tiles read the render's colour around them while others write theirs:
+    // the colour is made in a frame of its own and then written into dst (the extras' inputs
+    // are planes of their own already, read_extras). Else on a copy of the render.
+    const bool in_place = &dst == &src;
+    if (in_place && (colour_only || !float_frame_pixels(src))) {
+        const ImageBuf render = src.copy(OIIO::TypeDesc::FLOAT);
+        return cnn_in_working_space(dst, render, options, roi, nthreads);
+    }
+    StageTrace trace("cnn");
+    AovSet aovs;
+    std::string error;
+    if (!prepare_output(dst, src, options, colour_only, aovs, nthreads))
+        return false;
+    trace.mark("copy src to dst");
     const std::vector<int> out_color = colour_only ? std::vector<int> { 0, 1, 2 }
                                                    : aovs.channels(Role::Color);
     std::vector<ExtraPlanes> extras;
@@ -271,18 +313,11 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
                                        : kpcn::depth_range(src, aovs);
     const bool split = kpcn::has_split(aovs);
     const ROI where = output_roi(src, roi);
-    nn::TileOptions tile_options;
-    tile_options.tile_size = options.tile_size;
-    tile_options.regions = network_regions(converged, first, options.tile_size);
-    std::vector<nn::Tile> planned, tiles;
-    if (!nn::plan_tiles(first, src.spec().height, src.spec().width, tile_options, planned,
-                        error)) {
+    std::vector<nn::Tile> tiles;
+    if (!network_tiles(tiles, first, converged, options, src, dst, where, error)) {
         dst.errorfmt("cnn: {}", error);
         return false;
     }
-    for (const nn::Tile& tile : planned)
-        if (!output_rect(tile.core, dst, where).empty())
-            tiles.push_back(tile);
     trace.mark("networks and depth range");
     ProgressCounter progress(options.progress, "cnn", int(tiles.size()));
 
@@ -328,10 +363,7 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
     }
     trace.mark("network tiles (4.2, eq. 4)");
     if (in_place)
-        for (int y = where.ybegin - dst.spec().y; y < where.yend - dst.spec().y; ++y)
-            for (int x = where.xbegin - dst.spec().x; x < where.xend - dst.spec().x; ++x)
-                for (int c = 0; c < 3; ++c)
-                    frame.pixel(x, y)[out_color[c]] = colour_frame.pixel(x, y)[c];
+        copy_colour(frame, out_color, colour_frame, dst, where);
     // Converged tiles keep the render (sanitized), the extras' too.
     pass_through_color(frame, dst, out_color, where, converged);
     pass_through_extras(dst, where, extras, converged);

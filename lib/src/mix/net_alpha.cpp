@@ -14,6 +14,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "mcdn/metrics.h"
 #include "mix/mix_steps.h"
 #include "nn/ops.h"
 
@@ -23,7 +24,6 @@ namespace {
 
 constexpr const char* kInputLayout = "pd-mix-1";  // model.py INPUT_LAYOUT
 constexpr int kInputs = 18, kFeatures = 48;
-constexpr float kErrorDenominatorOffset = 0.01f;
 constexpr float kFActEpsilon = 1e-6f;  // eq. 19
 
 float signed_log1p(float v) { return std::copysign(std::log1p(std::fabs(v)), v); }
@@ -82,7 +82,7 @@ void net_features(const MixInputs& in, const Rect& window, nn::Tensor& f)
                 const size_t i = row + size_t(std::min(wx, w - 1));
                 for (int c = 0; c < 3; ++c) {
                     const float y = in.y[c].px[i];
-                    const float scale = 1.0f / (y * y + kErrorDenominatorOffset);
+                    const float scale = 1.0f / (y * y + float(kRelMseOffset));
                     px[0 + c] = signed_log1p(in.x[c].px[i]);
                     px[3 + c] = signed_log1p(y);
                     px[6 + c] = std::atan(in.variance[c].px[i] * scale);

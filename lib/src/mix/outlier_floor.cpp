@@ -31,20 +31,16 @@
 #include <algorithm>
 #include <cmath>
 
+#include "mcdn/metrics.h"
 #include "mix/mix_steps.h"
 
 namespace mcdn {
-
-namespace {
-// The offset of the relMSE denominator y^2 + 0.01, as in the network's inputs (net_alpha.cpp).
-constexpr double kRelativeErrorOffset = 0.01;
-}  // namespace
 
 void outlier_floor(Plane& alpha, const Plane& variance, const Plane& y, const Plane& divergence,
                    const Plane& residual, float relative_variance, float drop_relative_variance)
 {
     for (size_t i = 0; i < alpha.size(); ++i) {
-        const double v = variance.px[i], scale = double(y.px[i]) * y.px[i] + kRelativeErrorOffset;
+        const double v = variance.px[i], scale = double(y.px[i]) * y.px[i] + kRelMseOffset;
         if (drop_relative_variance > 0 && v > drop_relative_variance * scale) {
             alpha.px[i] = 1;
             continue;

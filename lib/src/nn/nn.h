@@ -168,8 +168,6 @@ public:
     int alignment() const;
     /// Receptive-field radius of the outputs in input pixels, rounded up (tiling halo).
     int receptive_radius() const;
-    /// The first mistake made while building, or "".
-    const std::string& build_error() const { return build_error_; }
     /// Every parameter the network expects with its shape, "conv1.weight [48,14,5,5]" lines.
     std::string expected_parameters() const;
 

@@ -9,12 +9,12 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "mcdn/metrics.h"
+
 namespace mcdn {
 
 namespace {
 constexpr int T = kConvergedTileSize;
-/// relMSE's offset on r²: errors are relative to sqrt(colour² + 0.01) (metrics.h).
-constexpr float kRelativeFloor = 0.01f;
 }  // namespace
 
 bool ConvergedTiles::any() const
@@ -44,7 +44,7 @@ namespace {
 /// NaN stays NaN (never converged).
 inline float relative_variance(float mean, float variance)
 {
-    return std::max(variance, 0.0f) / (mean * mean + kRelativeFloor);
+    return std::max(variance, 0.0f) / (mean * mean + float(kRelMseOffset));
 }
 
 }  // namespace

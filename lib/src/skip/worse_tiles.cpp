@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <vector>
 
+#include "mcdn/metrics.h"
+
 namespace mcdn {
 
 ConvergedTiles tiles_worse_than_render(const Plane mse[3], const Plane variance[3],
@@ -23,7 +25,7 @@ ConvergedTiles tiles_worse_than_render(const Plane mse[3], const Plane variance[
                 for (int x = tx * t; x < std::min(w, (tx + 1) * t); ++x)
                     for (int c = 0; c < 3; ++c) {
                         const double r = result[c](x, y);
-                        const double weight = 1.0 / (r * r + 0.01);
+                        const double weight = 1.0 / (r * r + kRelMseOffset);
                         terms.push_back(double(mse[c](x, y)) * weight);
                         render += double(variance[c](x, y)) * weight;
                     }
