@@ -268,6 +268,16 @@ class BadInputRaisesInEveryOp(unittest.TestCase):
                     self.assertIn("channel '%s'" % channel, str(caught.exception))
                     self.assertIn(problem, str(caught.exception))
 
+    def test_what_is_not_a_file_raises_at_once(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            fifo = os.path.join(tmp, "fifo.exr")
+            os.mkfifo(fifo)
+            for path, what in ((fifo, "a FIFO"), ("/dev/zero", "a device")):
+                with self.subTest(path=path):
+                    with self.assertRaises(RuntimeError) as caught:
+                        mcdenoise.read_inputs([(path, "mean")])
+                    self.assertIn(path + ": not a regular file (" + what, str(caught.exception))
+
     def test_halves_of_another_render_raise(self):
         render = box_inputs()
         mirrored = oiio.ImageBufAlgo.flip(render)
