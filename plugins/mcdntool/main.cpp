@@ -21,6 +21,7 @@
 #include <OpenImageIO/sysutil.h>
 #include <OpenImageIO/timer.h>
 
+#include "mcdn/threads.h"
 #include "mcdn/version.h"
 
 #include "command_line.h"
@@ -257,6 +258,7 @@ bool run_frames(const std::vector<Command>& commands, const std::vector<int>& fr
     std::atomic<size_t> next { 0 }, done { 0 };
     std::atomic<bool> failed { false };
     std::mutex print;
+    mcdn::start_threads(threads);
     auto worker = [&] {
         for (size_t f; (!failed || line.skip_bad_frames) && (f = next++) < frames.size();) {
             OIIO::Timer timer;
@@ -281,6 +283,10 @@ bool run_frames(const std::vector<Command>& commands, const std::vector<int>& fr
                 // an abort (outputs go through a temporary name: nothing partial is left).
                 error = "out of memory for this frame (fewer input channels, or a smaller "
                         "--cnn:tile, need less)";
+            } catch (const std::exception& e) {
+                // What a library throws where it cannot go on (a thread it could not create
+                // when memory ran out, TBB's "pthread_create has failed"): the frame fails.
+                error = format("{} (out of memory or threads?)", e.what());
             }
             std::lock_guard<std::mutex> lock(print);
             if (!ok) {

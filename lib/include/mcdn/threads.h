@@ -16,4 +16,10 @@ bool check_threads(int nthreads, std::string& error);
 /// A typed thread count (--threads N, recipe threads=N): digits only, then check_threads.
 bool parse_threads(const std::string& text, int& nthreads, std::string& error);
 
+/// Starts the workers `nthreads` (0: all cores) will use, TBB's and the network engine's
+/// OpenMP ones, now: a process whose memory runs out later (an address-space limit) then
+/// never has to create a thread, which TBB and OpenMP cannot fail without aborting.
+/// mcdntool calls it before its first frame.
+void start_threads(int nthreads);
+
 }  // namespace mcdn

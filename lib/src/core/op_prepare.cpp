@@ -72,7 +72,7 @@ bool prepare_op(ImageBuf& dst, const ImageBuf& src, const AovSpec& spec, AovSet&
     if (!room.empty()) {
         dst = copy_with_channels(src, OIIO::Strutil::splits(room, "\n"), {}, nthreads);
         if (!dst.localpixels()) {
-            dst.errorfmt("{}: could not allocate a copy of the input with {} more channels",
+            dst.errorfmt("{}: out of memory for a copy of the input with {} more channels",
                          op, OIIO::Strutil::splits(room, "\n").size());
             return false;
         }

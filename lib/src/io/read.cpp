@@ -214,7 +214,7 @@ bool read_pixels_into(ImageBuf& dst, int first, const FileLayout& layout, ImageI
                       const std::vector<bool>& keep, int y0, int y1, std::string& error)
 {
     auto failed = [&] {
-        error = format("{}: cannot read pixels (truncated or corrupt?): {}", layout.path,
+        error = format("{}: cannot read pixels (truncated or corrupt, or out of memory?): {}", layout.path,
                        one_line(in.geterror()));
         return false;
     };
