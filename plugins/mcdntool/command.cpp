@@ -93,7 +93,8 @@ const std::vector<CommandInfo>& command_table()
               "(nfor's mse=1 and selection=1, mix's alpha=1).",
               run_channels, false, {}, {} },
             { "-o", "FILE", { "datatype", "compression" },
-              "Write the current image (datatype=half|float, default float; compression=zip). "
+              "Write the current image (datatype=half|float, default float; compression=zip, "
+              "or with a level as oiiotool takes it: zip:5, dwaa:45). "
               "Written to a temporary name and renamed: never a partial file.",
               run_output, false, check_output, {} },
             { "--fixnan", "STRATEGY", {},
