@@ -162,7 +162,7 @@ bool outputs_exist(const std::vector<Command>& commands)
 }
 
 // What the command line's stages read of the variance and half-buffer files: the faces of
-// the roles, and the halves only for NFOR (or where no variance is given, from which the
+// the roles, and the halves only for NFOR and its prefilter (or where no variance is given, from which the
 // stages then take the halves' difference), the light split's only for the CNN.
 // Everything when a command names channels. --info without a stage reads what any stage
 // could, so that it says what each can do with the files given.
@@ -171,21 +171,22 @@ mcdn::InputSelection input_selection(const std::vector<Command>& commands)
     mcdn::InputSelection selection;
     selection.only_roles = true;
     selection.light_split = false;
-    bool nfor = false, variance = false, info = false, stage = false;
+    bool halves = false, variance = false, info = false, stage = false;
     for (const auto& c : commands) {
         info |= c.name == "--info";
         stage |= is_stage(c.name);
         if (c.name == "--ch" || (c.name == "--info" && c.has("verbose"))
             || (c.name == "--metrics" && c.has("channels")))
             selection.only_roles = false;
-        selection.light_split |= c.name == "--cnn" || c.name == "--denoise" || c.name == "--info";
-        nfor |= c.name == "--prefilter" || c.name == "--nfor";
+        const mcdn::StageInfo* reads = stage_of_command(c.name);
+        selection.light_split |= (reads && reads->reads_light_split) || c.name == "--info";
+        halves |= reads && reads->reads_halves;
         variance |= c.name == "-i" && c.modifier("as") == "variance";
-        if ((c.name == "--prefilter" || c.name == "--nfor") && c.has("features"))
+        if (reads && c.has("features"))  // a stage's extra feature channels
             for (const std::string& f : Strutil::splits(c.modifier("features"), ","))
                 selection.extra_features.push_back(f);
     }
-    selection.halves = nfor || !variance || (info && !stage);
+    selection.halves = halves || !variance || (info && !stage);
     return selection;
 }
 

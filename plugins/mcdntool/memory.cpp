@@ -2,7 +2,7 @@
 
 #include "session.h"
 
-#include "mcdn/cnn.h"
+#include "mcdn/stages.h"
 
 #include <algorithm>
 #include <cstdlib>
@@ -20,35 +20,23 @@ using OIIO::Strutil::fmt::format;
 
 namespace {
 
-// Frame-sized buffers each stage adds at its peak, in merged frames.
-double stage_frames(const std::string& stage)
+// A stage command's settings (mcdn/stages.h), without the front end's frames=N.
+mcdn::Settings settings_of(const Command& c)
 {
-    if (stage == "--prefilter")
-        return 0.5;  // the prefiltered features beside the frame
-    if (stage == "--nfor")
-        return 2.0;  // the result and the per-buffer regression outputs
-    if (stage == "--cnn")
-        return 1.2;  // the result and the converged map
-    if (stage == "--sure")
-        return 1.5;  // the noisy copy and the denoiser's responses
-    if (stage == "--mix")
-        return 0.8;  // the result
-    if (stage == "--denoise")
-        return 3.5;  // --cnn --sure --mix
-    return 0.0;
+    mcdn::Settings settings = c.modifiers;
+    settings.erase("frames");
+    return settings;
 }
 
-// The CNN's per-thread network buffers (cnn.h): 350 MB at tile=512, scaled as (tile + halo)^2.
-double cnn_thread_bytes(const std::vector<Command>& commands)
+// Bytes per worker thread of the stage that holds the most (the CNN's network buffers):
+// stages run one after the other.
+double thread_bytes(const std::vector<Command>& commands)
 {
+    double most = 0;
     for (const auto& c : commands)
-        if (c.name == "--cnn") {
-            double tile = OIIO::Strutil::stod(
-                c.modifier("tile", std::to_string(mcdn::CnnOptions{}.tile_size)));
-            double side = (std::max(tile, 1.0) + 64) / (512 + 64);
-            return 350e6 * side * side;
-        }
-    return 0.0;
+        if (const mcdn::StageInfo* stage = stage_of_command(c.name); stage && stage->thread_bytes)
+            most = std::max(most, stage->thread_bytes(settings_of(c)));
+    return most;
 }
 
 }  // namespace
@@ -64,7 +52,8 @@ double estimated_peak_bytes(const std::vector<Command>& commands, double pixels,
 {
     double frames = 0;
     for (const auto& c : commands) {
-        frames += stage_frames(c.name);
+        if (const mcdn::StageInfo* stage = stage_of_command(c.name))
+            frames += stage->frame_buffers;
         // Cross-frame (--nfor, --cnn, --denoise): the neighbours' merged inputs, held while
         // the stage runs.
         if (c.has("frames"))
@@ -73,7 +62,7 @@ double estimated_peak_bytes(const std::vector<Command>& commands, double pixels,
     const double stage_pixels = band_pixels > 0 ? std::min(pixels, band_pixels) : pixels;
     // The merged input, then the stages' buffers of a band (or of the frame).
     return (pixels + frames * stage_pixels) * channels * sizeof(float)
-           + threads * cnn_thread_bytes(commands);
+           + threads * thread_bytes(commands);
 }
 
 bool available_bytes(double& bytes, std::string& error)

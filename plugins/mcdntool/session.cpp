@@ -67,7 +67,7 @@ void Session::capture_input_features(const std::vector<Queued>& stages)
 {
     // Once, from the current image: the first prefilter has not run on it yet.
     const bool queued = std::any_of(stages.begin(), stages.end(), [](const Queued& q) {
-        return q.name == "prefilter";
+        return mcdn::find_stage(q.name)->changes_features;
     });
     if (!queued || m_input_features.initialized())
         return;
@@ -454,7 +454,9 @@ bool run_info(Session& s, const Command& c, std::string& error)
     if (!s.aovs().detected_because().empty())
         std::cout << "  preset detected from " << s.aovs().detected_because() << "\n";
     std::cout << "  stages:\n";
-    for (const char* stage : { "prefilter", "nfor", "cnn", "sure", "mix" }) {
+    for (const std::string& stage : mcdn::stage_names({ mcdn::StageKind::Denoiser,
+                                                        mcdn::StageKind::Estimator,
+                                                        mcdn::StageKind::Mixer })) {
         std::string how;
         const bool can = mcdn::stage_can_run(stage, s.aovs(), how);
         std::cout << format("    --{:<10} {}: {}\n", stage, can ? "yes" : "no ", how);

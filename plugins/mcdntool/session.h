@@ -12,6 +12,7 @@
 #include "mcdn/aov.h"
 #include "mcdn/io.h"
 #include "mcdn/settings.h"
+#include "mcdn/stages.h"
 #include "mcdn/sure.h"
 
 #include "command.h"
@@ -150,8 +151,10 @@ int64_t band_pixels();
 bool run_streamed_chain(Session& s, const std::vector<Command>& commands, size_t first_stage,
                         bool& streamed, std::string& error);
 
-/// Commands of the denoising stages, with their checks (stages.cpp).
+/// Commands of the library's stages (mcdn/stages.h), with their checks (stages.cpp).
 std::vector<CommandInfo> stage_commands();
+/// The stage a command runs (--nfor: nfor), null for other commands.
+const mcdn::StageInfo* stage_of_command(const std::string& name);
 /// `name` is one of them (--denoise, --prefilter, --nfor, --cnn, --sure, --mix).
 bool is_stage(const std::string& name);
 

@@ -47,10 +47,10 @@ size_t streamed_chain_start(const std::vector<Command>& commands)
     for (size_t i = first; i + 1 < commands.size(); ++i)
         if (commands[i].has("frames"))
             return 0;
-    // --denoise picks its stages itself: alone or not at all.
+    // A plan (--denoise) picks its stages itself: alone or not at all.
     const size_t stages = commands.size() - 1 - first;
     for (size_t i = first; i + 1 < commands.size(); ++i)
-        if (commands[i].name == "--denoise" && stages != 1)
+        if (stage_of_command(commands[i].name)->kind == mcdn::StageKind::Plan && stages != 1)
             return 0;
     std::vector<std::string> names, unused;
     for (size_t i = first; i + 1 < commands.size(); ++i)
@@ -102,10 +102,11 @@ bool run_streamed_chain(Session& s, const std::vector<Command>& commands, size_t
         for (const auto& [key, value] : commands[i].modifiers)
             chain.settings[stage + "." + key] = value;
     }
-    if (s.verbose && chain.stages == std::vector<std::string> { "denoise" }) {
+    if (s.verbose && stage_of_command(commands[first].name)->kind == mcdn::StageKind::Plan) {
         mcdn::DenoisePlan plan;
         if (mcdn::plan_denoise(plan, input, s.aov_spec, error))
-            std::cerr << "mcdntool: --denoise runs " << plan.describe() << "\n";
+            std::cerr << "mcdntool: " << commands[first].name << " runs " << plan.describe()
+                      << "\n";
     }
     // Converged tiles are counted on the rows as the chain reads them: each band's own rows
     // once (bands start on the tile grid, mcdn/skip.h), through the light pass's reads, which

@@ -7,6 +7,7 @@
 #include <pybind11/stl.h>
 
 #include "mcdn/aov.h"
+#include "mcdn/chain.h"
 #include "mcdn/cnn.h"
 #include "mcdn/denoise.h"
 #include "mcdn/frames.h"
@@ -16,6 +17,7 @@
 #include "mcdn/nfor.h"
 #include "mcdn/prefilter.h"
 #include "mcdn/settings.h"
+#include "mcdn/stages.h"
 #include "mcdn/sure.h"
 
 namespace py = pybind11;
@@ -140,32 +142,45 @@ struct CheckedFrames {
     }
 };
 
-// A denoiser by name, and how far it reaches (SureOptions::denoiser_radius).
+// Denoisers by name ("nfor", "cnn", "prefilter,nfor": Denoisers of the stage table,
+// mcdn/stages.h) as one, with how far they reach (SureOptions::denoiser_radius) and whether
+// one of them reads the half buffers.
 mcdn::Denoiser named_denoiser(const std::string& chain, const mcdn::AovSpec& spec,
-                              const mcdn::SkipOptions& skip, int nthreads, int& radius)
+                              const mcdn::SkipOptions& skip, int nthreads, int& radius,
+                              bool& reads_halves)
 {
-    radius = -1;
-    if (chain == "cnn") {
-        radius = mcdn::chain_radius({ mcdn::stage_reach(mcdn::CnnOptions()) });
-        return [spec, skip, nthreads](ImageBuf& dst, const ImageBuf& src) {
-            mcdn::CnnOptions o;
-            o.aovs = spec;
-            o.skip = skip;
-            return mcdn::cnn(dst, src, o, {}, nthreads);
-        };
+    std::vector<std::string> names;
+    std::string error;
+    const std::vector<std::string> known = mcdn::stage_names({ mcdn::StageKind::Denoiser });
+    auto unknown = [&]() {
+        return std::runtime_error("sure: unknown denoiser '" + chain + "' (use "
+                                  + OIIO::Strutil::join(known, ", ")
+                                  + ", several joined by commas, or a callable)");
+    };
+    if (!mcdn::parse_chain(names, chain, error))
+        throw unknown();
+    mcdn::StageContext context;
+    context.aovs = spec;
+    context.nthreads = nthreads;
+    const mcdn::Settings settings = { { "skip", text(skip.enabled) },
+                                      { "converged", text(skip.max_relative_error) } };
+    std::vector<std::pair<std::string, mcdn::Denoiser>> denoisers;
+    std::vector<mcdn::StageReach> reach;
+    reads_halves = false;
+    for (const std::string& name : names) {
+        const mcdn::StageInfo& stage = *mcdn::find_stage(name);
+        mcdn::MadeStage made;
+        if (stage.kind != mcdn::StageKind::Denoiser)
+            throw unknown();
+        if (!stage.make(made, settings, context, error))
+            throw std::runtime_error("sure: " + name + ": " + error);
+        denoisers.emplace_back(name, std::move(made.run));
+        reach.push_back(made.reach);
+        reads_halves |= stage.reads_halves;
     }
-    if (chain == "nfor" || chain == "prefilter,nfor") {
-        radius = mcdn::chain_radius({ mcdn::stage_reach(mcdn::NforOptions()) });
-        return [spec, skip, nthreads](ImageBuf& dst, const ImageBuf& src) {
-            mcdn::NforOptions o;
-            o.aovs = spec;
-            o.skip = skip;
-            return mcdn::nfor(dst, src, o, {}, nthreads);
-        };
-    }
-    throw std::runtime_error("sure: unknown denoiser '" + chain + "' (use 'nfor', 'cnn' or a callable)");
+    radius = mcdn::chain_radius(reach);
+    return mcdn::compose(std::move(denoisers));
 }
-
 
 // Read_inputs, write, validate: files in and out, and the checks mcdntool makes.
 void bind_files(py::module_& m)
@@ -354,13 +369,10 @@ void bind_progressive(py::module_& m)
                     { "converged", text(converged) } });
               mcdn::Denoiser f;
               // NFOR reads the halves; a callable may (without a variance, the stages do).
-              const Halves reads = py::isinstance<py::str>(denoiser)
-                                           && denoiser.cast<std::string>() != "cnn"
-                                       ? Halves::Read
-                                       : Halves::WithoutVariance;
+              bool reads_halves = false;
               if (py::isinstance<py::str>(denoiser))
                   f = named_denoiser(denoiser.cast<std::string>(), o.aovs, o.skip, nthreads,
-                                     o.denoiser_radius);
+                                     o.denoiser_radius, reads_halves);
               else {
                   // A Python callable ImageBuf -> ImageBuf; called with the GIL held.
                   auto callable = denoiser.cast<py::function>();
@@ -375,7 +387,8 @@ void bind_progressive(py::module_& m)
                       }
                   };
               }
-              return run(src, o.aovs, reads, [&](ImageBuf& d, const ImageBuf& s) {
+              return run(src, o.aovs, reads_halves ? Halves::Read : Halves::WithoutVariance,
+                         [&](ImageBuf& d, const ImageBuf& s) {
                   return mcdn::sure(d, s, f, o, {}, nthreads);
               });
           },
@@ -384,8 +397,8 @@ void bind_progressive(py::module_& m)
           py::arg("probes") = 1, py::arg("eps") = 1e-3f,
           py::arg("fallback") = mcdn::SureOptions().fallback, py::arg("skip") = true,
           py::arg("converged") = mcdn::SkipOptions().max_relative_error, py::arg("nthreads") = 0,
-          "Monte-Carlo SURE (PD §3.2) of a denoiser: 'nfor' or a callable ImageBuf -> "
-          "ImageBuf. Returns the denoised image with noisy.*, sure.*, sure.divergence.*, "
+          "Monte-Carlo SURE (PD §3.2) of a denoiser: 'nfor', 'cnn', 'prefilter,nfor' or a "
+          "callable ImageBuf -> ImageBuf. Returns the denoised image with noisy.*, sure.*, sure.divergence.*, "
           "sure.residual.* channels. fallback: 32x32 tiles where SURE finds the denoiser worse "
           "than the render are the render (the safety net; False keeps the denoiser's).");
 

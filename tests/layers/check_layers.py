@@ -10,8 +10,8 @@ Layers, lowest first (a file may include its own layer and those below it):
                 foundation (frames in bands and in the working space, neighbouring frames
                 aligned by their motion)
   2 stages      lib/src/{prefilter,nfor,cnn,sure,mix,frames}/ and their public headers
-  3 chains      lib/src/chain/, mcdn/{chain,settings,denoise}.h: the only code that knows
-                every stage
+  3 chains      lib/src/chain/, mcdn/{chain,settings,stages,denoise}.h: the only code that
+                knows every stage (the stage table, mcdn/stages.h)
 Public headers follow the same rule by the layer of the header itself.
 
 Within a layer, folders include each other one way only: a public header counts as its
@@ -32,14 +32,15 @@ HEADERS = {
     "aov": 0, "io": 0, "color": 0, "metrics": 0, "skip": 0, "threads": 0, "version": 0,
     "progress": 0,
     "prefilter": 2, "nfor": 2, "cnn": 2, "sure": 2, "mix": 2, "frames": 2,
-    "chain": 3, "settings": 3, "denoise": 3,
+    "chain": 3, "settings": 3, "stages": 3, "denoise": 3,
 }
 # The folder whose code a public header declares.
 HEADER_FOLDER = {
     "aov": "aov", "io": "io", "color": "color", "metrics": "metrics", "skip": "skip",
     "threads": "core", "version": "core", "progress": "core",
-    "prefilter": "prefilter", "nfor": "nfor", "cnn": "cnn", "sure": "sure", "mix": "mix",
-    "frames": "frames", "chain": "chain", "settings": "chain", "denoise": "chain",
+    "prefilter": "prefilter", "nfor": "nfor", "cnn": "cnn", "sure": "sure",
+    "mix": "mix", "frames": "frames", "chain": "chain", "settings": "chain", "stages": "chain",
+    "denoise": "chain",
 }
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"', re.M)
 

@@ -10,14 +10,10 @@
 #include "core/attributes.h"
 #include "core/frame_facts.h"
 #include "core/op_prepare.h"
-#include "mcdn/cnn.h"
 #include "mcdn/denoise.h"
-#include "mcdn/mix.h"
-#include "mcdn/nfor.h"
-#include "mcdn/prefilter.h"
 #include "mcdn/settings.h"
+#include "mcdn/stages.h"
 #include "mcdn/sure.h"
-#include "sure/sure_steps.h"
 
 namespace mcdn {
 
@@ -26,18 +22,21 @@ namespace Strutil = OIIO::Strutil;
 
 namespace {
 
-const std::vector<std::string> kStages = { "prefilter", "nfor", "cnn", "sure", "mix" };
-
-// One stage's Options from the "stage.key" settings; the error names the setting as given.
-template <class Options>
-bool stage_options(Options& options, const ChainOptions& o, const std::string& stage,
-                   std::string& error)
+// The stages a chain may name (the Plan, denoise, only alone).
+std::vector<std::string> chain_stages()
 {
-    options.aovs = o.aovs;
-    options.progress = o.progress;
-    if (apply_settings(options, stage_settings(o.settings, stage), error))
+    return stage_names({ StageKind::Denoiser, StageKind::Estimator, StageKind::Mixer });
+}
+
+// One stage's settings out of the chain's "stage.key" settings, checked by the table's
+// parser; the error names the setting as given.
+bool checked_settings(Settings& settings, const StageInfo& stage, const ChainOptions& o,
+                      std::string& error)
+{
+    settings = stage_settings(o.settings, stage.name);
+    if (stage.check(settings, error))
         return true;
-    error = stage + "." + error;  // "nfor.window=4 must be ..."
+    error = stage.name + "." + error;  // "nfor.window=4 must be ..."
     return false;
 }
 
@@ -45,53 +44,34 @@ bool stage_options(Options& options, const ChainOptions& o, const std::string& s
 // a misspelt key is an error, not silently the default.
 bool check_settings(const ChainOptions& o, std::string& error)
 {
+    const std::vector<std::string> stages = chain_stages();
     for (const auto& [key, value] : o.settings) {
         std::string stage = key.substr(0, key.find('.'));
         if (key.find('.') == std::string::npos
-            || std::find(kStages.begin(), kStages.end(), stage) == kStages.end()) {
+            || std::find(stages.begin(), stages.end(), stage) == stages.end()) {
             error = format("'{}': not a stage setting (stage.key, stages: {})", key,
-                           Strutil::join(kStages, ", "));
+                           Strutil::join(stages, ", "));
             return false;
         }
     }
-    PrefilterOptions p;
-    NforOptions n;
-    CnnOptions c;
-    SureOptions s;
-    MixOptions m;
-    return stage_options(p, o, "prefilter", error) && stage_options(n, o, "nfor", error)
-           && stage_options(c, o, "cnn", error) && stage_options(s, o, "sure", error)
-           && stage_options(m, o, "mix", error);
+    Settings settings;
+    for (const std::string& name : stages)
+        if (!checked_settings(settings, *find_stage(name), o, error))
+            return false;
+    return true;
 }
 
-// One denoiser of the chain, and how far it reaches (`reach`, for sure's bands).
-std::pair<std::string, Denoiser> denoiser_stage(const std::string& name, const ChainOptions& o,
-                                                int nthreads, StageReach& reach)
+// A stage of the chain made from its settings (check_settings has checked them).
+bool make_stage(MadeStage& made, const std::string& name, const ChainOptions& o,
+                StageContext context, std::string& error, int nthreads)
 {
-    std::string unused;  // check_settings has checked them
-    reach = StageReach();
-    if (name == "prefilter") {
-        PrefilterOptions p;
-        stage_options(p, o, name, unused);
-        reach = stage_reach(p);
-        return { name, [p, nthreads](ImageBuf& dst, const ImageBuf& src) {
-                    return prefilter(dst, src, p, {}, nthreads);
-                } };
-    }
-    if (name == "cnn") {
-        CnnOptions c;
-        stage_options(c, o, name, unused);
-        reach = stage_reach(c);
-        return { name, [c, nthreads](ImageBuf& dst, const ImageBuf& src) {
-                    return cnn(dst, src, c, {}, nthreads);
-                } };
-    }
-    NforOptions n;
-    stage_options(n, o, name, unused);
-    reach = stage_reach(n);
-    return { name, [n, nthreads](ImageBuf& dst, const ImageBuf& src) {
-                return nfor(dst, src, n, {}, nthreads);
-            } };
+    const StageInfo& stage = *find_stage(name);
+    Settings settings;
+    context.aovs = o.aovs;
+    context.progress = o.progress;
+    context.nthreads = nthreads;
+    return checked_settings(settings, stage, o, error)
+           && stage.make(made, settings, context, error);
 }
 
 }  // namespace
@@ -99,23 +79,31 @@ std::pair<std::string, Denoiser> denoiser_stage(const std::string& name, const C
 bool parse_chain(std::vector<std::string>& stages, const std::string& text, std::string& error)
 {
     stages = Strutil::splits(text, ",");
-    if (stages.size() == 1 && stages[0] == "denoise")
-        return true;  // the best chain the inputs allow (mcdn/denoise.h)
-    bool seen_sure = false;
-    for (const auto& s : stages) {
-        if (std::find(kStages.begin(), kStages.end(), s) == kStages.end()) {
-            error = format(s == "denoise" ? "chain '{1}': denoise picks the whole chain itself; "
-                                            "give it alone or name the stages"
-                                          : "unknown stage '{0}' in chain '{1}' (stages: {2}, or "
-                                            "denoise alone)",
-                           s, text, Strutil::join(kStages, ", "));
+    bool seen_estimator = false;
+    for (auto& s : stages) {
+        const StageInfo* stage = find_stage(s);
+        if (stage && stage->kind == StageKind::Plan) {
+            if (stages.size() == 1) {
+                s = stage->name;
+                return true;  // the best chain the inputs allow (mcdn/denoise.h)
+            }
+            error = format("chain '{}': {} picks the whole chain itself; give it alone or "
+                           "name the stages", text, s);
             return false;
         }
-        if (s == "mix" && !seen_sure) {
-            error = format("chain '{}': mix needs sure before it", text);
+        if (!stage) {
+            error = format("unknown stage '{}' in chain '{}' (stages: {}, or {} alone)", s,
+                           text, Strutil::join(chain_stages(), ", "),
+                           Strutil::join(stage_names({ StageKind::Plan }), " or "));
             return false;
         }
-        seen_sure |= s == "sure";
+        if (stage->kind == StageKind::Mixer && !seen_estimator) {
+            error = format("chain '{}': {} needs {} before it", text, s,
+                           Strutil::join(stage_names({ StageKind::Estimator }), " or "));
+            return false;
+        }
+        seen_estimator |= stage->kind == StageKind::Estimator;
+        s = stage->name;
     }
     if (stages.empty()) {
         error = "empty chain";
@@ -162,13 +150,17 @@ bool copy_channels_by_name(ImageBuf& dst, const ImageBuf& input,
 
 namespace {
 
-// A prefilter in the chain changes the features, which the output keeps only when asked.
+// A stage that changes the features (the prefilter) makes the output keep the input's
+// unless a stage of the chain asks for its own (features-out).
 bool keeps_prefiltered_features(const ChainOptions& o)
 {
-    if (std::find(o.stages.begin(), o.stages.end(), "prefilter") == o.stages.end())
+    if (std::none_of(o.stages.begin(), o.stages.end(), [](const std::string& name) {
+            const StageInfo* stage = find_stage(name);
+            return stage && stage->changes_features;
+        }))
         return true;
-    for (const char* key : { "prefilter.features-out", "nfor.features-out" }) {
-        auto it = o.settings.find(key);
+    for (const StageInfo& stage : stage_table()) {
+        auto it = o.settings.find(stage.name + ".features-out");
         if (it != o.settings.end() && it->second != "0")
             return true;
     }
@@ -298,7 +290,7 @@ bool run_stages(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOp
         dst.errorfmt("{}", error);
         return false;
     }
-    if (o.stages.size() == 1 && o.stages[0] == "denoise") {
+    if (o.stages.size() == 1 && find_stage(o.stages[0])->kind == StageKind::Plan) {
         // What mcdn::denoise runs, with this chain's bands.
         DenoisePlan plan;
         if (!plan_denoise(plan, src.spec(), o.aovs, error)) {
@@ -316,54 +308,60 @@ bool run_stages(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOp
     }
     // The image the next stage reads: src itself until a stage has made another (an
     // ImageBuf copy would copy its pixels).
-    ImageBuf made;
+    ImageBuf made_image;
     const ImageBuf* current = &src;
     std::vector<std::pair<std::string, Denoiser>> pending;  // denoisers since the last sure/mix
     std::vector<StageReach> pending_reach;
     for (const std::string& name : o.stages) {
-        if (name == "prefilter" || name == "nfor" || name == "cnn") {
+        const StageInfo& stage = *find_stage(name);
+        MadeStage made;
+        StageContext context;
+        context.roi = roi;
+        if (stage.kind == StageKind::Denoiser) {
             // Denoisers wait: a sure after them runs them itself (K + 1 times), else they
             // run at the end.
-            pending_reach.emplace_back();
-            pending.push_back(denoiser_stage(name, o, nthreads, pending_reach.back()));
+            if (!make_stage(made, name, o, context, error, nthreads)) {
+                dst.errorfmt("{}", stage_error(name, error));
+                return false;
+            }
+            pending_reach.push_back(made.reach);
+            pending.emplace_back(name, std::move(made.run));
             continue;
         }
         ImageBuf next;
-        // mix runs in place on a result of the chain's own (not on src): a frame less.
-        ImageBuf& out = name == "mix" && current == &made ? made : next;
-        bool ok;
-        if (name == "sure") {
-            SureOptions s;
-            stage_options(s, o, name, error);
-            s.denoiser_radius = chain_radius(pending_reach);
-            // The cnn alone writes only its colour and extras, and reads no extra when
-            // probed: it may run in the input itself (SureOptions::denoiser_in_place).
-            s.denoiser_in_place = pending.size() == 1 && pending[0].first == "cnn";
-            // Probed in the chain's own input where it has one (a frame less).
-            const bool probe_own = own && current == &src;
-            ok = probe_own
-                     ? sure_probing_src(next, *own, compose_in_place(std::move(pending)), s, roi,
-                                        nthreads)
-                     : sure(next, *current, compose_in_place(std::move(pending)), s, roi, nthreads);
-            // No later stage reads the chain's input (its features are kept apart): its
-            // pages go back now (the mix's network is next). Assigned, not reset: sure may
-            // have made it its result (moved from, it has no state to reset).
-            if (ok && probe_own)
-                *own = ImageBuf();
+        // A mix runs in place on a result of the chain's own (not on src): a frame less.
+        ImageBuf& out = stage.kind == StageKind::Mixer && current == &made_image ? made_image
+                                                                                 : next;
+        // Probed in the chain's own input where it has one (a frame less).
+        const bool probe_own = stage.kind == StageKind::Estimator && own && current == &src;
+        if (stage.kind == StageKind::Estimator) {
+            context.denoiser_radius = chain_radius(pending_reach);
+            // A denoiser that writes only its colour and extras and reads no extra when
+            // probed may run in the input itself (SureOptions::denoiser_in_place).
+            context.denoiser_in_place = pending.size() == 1
+                                        && find_stage(pending[0].first)->probes_in_place;
+            context.denoiser = compose_in_place(std::move(pending));
             pending.clear();
             pending_reach.clear();
-        } else {  // mix
-            MixOptions m;
-            stage_options(m, o, name, error);
-            ok = mix(out, *current, m, roi, nthreads);
         }
+        bool ok = make_stage(made, name, o, context, error, nthreads);
+        if (!ok) {
+            dst.errorfmt("{}", stage_error(name, error));
+            return false;
+        }
+        ok = probe_own ? made.run_on_own(next, *own) : made.run(out, *current);
+        // No later stage reads the chain's input (its features are kept apart): its pages
+        // go back now (the mix's network is next). Assigned, not reset: sure may have made
+        // it its result (moved from, it has no state to reset).
+        if (ok && probe_own)
+            *own = ImageBuf();
         if (!ok) {
             dst.errorfmt("{}", stage_error(name, out.geterror()));
             return false;
         }
         if (&out == &next)
-            made = std::move(next);
-        current = &made;
+            made_image = std::move(next);
+        current = &made_image;
     }
     if (pending.empty()) {
         // Not `dst = cond ? src : std::move(made)`: that expression is a const prvalue,
@@ -371,7 +369,7 @@ bool run_stages(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOp
         if (current == &src)
             dst.copy(src);
         else
-            dst = std::move(made);
+            dst = std::move(made_image);
         return true;
     }
     if (own && current == &src) {

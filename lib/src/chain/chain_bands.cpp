@@ -24,6 +24,7 @@
 #include "mcdn/nfor.h"
 #include "mcdn/prefilter.h"
 #include "mcdn/settings.h"
+#include "mcdn/stages.h"
 #include "mcdn/sure.h"
 #include "sure/sure_steps.h"
 
@@ -36,7 +37,8 @@ bool resolved_stages(std::vector<std::string>& stages, const ImageSpec& spec,
                      const ChainOptions& o, std::string& error)
 {
     stages = o.stages;
-    if (stages.size() == 1 && stages[0] == "denoise") {
+    const StageInfo* plan = stages.size() == 1 ? find_stage(stages[0]) : nullptr;
+    if (plan && plan->kind == StageKind::Plan) {
         DenoisePlan plan;
         if (!plan_denoise(plan, spec, o.aovs, error))
             return false;
@@ -56,15 +58,16 @@ public:
               const std::vector<std::string>& stages)
         : m_aovs(aovs), m_ybegin(spec.y), m_yend(spec.y + spec.height)
     {
-        auto has = [&](std::initializer_list<const char*> names) {
-            for (const char* name : names)
-                if (std::find(stages.begin(), stages.end(), name) != stages.end())
-                    return true;
-            return false;
-        };
-        m_needs_colour = has({ "nfor", "sure", "mix" }) && aovs.channels(Role::Color).size() == 3;
-        m_needs_depth = has({ "cnn" });
-        m_needs_constants = has({ "prefilter", "nfor" });
+        StageFacts facts;
+        for (const std::string& name : stages)
+            if (const StageInfo* stage = find_stage(name)) {
+                facts.colour_sums |= stage->facts.colour_sums;
+                facts.depth_range |= stage->facts.depth_range;
+                facts.constant_features |= stage->facts.constant_features;
+            }
+        m_needs_colour = facts.colour_sums && aovs.channels(Role::Color).size() == 3;
+        m_needs_depth = facts.depth_range;
+        m_needs_constants = facts.constant_features;
         m_reads.assign(size_t(spec.nchannels), false);
         if (m_needs_colour)
             for (Role r : { Role::Color, Role::ColorVariance })
@@ -84,8 +87,8 @@ public:
             for (const std::vector<int>* channels : { &extra.channels, &extra.half_a, &extra.half_b })
                 for (int ch : *channels)
                     m_names.push_back(spec.channel_name(ch));
-        for (const char* key : { "prefilter.features", "nfor.features" })
-            if (auto it = o.settings.find(key); it != o.settings.end())
+        for (const StageInfo& stage : stage_table())  // a stage's extra features= channels
+            if (auto it = o.settings.find(stage.name + ".features"); it != o.settings.end())
                 for (const std::string& name : OIIO::Strutil::splits(it->second, ","))
                     for (const std::string& face : { name, "variance." + name, "A." + name, "B." + name })
                         if (spec.channelindex(face) >= 0)
@@ -194,27 +197,16 @@ int chain_reach(const ImageSpec& spec, const ChainOptions& o)
         return -1;
     // Each stage's reach; chain_radius knows that nfor reaches less after a prefilter.
     std::vector<StageReach> reaches;
-    std::string denoiser = "nfor";
+    std::string denoiser = "nfor";  // a mix with no denoiser before it: mix.mcdnw's reach
     for (const std::string& name : stages) {
-        const std::map<std::string, std::string> settings = stage_settings(o.settings, name);
-        StageReach reach { 0, 0, false };  // sure reaches no further than its denoiser
-        if (name == "prefilter") {
-            PrefilterOptions p;
-            reach = apply_settings(p, settings, error) ? stage_reach(p) : StageReach();
-        } else if (name == "nfor") {
-            NforOptions n;
-            reach = apply_settings(n, settings, error) ? stage_reach(n) : StageReach();
-            denoiser = "nfor";
-        } else if (name == "cnn") {
-            CnnOptions c;
-            reach = apply_settings(c, settings, error) ? stage_reach(c) : StageReach();
-            denoiser = "cnn";
-        } else if (name == "mix") {
-            MixOptions m;
-            const int r = apply_settings(m, settings, error) ? receptive_radius(m, denoiser) : -1;
-            reach = { r, r, false };
-        }
-        reaches.push_back(reach);
+        const StageInfo* stage = find_stage(name);
+        if (!stage)
+            return -1;
+        const Settings settings = stage_settings(o.settings, name);
+        // Without a reach of its own (sure) a stage reaches no further than its denoisers.
+        reaches.push_back(stage->reach ? stage->reach(settings, denoiser) : StageReach { 0, 0, false });
+        if (stage->kind == StageKind::Denoiser && !stage->changes_features)
+            denoiser = name;  // the prefilter filters the features, not the colour
     }
     return chain_radius(reaches);
 }
@@ -228,9 +220,15 @@ std::vector<std::string> sure_room(const ImageSpec& frame, const ChainOptions& o
     std::string error;
     AovSet aovs;
     SureOptions s;
-    if (!resolved_stages(stages, frame, o, error) || stages.size() < 2 || stages[0] != "cnn"
-        || stages[1] != "sure" || !resolve_aovs(aovs, o.aovs, frame, error)
-        || !apply_settings(s, stage_settings(o.settings, "sure"), error))
+    auto is = [&](size_t i, auto property) {
+        const StageInfo* stage = i < stages.size() ? find_stage(stages[i]) : nullptr;
+        return stage && property(*stage);
+    };
+    if (!resolved_stages(stages, frame, o, error)
+        || !is(0, [](const StageInfo& s) { return s.probes_in_place; })
+        || !is(1, [](const StageInfo& s) { return s.kind == StageKind::Estimator; })
+        || !resolve_aovs(aovs, o.aovs, frame, error)
+        || !apply_settings(s, stage_settings(o.settings, stages[1]), error))
         return {};
     std::vector<std::string> room;
     for (const std::string& name : sure_channel_names(aovs, s))

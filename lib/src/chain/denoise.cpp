@@ -4,6 +4,7 @@
 #include <OpenImageIO/strutil.h>
 
 #include "mcdn/chain.h"
+#include "mcdn/stages.h"
 
 namespace mcdn {
 
@@ -45,38 +46,16 @@ bool plan_denoise(DenoisePlan& plan, const ImageSpec& merged, const AovSpec& spe
 
 bool stage_can_run(const std::string& stage, const AovSet& aovs, std::string& how)
 {
-    const bool variance = aovs.has(Role::ColorVariance);
-    const bool halves = aovs.has(Role::ColorA) && aovs.has(Role::ColorB);
-    bool features = false;
-    for (Role r : { Role::Albedo, Role::Normal, Role::Depth, Role::Visibility })
-        features |= aovs.has(r);
+    const StageInfo* info = find_stage(stage);
+    if (!info || !info->can_run) {
+        how = "not a stage";
+        return false;
+    }
     if (!aovs.has(Role::Color)) {
         how = "no colour";
         return false;
     }
-    if (stage == "prefilter") {
-        how = !features ? "no albedo, normal, depth or visibility to filter"
-              : halves   ? "cross-filters the features' halves"
-                         : "no half buffers: each feature by its own variance";
-        return features;
-    }
-    if (stage == "nfor") {
-        how = halves     ? "two-buffer (§5.2-5.4)"
-              : variance ? "one-buffer: no half buffers, SURE picks the bandwidth, no §5.4"
-                         : "needs two half buffers or the colour's variance";
-        return halves || variance;
-    }
-    if (stage == "cnn") {
-        how = features ? "with the features there are" : "no features: the CNN reads zeros";
-        return true;
-    }
-    if (stage == "sure" || stage == "mix") {
-        how = variance ? (stage == "sure" ? "after a denoiser" : "after --sure")
-                       : "needs the colour's variance";
-        return variance;
-    }
-    how = "not a stage";
-    return false;
+    return info->can_run(aovs, how);
 }
 
 bool denoise(ImageBuf& dst, const ImageBuf& src, const DenoiseOptions& options, ROI roi,

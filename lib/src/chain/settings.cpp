@@ -1,7 +1,10 @@
 // Stage options from text settings (mcdn/settings.h).
 #include "mcdn/settings.h"
 
+#include "mcdn/stages.h"
+
 #include "chain/chain_steps.h"
+#include "chain/settings_reader.h"
 #include "core/attributes.h"
 
 #include <algorithm>
@@ -24,126 +27,6 @@ bool parse_finite(const std::string& text, double& value)
 }
 
 namespace {
-
-// Reads typed values out of one stage's settings; the first bad value or unknown key leaves
-// its message in `error` and every later read fails too, so a parser is one && chain.
-class SettingsReader {
-public:
-    SettingsReader(const Settings& settings, const std::string& stage, std::string& error)
-        : m_settings(settings), m_error(error)
-    {
-        const auto& keys = setting_keys(stage);
-        for (const auto& [key, value] : settings)
-            if (std::find(keys.begin(), keys.end(), key) == keys.end())
-                fail(format("{}={}: unknown setting of {} (settings: {})", key, value, stage,
-                            Strutil::join(keys, ", ")));
-    }
-
-    bool ok() const { return m_ok; }
-
-    // A window or patch width (odd, like the papers' 19×19) into the Options' radius.
-    SettingsReader& width(const std::string& key, int& radius)
-    {
-        if (const std::string* v = find(key)) {
-            int w = Strutil::string_is_int(*v) ? Strutil::stoi(*v) : 0;
-            if (w < 1 || w % 2 == 0 || w > 101)
-                fail(format("{}={} must be an odd width between 1 and 101", key, *v));
-            else
-                radius = (w - 1) / 2;
-        }
-        return *this;
-    }
-
-    SettingsReader& number(const std::string& key, float& value)
-    {
-        double d;
-        if (const std::string* v = find(key)) {
-            if (!parse_finite(*v, d))
-                fail(format("{}={} is not a number", key, *v));
-            else if (d != 0 && float(d) == 0)  // 1e-63 would reach the op as 0
-                fail(format("{}={} is too small for a float", key, *v));
-            else
-                value = float(d);
-        }
-        return *this;
-    }
-
-    SettingsReader& positive_int(const std::string& key, int& value)
-    {
-        if (const std::string* v = find(key)) {
-            if (!Strutil::string_is_int(*v) || Strutil::stoi(*v) < 1)
-                fail(format("{}={} is not a positive whole number", key, *v));
-            else
-                value = Strutil::stoi(*v);
-        }
-        return *this;
-    }
-
-    // 0 or 1 (mcdntool's bare ":alpha" arrives as 1).
-    SettingsReader& flag(const std::string& key, bool& value)
-    {
-        if (const std::string* v = find(key)) {
-            if (*v != "0" && *v != "1")
-                fail(format("{}={} must be 0 or 1", key, *v));
-            else
-                value = *v == "1";
-        }
-        return *this;
-    }
-
-    SettingsReader& text(const std::string& key, std::string& value)
-    {
-        if (const std::string* v = find(key))
-            value = *v;
-        return *this;
-    }
-
-    SettingsReader& list(const std::string& key, std::vector<std::string>& value)
-    {
-        if (const std::string* v = find(key))
-            value = Strutil::splits(*v, ",");
-        return *this;
-    }
-
-    // :skip=0 turns the stage's skipping off, :converged=X is its threshold (mcdn/skip.h).
-    SettingsReader& skip(SkipOptions& o)
-    {
-        flag("skip", o.enabled);
-        number("converged", o.max_relative_error);
-        if (m_ok && !(o.max_relative_error >= 0))
-            fail(format("converged={} must be >= 0 (a relative standard error)",
-                        m_settings.at("converged")));
-        return *this;
-    }
-
-    // A value the typed readers do not cover: `parse` sets the option and says whether the
-    // text was valid; `requirement` completes the message when it was not.
-    template <class Parse>
-    SettingsReader& custom(const std::string& key, const char* requirement, Parse parse)
-    {
-        if (const std::string* v = find(key); v && !parse(*v))
-            fail(format("{}={} {}", key, *v, requirement));
-        return *this;
-    }
-
-private:
-    const std::string* find(const std::string& key) const
-    {
-        auto it = m_settings.find(key);
-        return m_ok && it != m_settings.end() ? &it->second : nullptr;
-    }
-
-    void fail(const std::string& message)
-    {
-        if (m_ok)
-            m_error = message;
-        m_ok = false;
-    }
-
-    const Settings& m_settings;
-    std::string& m_error;
-    bool m_ok = true;
-};
 
 // "0.5,1.0": NFOR's two candidate bandwidths (the op rejects k <= 0); k is set only when valid.
 bool parse_bandwidths(const std::string& text, std::array<float, 2>& k)
@@ -169,18 +52,9 @@ bool parse_seed(const std::string& text, uint64_t& seed)
 
 const std::vector<std::string>& setting_keys(const std::string& stage)
 {
-    static const std::map<std::string, std::vector<std::string>> keys = {
-        { "prefilter", { "window", "patch", "k", "features", "features-out", "skip", "converged" } },
-        { "nfor", { "window", "patch", "k", "mse", "selection", "features", "features-out",
-                    "halves", "extras", "outliers", "fallback", "fallback-aov", "skip",
-                    "converged" } },
-        { "cnn", { "weights", "tile", "extras", "outliers", "skip", "converged" } },
-        { "sure", { "probes", "eps", "seed", "fallback", "fallback-aov", "skip", "converged" } },
-        { "mix", { "model", "weights", "ttest", "alpha", "afloor", "outlier", "drop", "skip", "converged" } },
-    };
     static const std::vector<std::string> none;
-    auto it = keys.find(stage);
-    return it == keys.end() ? none : it->second;
+    const StageInfo* info = find_stage(stage);
+    return info ? info->keys : none;
 }
 
 bool apply_settings(PrefilterOptions& o, const Settings& s, std::string& error)

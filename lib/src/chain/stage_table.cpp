@@ -1,0 +1,423 @@
+// The stage table (mcdn/stages.h): one entry per stage. An entry's functions turn settings
+// into the stage's Options (mcdn/settings.h) and the Options into a Denoiser-shaped op.
+#include "mcdn/stages.h"
+
+#include <algorithm>
+
+#include "mcdn/cnn.h"
+#include "mcdn/frames.h"
+#include "mcdn/mix.h"
+#include "mcdn/nfor.h"
+#include "mcdn/prefilter.h"
+#include "mcdn/sure.h"
+#include "sure/sure_steps.h"
+
+namespace mcdn {
+
+namespace {
+
+// ---- settings -> Options --------------------------------------------------------------
+
+template <class Options>
+bool check_settings(const Settings& settings, std::string& error)
+{
+    Options o;
+    return apply_settings(o, settings, error);
+}
+
+// The Options of a stage from valid settings and what the front end gives every stage.
+template <class Options>
+bool options_of(Options& o, const Settings& settings, const StageContext& context,
+                std::string& error)
+{
+    if (!apply_settings(o, settings, error))
+        return false;
+    o.aovs = context.aovs;
+    o.progress = context.progress;
+    return true;
+}
+
+template <class Options>
+StageReach reach_of(const Settings& settings, const std::string&)
+{
+    Options o;
+    std::string error;
+    return apply_settings(o, settings, error) ? stage_reach(o) : StageReach();
+}
+
+// ---- what each stage reads ------------------------------------------------------------
+
+bool has_features(const AovSet& aovs)
+{
+    for (Role r : { Role::Albedo, Role::Normal, Role::Depth, Role::Visibility })
+        if (aovs.has(r))
+            return true;
+    return false;
+}
+
+bool has_halves(const AovSet& aovs) { return aovs.has(Role::ColorA) && aovs.has(Role::ColorB); }
+
+// ---- prefilter (NFOR §5.1) ------------------------------------------------------------
+
+bool make_prefilter(MadeStage& made, const Settings& settings, const StageContext& context,
+                    std::string& error)
+{
+    PrefilterOptions o;
+    if (!options_of(o, settings, context, error))
+        return false;
+    made.reach = stage_reach(o);
+    made.run = [o, n = context.nthreads](ImageBuf& dst, const ImageBuf& src) {
+        return prefilter(dst, src, o, {}, n);
+    };
+    return true;
+}
+
+bool prefilter_can_run(const AovSet& aovs, std::string& how)
+{
+    how = !has_features(aovs) ? "no albedo, normal, depth or visibility to filter"
+          : has_halves(aovs)  ? "cross-filters the features' halves"
+                              : "no half buffers: each feature by its own variance";
+    return has_features(aovs);
+}
+
+StageInfo prefilter_stage()
+{
+    StageInfo s;
+    s.name = "prefilter";
+    s.keys = { "window", "patch", "k", "features", "features-out", "skip", "converged" };
+    s.changes_features = true;
+    s.reads_halves = true;
+    s.facts.constant_features = true;
+    s.frame_buffers = 0.5;  // the prefiltered features beside the frame
+    s.help
+        = "NFOR feature prefilter (§5.1): NL-means cross-filtering of albedo, normal, depth "
+          "and visibility with their half buffers. window=11 patch=7 k=0.5; features=a,b "
+          "adds extra feature channels.";
+    s.needs
+        = "the features (albedo, normal, depth, visibility) with their half buffers "
+          "(-i:as=halfA, -i:as=halfB) and variances; without halves each feature is "
+          "filtered by its own variance.";
+    s.check = check_settings<PrefilterOptions>;
+    s.make = make_prefilter;
+    s.reach = reach_of<PrefilterOptions>;
+    s.can_run = prefilter_can_run;
+    return s;
+}
+
+// ---- nfor (NFOR §5.2-5.4, §8) ---------------------------------------------------------
+
+bool make_nfor(MadeStage& made, const Settings& settings, const StageContext& context,
+               std::string& error)
+{
+    NforOptions o;
+    if (!options_of(o, settings, context, error))
+        return false;
+    o.previous_frames = context.previous_frames;
+    o.next_frames = context.next_frames;
+    made.reach = stage_reach(o);
+    made.run = [o, n = context.nthreads](ImageBuf& dst, const ImageBuf& src) {
+        return nfor(dst, src, o, {}, n);
+    };
+    return true;
+}
+
+bool nfor_can_run(const AovSet& aovs, std::string& how)
+{
+    const bool variance = aovs.has(Role::ColorVariance);
+    how = has_halves(aovs) ? "two-buffer (§5.2-5.4)"
+          : variance       ? "one-buffer: no half buffers, SURE picks the bandwidth, no §5.4"
+                           : "needs two half buffers or the colour's variance";
+    return has_halves(aovs) || variance;
+}
+
+StageInfo nfor_stage()
+{
+    StageInfo s;
+    s.name = "nfor";
+    s.keys = { "window", "patch", "k", "mse", "selection", "features", "features-out",
+                  "halves", "extras", "outliers", "fallback", "fallback-aov", "skip",
+                  "converged" };
+    s.cross_frame = true;
+    s.reads_halves = true;
+    s.facts.colour_sums = true;
+    s.facts.constant_features = true;
+    s.frame_buffers = 2.0;  // the result and the per-buffer regression outputs
+    s.help
+        = "NFOR denoiser (§5.2-5.4): first-order regression on the features, collaborative, "
+          "bandwidth chosen per pixel. window=19 patch=7 k=0.5,1.0; mse=1 and selection=1 "
+          "add nfor.mse.* and nfor.selection.* channels. Prefilters the features itself "
+          "unless --prefilter ran. Extra AOVs (light groups, extra.NAME) are denoised with "
+          "the beauty's weights so they still add up (extras=0: keep them as they are). "
+          "A pixel holding one sample worth a hundred of its neighbours (a caustic through "
+          "glass, a firefly) is kept out of the regressions and its excess removed, as a "
+          "sample clamp would (outliers=drop; keep: added back where it was; off: left in). "
+          "Safety net (on; fallback=0: off): a 32x32 tile where NFOR's own MSE estimate is "
+          "above the render's variance is the render, -v says how many (fallback-aov=1 adds "
+          "channel nfor.fallback, 1 on those tiles). "
+          "Cross-frame (§8), in a sequence: frames=2 fits over the 2 previous and 2 next "
+          "frames too, aligned by the motion vectors (Blender's Vector pass); it reads them "
+          "(also across --frames chunk edges), never writes them, and runs the whole frame.";
+    s.needs
+        = "the colour and its two half buffers (each the mean of half the samples: "
+          "-i:as=halfA, -i:as=halfB; a Tungsten folder has them); the variance of the mean "
+          "(else the halves' difference); features, prefiltered unless --prefilter ran. "
+          "Without halves, render them, or use --denoise or --cnn.";
+    s.check = check_settings<NforOptions>;
+    s.make = make_nfor;
+    s.reach = reach_of<NforOptions>;
+    s.can_run = nfor_can_run;
+    return s;
+}
+
+// ---- cnn (KPCN; cross-frame through mcdn/frames.h) -------------------------------------
+
+bool make_cnn(MadeStage& made, const Settings& settings, const StageContext& context,
+              std::string& error)
+{
+    CnnOptions o;
+    if (!options_of(o, settings, context, error))
+        return false;
+    made.reach = stage_reach(o);
+    const int n = context.nthreads;
+    if (context.previous_frames.empty() && context.next_frames.empty()) {
+        made.run = [o, n](ImageBuf& dst, const ImageBuf& src) { return cnn(dst, src, o, {}, n); };
+        return true;
+    }
+    // Cross-frame: the frames combined, then the CNN; both are the denoiser (SURE probes
+    // this frame through both).
+    CombineFramesOptions combine;
+    combine.aovs = context.aovs;
+    combine.previous_frames = context.previous_frames;
+    combine.next_frames = context.next_frames;
+    made.run = [o, combine, n](ImageBuf& dst, const ImageBuf& src) {
+        return denoise_with_frames(dst, src, combine, [&](ImageBuf& d, const ImageBuf& s) {
+            return cnn(d, s, o, {}, n);
+        }, n);
+    };
+    return true;
+}
+
+// Its per-thread network buffers (mcdn/cnn.h): 350 MB at tile=512, as (tile + halo)^2.
+double cnn_thread_bytes(const Settings& settings)
+{
+    CnnOptions o;
+    std::string error;
+    apply_settings(o, settings, error);
+    const double side = (std::max(o.tile_size, 1) + 64) / double(512 + 64);
+    return 350e6 * side * side;
+}
+
+bool cnn_can_run(const AovSet& aovs, std::string& how)
+{
+    how = has_features(aovs) ? "with the features there are" : "no features: the CNN reads zeros";
+    return true;
+}
+
+StageInfo cnn_stage()
+{
+    StageInfo s;
+    s.name = "cnn";
+    s.keys = { "weights", "tile", "extras", "outliers", "skip", "converged" };
+    s.cross_frame = true;
+    s.probes_in_place = true;
+    s.reads_light_split = true;
+    s.facts.depth_range = true;
+    s.frame_buffers = 1.2;  // the result and the converged map
+    s.thread_bytes = cnn_thread_bytes;
+    s.help
+        = "Kernel-predicting CNN denoiser (KPCN): diffuse/specular split, our trained weights "
+          "(models/kpcn.mcdnw; weights=FILE), tiled (tile=384). Extra AOVs take their share "
+          "of the beauty's denoised light through its kernels (extras=0: keep them). A pixel "
+          "holding one sample worth a hundred of its neighbours (a caustic through glass, a "
+          "firefly) is taken out of the network's input and its excess removed, by --nfor's "
+          "rule (outliers=drop; off: left in, where the kernels spread it). "
+          "Cross-frame, in a sequence: frames=2 first combines this frame with 2 previous "
+          "and 2 next ones, aligned by the motion vectors (Blender's Vector pass), weighted "
+          "by how well their patches agree: a render of up to 5 times the samples where "
+          "they do. It reads them (also across --frames chunk edges), never writes them.";
+    s.needs
+        = "the colour; the diffuse/specular split (Cycles' DiffCol/Dir/Ind and Gloss*, or "
+          "diffuse.*, specular.*) where present; albedo, normal, depth and their variances "
+          "(missing ones are zero: -v names them).";
+    s.check = check_settings<CnnOptions>;
+    s.make = make_cnn;
+    s.reach = reach_of<CnnOptions>;
+    s.can_run = cnn_can_run;
+    return s;
+}
+
+// ---- sure (PD §2.3, §3.2) -------------------------------------------------------------
+
+bool make_sure(MadeStage& made, const Settings& settings, const StageContext& context,
+               std::string& error)
+{
+    SureOptions o;
+    if (!options_of(o, settings, context, error))
+        return false;
+    o.denoiser_radius = context.denoiser_radius;
+    o.denoiser_in_place = context.denoiser_in_place;
+    const Denoiser denoiser = context.denoiser;
+    const int n = context.nthreads;
+    const ROI roi = context.roi;
+    made.reach = { 0, 0, false };  // no further than its denoisers
+    made.run = [o, denoiser, roi, n](ImageBuf& dst, const ImageBuf& src) {
+        return sure(dst, src, denoiser, o, roi, n);
+    };
+    made.run_on_own = [o, denoiser, roi, n](ImageBuf& dst, ImageBuf& own) {
+        return sure_probing_src(dst, own, denoiser, o, roi, n);
+    };
+    return true;
+}
+
+bool sure_can_run(const AovSet& aovs, std::string& how)
+{
+    const bool variance = aovs.has(Role::ColorVariance);
+    how = variance ? "after a denoiser" : "needs the colour's variance";
+    return variance;
+}
+
+StageInfo sure_stage()
+{
+    StageInfo s;
+    s.name = "sure";
+    s.kind = StageKind::Estimator;
+    s.keys = { "probes", "eps", "seed", "fallback", "fallback-aov", "skip", "converged" };
+    s.facts.colour_sums = true;
+    s.frame_buffers = 1.5;  // the noisy copy and the denoiser's responses
+    s.help
+        = "Monte-Carlo SURE of the denoisers before it (PD §3.2): adds sure.*, "
+          "sure.divergence.*, sure.residual.* and noisy.* channels. probes=1 (K; costs K+1 "
+          "denoiser runs), eps=1e-3 (relative probe step). -v says in how many 32x32 tiles SURE "
+          "finds the denoiser worse than the render, and those tiles are the render (safety net, "
+          "for any denoiser; fallback=0: the denoiser's are kept); fallback-aov=1 adds channel "
+          "sure.fallback, 1 on those tiles.";
+    s.needs
+        = "the colour and the variance of its mean, and a denoiser before it (--cnn, --nfor, "
+          "--prefilter --nfor), which it runs probes+1 times.";
+    s.check = check_settings<SureOptions>;
+    s.make = make_sure;
+    s.can_run = sure_can_run;
+    return s;
+}
+
+// ---- mix (PD §4) ----------------------------------------------------------------------
+
+bool make_mix(MadeStage& made, const Settings& settings, const StageContext& context,
+              std::string& error)
+{
+    MixOptions o;
+    if (!options_of(o, settings, context, error))
+        return false;
+    made.run = [o, roi = context.roi, n = context.nthreads](ImageBuf& dst, const ImageBuf& src) {
+        return mix(dst, src, o, roi, n);
+    };
+    return true;
+}
+
+StageReach mix_reach(const Settings& settings, const std::string& denoiser)
+{
+    MixOptions o;
+    std::string error;
+    const int r = apply_settings(o, settings, error) ? receptive_radius(o, denoiser) : -1;
+    return { r, r, false };
+}
+
+bool mix_can_run(const AovSet& aovs, std::string& how)
+{
+    const bool variance = aovs.has(Role::ColorVariance);
+    how = variance ? "after --sure" : "needs the colour's variance";
+    return variance;
+}
+
+StageInfo mix_stage()
+{
+    StageInfo s;
+    s.name = "mix";
+    s.kind = StageKind::Mixer;
+    s.keys = { "model", "weights", "ttest", "alpha", "afloor", "outlier", "drop", "skip",
+                 "converged" };
+    s.facts.colour_sums = true;
+    s.frame_buffers = 0.8;  // the result
+    s.help
+        = "Progressive mix of the render and the denoised image (PD §4), after --sure: "
+          "model=net|analytic (default net), ttest=1 bounds alpha by the t-test (eq. 18), "
+          "alpha=1 adds "
+          "mix.alpha.* channels; with model=net: the network trained for the denoiser before "
+          "--sure (models/mix_cnn.mcdnw after --cnn, else models/mix.mcdnw; weights=FILE), "
+          "afloor=1, alpha is at least the analytic model's; with either model: "
+          "outlier=0.3, alpha is at least eq. 9 where the "
+          "render's variance exceeds 0.3 (y^2 + 0.01), drop=1.5: alpha = 1 where it exceeds "
+          "1.5 (y^2 + 0.01) (0: off).";
+    s.needs = "what --sure adds (sure.*, noisy.*): give --sure first; the colour's variance.";
+    s.check = check_settings<MixOptions>;
+    s.make = make_mix;
+    s.reach = mix_reach;
+    s.can_run = mix_can_run;
+    return s;
+}
+
+// ---- the table ------------------------------------------------------------------------
+
+StageInfo denoise_stage()
+{
+    StageInfo s;
+    s.name = "denoise";
+    s.kind = StageKind::Plan;
+    s.cross_frame = true;
+    s.reads_light_split = true;
+    s.help
+        = "The best chain the inputs allow: with a colour variance --cnn --sure --mix "
+          "(KPCN, its SURE, the progressive mix by the network: never much worse than the "
+          "better of render and CNN), without one --cnn alone. -v prints which and why. "
+          "To choose stages and their settings, name them instead. In a sequence, frames=2 "
+          "is cross-frame: the CNN's input is this frame combined with 2 previous and 2 next "
+          "ones where they agree (as --cnn:frames=2), against flicker.";
+    s.needs
+        = "the colour (any preset); with its variance (the renderer's variance AOV, Cycles "
+          "via -i:as=variance, a Tungsten folder) the mixed chain. Albedo, normal and depth "
+          "help the CNN; missing ones are zero (-v names them).";
+    return s;
+}
+
+std::vector<StageInfo> make_table()
+{
+    std::vector<StageInfo> table = { denoise_stage(), prefilter_stage(), nfor_stage(),
+                                     cnn_stage(),     sure_stage(),      mix_stage() };
+    // The plan's memory is that of its longest chain (mcdn/denoise.h): cnn, sure, mix.
+    for (const char* planned : { "cnn", "sure", "mix" }) {
+        const auto& stage = *std::find_if(table.begin(), table.end(),
+                                          [&](const StageInfo& s) { return s.name == planned; });
+        table[0].frame_buffers += stage.frame_buffers;
+        if (stage.thread_bytes)
+            table[0].thread_bytes = stage.thread_bytes;
+    }
+    return table;
+}
+
+}  // namespace
+
+const std::vector<StageInfo>& stage_table()
+{
+    static const std::vector<StageInfo> table = make_table();
+    return table;
+}
+
+const StageInfo* find_stage(const std::string& name)
+{
+    for (const StageInfo& stage : stage_table())
+        if (stage.name == name
+            || std::find(stage.aliases.begin(), stage.aliases.end(), name) != stage.aliases.end())
+            return &stage;
+    return nullptr;
+}
+
+std::vector<std::string> stage_names(std::initializer_list<StageKind> kinds)
+{
+    std::vector<std::string> names;
+    for (const StageInfo& stage : stage_table())
+        if (kinds.size() == 0 || std::find(kinds.begin(), kinds.end(), stage.kind) != kinds.end())
+            names.push_back(stage.name);
+    return names;
+}
+
+}  // namespace mcdn
