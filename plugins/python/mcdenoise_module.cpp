@@ -428,9 +428,53 @@ void bind_progressive(py::module_& m)
           "'cnn', else models/mix.mcdnw).");
 }
 
-// Denoise and plan: the best chain the inputs allow.
+// A Python progress(stage, fraction) as the stages' callback (none: none).
+mcdn::ProgressCallback python_progress(py::object progress, const char* where)
+{
+    if (progress.is_none())
+        return {};
+    return [progress, where](const std::string& stage, float fraction) {
+        py::gil_scoped_acquire gil;
+        try {
+            progress(stage, fraction);
+        } catch (py::error_already_set& e) {
+            e.discard_as_unraisable(where);
+        }
+    };
+}
+
+// Denoise, plan and run_chain: the best chain the inputs allow, or any chain of the stage
+// table (mcdn/stages.h) by name.
 void bind_chains(py::module_& m)
 {
+    m.def("run_chain",
+          [](const ImageBuf& src, const std::string& chain, const std::string& preset,
+             const std::map<std::string, std::string>& aovs, const std::string& colorspace,
+             const std::map<std::string, std::string>& settings, py::object progress,
+             int nthreads) {
+              mcdn::ChainOptions o;
+              std::string error;
+              if (!mcdn::parse_chain(o.stages, chain, error))
+                  throw std::runtime_error(error);
+              o.aovs = aov_spec(preset, aovs, colorspace);
+              o.settings = settings;
+              o.progress = python_progress(progress, "mcdenoise.run_chain progress");
+              bool halves = false;  // a stage that reads them (NFOR, its prefilter)
+              for (const std::string& name : o.stages)
+                  halves |= mcdn::find_stage(name)->reads_halves;
+              return run(src, o.aovs, halves ? Halves::Read : Halves::WithoutVariance,
+                         [&](ImageBuf& d, const ImageBuf& s) {
+                  return mcdn::run_chain(d, s, o, {}, nthreads);
+              });
+          },
+          py::arg("image"), py::arg("chain"), py::arg("preset") = "",
+          py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
+          py::arg("settings") = std::map<std::string, std::string>(),
+          py::arg("progress") = py::none(), py::arg("nthreads") = 0,
+          "Stages by name, as a recipe or mcdntool runs them: 'oidn,sure,mix', "
+          "'prefilter,nfor', 'cnn', ... (mcdntool --help lists them). settings: "
+          "{'oidn.weights': '/path/to/oidn-weights', 'sure.probes': '2', ...}, the stages' keys.");
+
     m.def("denoise",
           [](const ImageBuf& src, const std::string& preset,
              const std::map<std::string, std::string>& aovs, const std::string& colorspace,
@@ -439,15 +483,7 @@ void bind_chains(py::module_& m)
               mcdn::DenoiseOptions o;
               o.aovs = aov_spec(preset, aovs, colorspace);
               o.settings = settings;
-              if (!progress.is_none())
-                  o.progress = [progress](const std::string& stage, float fraction) {
-                      py::gil_scoped_acquire gil;
-                      try {
-                          progress(stage, fraction);
-                      } catch (py::error_already_set& e) {
-                          e.discard_as_unraisable("mcdenoise.denoise progress");
-                      }
-                  };
+              o.progress = python_progress(progress, "mcdenoise.denoise progress");
               return run(src, o.aovs, Halves::WithoutVariance,
                          [&](ImageBuf& d, const ImageBuf& s) {
                   return mcdn::denoise(d, s, o, {}, nthreads);

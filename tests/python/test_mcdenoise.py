@@ -10,6 +10,11 @@ import mcdenoise
 
 DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "data")
 BOX = os.path.join(DATA, "box16")
+# OIDN's published weights, for measurement only (../shared/peers/oidn/README.md).
+OIDN_WEIGHTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "..",
+                            "shared", "peers", "oidn")
+# The plans below are those without OIDN's weights (mcdn/denoise.h).
+os.environ.pop("MCDN_OIDN_WEIGHTS", None)
 
 
 def box_inputs():
@@ -108,6 +113,28 @@ class OpsTakeAndReturnImageBufs(unittest.TestCase):
         self.assertLess(after["relmse"], 0.5 * noisy["relmse"])
         with self.assertRaises(RuntimeError):
             mcdenoise.denoise(self.render, settings={"cnn.tiles": "256"})  # misspelt key
+
+    def test_run_chain_runs_the_stage_tables_stages_by_name(self):
+        by_name = mcdenoise.run_chain(self.render, "cnn")
+        self.assertEqual(by_name.get_pixels(oiio.FLOAT).tobytes(),
+                         mcdenoise.cnn(self.render).get_pixels(oiio.FLOAT).tobytes())
+        with self.assertRaises(RuntimeError) as caught:
+            mcdenoise.run_chain(self.render, "mix")
+        self.assertIn("mix needs sure before it", str(caught.exception))
+        with self.assertRaises(RuntimeError) as caught:
+            mcdenoise.run_chain(self.render, "oidn", settings={"oidn.weights": "/nonexistent"})
+        self.assertIn("$MCDN_OIDN_WEIGHTS", str(caught.exception))
+        self.assertIn("RenderKit/oidn-weights", str(caught.exception))
+
+    @unittest.skipUnless(os.path.exists(os.path.join(OIDN_WEIGHTS, "rt_hdr_alb_nrm.tza")),
+                         "no ../shared/peers/oidn")
+    def test_oidn_sure_mix_by_name(self):
+        noisy = mcdenoise.metrics(self.render, self.reference)
+        out = mcdenoise.run_chain(self.render, "oidn,sure,mix",
+                                  settings={"oidn.weights": OIDN_WEIGHTS})
+        self.assertIn("sure.R", out.spec().channelnames)
+        after = mcdenoise.metrics(out, self.reference)
+        self.assertLess(after["relmse"], 0.5 * noisy["relmse"])
 
     def test_chain_prefilter_nfor_sure_mix(self):
         out = mcdenoise.prefilter(self.render)

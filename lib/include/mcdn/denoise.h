@@ -7,6 +7,9 @@
 //                                  the better of the two
 //   without one:
 //       cnn                         KPCN alone (SURE and the mix need the variance)
+// Where the user has Open Image Denoise's weights (mcdn/oidn.h: $MCDN_OIDN_WEIGHTS or
+// <prefix>/share/mcdenoise/oidn/), its network takes the CNN's place: oidn -> sure -> mix, or
+// oidn alone (on the inputs we measure it is the more accurate: docs/accuracy.md).
 // The CNN runs on any size and on whatever features there are; missing ones (albedo, normal,
 // depth) are zero, which DenoisePlan names. NFOR (--nfor) is not picked: it needs half
 // buffers and, on the inputs we measure, the CNN chain is the more accurate
@@ -26,7 +29,7 @@ namespace mcdn {
 
 /// What denoise() runs on an input, and why, in words a log line can hold.
 struct DenoisePlan {
-    std::vector<std::string> stages;       // "cnn", "sure", "mix"
+    std::vector<std::string> stages;       // "cnn" or "oidn", "sure", "mix"
     std::string why;                       // "the input has a colour variance (variance.R,...)"
     std::vector<std::string> zero_filled;  // features the CNN reads as zero: "albedo", ...
 
@@ -35,9 +38,10 @@ struct DenoisePlan {
 };
 
 /// Plans the chain for a merged buffer (io.h) and the AOV spec; false with `error` when the
-/// buffer has no colour at all.
+/// buffer has no colour at all. `settings` as DenoiseOptions' (oidn.weights: where OIDN's
+/// weights are, else mcdn/oidn.h's places).
 bool plan_denoise(DenoisePlan& plan, const ImageSpec& merged, const AovSpec& aovs,
-                  std::string& error);
+                  std::string& error, const std::map<std::string, std::string>& settings = {});
 
 /// Whether `stage` (prefilter, nfor, cnn, sure, mix) can run on a resolved AOV set; `how`
 /// says how it will run or what it lacks ("one-buffer: no half buffers", "needs the

@@ -61,6 +61,7 @@ struct StageFacts {
     bool colour_sums = false;        ///< the colour's sums (probe steps, the t-test's sigma_s)
     bool depth_range = false;        ///< the depth range (the CNN's depth normalisation)
     bool constant_features = false;  ///< which features and extras hold one value
+    bool exposure = false;           ///< the colour's autoexposure (OIDN's networks)
 };
 
 struct StageInfo {
@@ -101,7 +102,8 @@ struct StageInfo {
     bool (*can_run)(const AovSet& aovs, std::string& how) = nullptr;
 };
 
-/// Every stage, in the order --help lists them: denoise, prefilter, nfor, cnn, sure, mix.
+/// Every stage, in the order --help lists them: denoise, prefilter, nfor, cnn, oidn, sure,
+/// mix.
 const std::vector<StageInfo>& stage_table();
 /// The entry named `name` or one of its aliases; null when none.
 const StageInfo* find_stage(const std::string& name);

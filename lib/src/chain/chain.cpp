@@ -293,7 +293,7 @@ bool run_stages(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOp
     if (o.stages.size() == 1 && find_stage(o.stages[0])->kind == StageKind::Plan) {
         // What mcdn::denoise runs, with this chain's bands.
         DenoisePlan plan;
-        if (!plan_denoise(plan, src.spec(), o.aovs, error)) {
+        if (!plan_denoise(plan, src.spec(), o.aovs, error, o.settings)) {
             dst.errorfmt("denoise: {}", error);
             return false;
         }

@@ -6,6 +6,7 @@
 #include "mcdn/chain.h"
 
 #include <algorithm>
+#include <memory>
 
 #include <OpenImageIO/strutil.h>
 
@@ -40,7 +41,7 @@ bool resolved_stages(std::vector<std::string>& stages, const ImageSpec& spec,
     const StageInfo* plan = stages.size() == 1 ? find_stage(stages[0]) : nullptr;
     if (plan && plan->kind == StageKind::Plan) {
         DenoisePlan plan;
-        if (!plan_denoise(plan, spec, o.aovs, error))
+        if (!plan_denoise(plan, spec, o.aovs, error, o.settings))
             return false;
         stages = plan.stages;
     }
@@ -64,12 +65,15 @@ public:
                 facts.colour_sums |= stage->facts.colour_sums;
                 facts.depth_range |= stage->facts.depth_range;
                 facts.constant_features |= stage->facts.constant_features;
+                facts.exposure |= stage->facts.exposure;
             }
         m_needs_colour = facts.colour_sums && aovs.channels(Role::Color).size() == 3;
         m_needs_depth = facts.depth_range;
         m_needs_constants = facts.constant_features;
+        if (facts.exposure && aovs.channels(Role::Color).size() == 3)
+            m_exposure = std::make_unique<Autoexposure>(spec.width, spec.height);
         m_reads.assign(size_t(spec.nchannels), false);
-        if (m_needs_colour)
+        if (m_needs_colour || m_exposure)
             for (Role r : { Role::Color, Role::ColorVariance })
                 for (int c : aovs.channels(r))
                     m_reads[size_t(c)] = true;
@@ -118,6 +122,9 @@ public:
         }
         if (m_needs_constants)
             add_constants(rows);
+        if (m_exposure)
+            m_exposure->add_rows(rows, m_aovs.channels(Role::Color).data(),
+                                 rows.spec().y - m_ybegin);
         m_started = true;
     }
 
@@ -133,6 +140,8 @@ public:
             facts.depth_lo = m_depth_lo;
             facts.depth_span = m_depth_hi - m_depth_lo;
         }
+        facts.has_exposure = m_exposure != nullptr;
+        facts.exposure = m_exposure ? m_exposure->scale() : 1.0f;
         facts.has_constant = m_needs_constants;
         for (size_t f = 0; f < m_names.size(); ++f)
             if (m_constant[f])
@@ -184,6 +193,7 @@ private:
     ColourSums m_colour[3];
     float m_depth_lo = INFINITY, m_depth_hi = -INFINITY;
     bool m_needs_colour = false, m_needs_depth = false, m_needs_constants = false;
+    std::unique_ptr<Autoexposure> m_exposure;  // only when a stage reads it
     bool m_started = false;
 };
 

@@ -4,6 +4,7 @@
 #include <OpenImageIO/strutil.h>
 
 #include "mcdn/chain.h"
+#include "mcdn/oidn.h"
 #include "mcdn/stages.h"
 
 namespace mcdn {
@@ -23,20 +24,35 @@ std::string DenoisePlan::describe() const
 }
 
 bool plan_denoise(DenoisePlan& plan, const ImageSpec& merged, const AovSpec& spec,
-                  std::string& error)
+                  std::string& error, const std::map<std::string, std::string>& settings)
 {
     AovSet aovs;
     if (!resolve_aovs(aovs, spec, merged, error) || !aovs.require({ Role::Color }, merged, error))
         return false;
     plan = DenoisePlan();
+    // OIDN's network where the user has its weights (mcdn/oidn.h), else our CNN.
+    OidnOptions oidn;
+    if (auto it = settings.find("oidn.weights"); it != settings.end())
+        oidn.weights = it->second;
+    const bool albedo = aovs.channels(Role::Albedo).size() == 3;
+    const bool normal = aovs.channels(Role::Normal).size() == 3;
+    std::string weights, unused;
+    const bool has_oidn = oidn_weights(weights, oidn, albedo, normal, unused);
+    const std::string denoiser = has_oidn ? "oidn" : "cnn";
     if (aovs.has(Role::ColorVariance)) {
-        plan.stages = { "cnn", "sure", "mix" };
+        plan.stages = { denoiser, "sure", "mix" };
         plan.why = format("the input has a colour variance ({})",
                           Strutil::join(aovs.names(Role::ColorVariance), ","));
     } else {
-        plan.stages = { "cnn" };
+        plan.stages = { denoiser };
         plan.why = "no colour variance, which SURE and the mix need (render one, or give "
                    "-i:as=variance FILE, for the mixed chain)";
+    }
+    if (has_oidn) {
+        plan.why += "; OIDN's weights " + weights;
+        if (!albedo || !normal)
+            plan.why += albedo ? " (no normal)" : " (no albedo: the colour-only model)";
+        return true;
     }
     for (Role r : { Role::Albedo, Role::Normal, Role::Depth })
         if (!aovs.has(r))

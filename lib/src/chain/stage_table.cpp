@@ -8,8 +8,10 @@
 #include "mcdn/frames.h"
 #include "mcdn/mix.h"
 #include "mcdn/nfor.h"
+#include "mcdn/oidn.h"
 #include "mcdn/prefilter.h"
 #include "mcdn/sure.h"
+#include "chain/settings_reader.h"
 #include "sure/sure_steps.h"
 
 namespace mcdn {
@@ -56,6 +58,22 @@ bool has_features(const AovSet& aovs)
 }
 
 bool has_halves(const AovSet& aovs) { return aovs.has(Role::ColorA) && aovs.has(Role::ColorB); }
+
+// A denoiser of one frame, cross-frame when the context has neighbours: the frames combined
+// where they agree (mcdn/frames.h), then the denoiser; both are the denoiser (SURE probes
+// this frame through both).
+Denoiser across_frames(Denoiser denoiser, const StageContext& context)
+{
+    if (context.previous_frames.empty() && context.next_frames.empty())
+        return denoiser;
+    CombineFramesOptions combine;
+    combine.aovs = context.aovs;
+    combine.previous_frames = context.previous_frames;
+    combine.next_frames = context.next_frames;
+    return [combine, denoiser, n = context.nthreads](ImageBuf& dst, const ImageBuf& src) {
+        return denoise_with_frames(dst, src, combine, denoiser, n);
+    };
+}
 
 // ---- prefilter (NFOR §5.1) ------------------------------------------------------------
 
@@ -178,22 +196,9 @@ bool make_cnn(MadeStage& made, const Settings& settings, const StageContext& con
     if (!options_of(o, settings, context, error))
         return false;
     made.reach = stage_reach(o);
-    const int n = context.nthreads;
-    if (context.previous_frames.empty() && context.next_frames.empty()) {
-        made.run = [o, n](ImageBuf& dst, const ImageBuf& src) { return cnn(dst, src, o, {}, n); };
-        return true;
-    }
-    // Cross-frame: the frames combined, then the CNN; both are the denoiser (SURE probes
-    // this frame through both).
-    CombineFramesOptions combine;
-    combine.aovs = context.aovs;
-    combine.previous_frames = context.previous_frames;
-    combine.next_frames = context.next_frames;
-    made.run = [o, combine, n](ImageBuf& dst, const ImageBuf& src) {
-        return denoise_with_frames(dst, src, combine, [&](ImageBuf& d, const ImageBuf& s) {
-            return cnn(d, s, o, {}, n);
-        }, n);
-    };
+    made.run = across_frames([o, n = context.nthreads](ImageBuf& dst, const ImageBuf& src) {
+        return cnn(dst, src, o, {}, n);
+    }, context);
     return true;
 }
 
@@ -243,6 +248,96 @@ StageInfo cnn_stage()
     s.make = make_cnn;
     s.reach = reach_of<CnnOptions>;
     s.can_run = cnn_can_run;
+    return s;
+}
+
+// ---- oidn (Open Image Denoise's published networks, on our engine) ---------------------
+
+bool oidn_settings(OidnOptions& o, const Settings& settings, std::string& error)
+{
+    return SettingsReader(settings, "oidn", error)
+        .text("weights", o.weights)
+        .positive_int("tile", o.tile_size)
+        .skip(o.skip)
+        .ok();
+}
+
+bool make_oidn(MadeStage& made, const Settings& settings, const StageContext& context,
+               std::string& error)
+{
+    OidnOptions o;
+    if (!oidn_settings(o, settings, error))
+        return false;
+    o.aovs = context.aovs;
+    o.progress = context.progress;
+    // No weights: said now, before any stage of the chain runs.
+    const int r = receptive_radius(o);
+    std::string path;
+    if (r < 0 && !oidn_weights(path, o, true, true, error))
+        return false;
+    made.reach = { r, r, false };
+    made.run = across_frames([o, n = context.nthreads](ImageBuf& dst, const ImageBuf& src) {
+        return oidn(dst, src, o, {}, n);
+    }, context);
+    return true;
+}
+
+StageInfo oidn_stage()
+{
+    StageInfo s;
+    s.name = "oidn";
+    s.keys = { "weights", "tile", "skip", "converged" };
+    s.cross_frame = true;
+    s.probes_in_place = true;
+    s.facts.exposure = true;
+    s.frame_buffers = 1.0;  // the result
+    s.thread_bytes = [](const Settings& settings) {
+        // The UNet's layers at full resolution, ~250 floats a pixel, over (tile + halo)^2.
+        OidnOptions o;
+        std::string error;
+        oidn_settings(o, settings, error);
+        const double side = o.tile_size + 2 * 96;
+        return side * side * 250 * sizeof(float);
+    };
+    s.help
+        = "Intel Open Image Denoise's published network on our engine, with your copy of "
+          "OIDN's weights (weights=FILE.tza or a folder of them; else $MCDN_OIDN_WEIGHTS, "
+          "else <prefix>/share/mcdenoise/oidn/; mcdenoise does not ship them: they are "
+          "OIDN's, Apache 2.0, from RenderKit/oidn-weights). The model follows the inputs: "
+          "colour + albedo + normal (rt_hdr_alb_nrm), colour + albedo (rt_hdr_alb), colour "
+          "(rt_hdr). Tiled (tile=512); extra AOVs are kept as they are. Cross-frame, in a "
+          "sequence: frames=2 combines this frame with 2 previous and 2 next ones first, as "
+          "--cnn:frames=2 does. "
+          "--oidn --sure --mix is Progressive Denoising's configuration (§6): OIDN's result, "
+          "its SURE, and the mix that converges to the render.";
+    s.needs
+        = "the colour; the albedo and normal where present (Cycles' Denoising Albedo and "
+          "Denoising Normal, any preset's). --sure and --mix after it need the colour's "
+          "variance.";
+    s.check = [](const Settings& settings, std::string& error) {
+        OidnOptions o;
+        return oidn_settings(o, settings, error);
+    };
+    s.make = make_oidn;
+    s.reach = [](const Settings& settings, const std::string&) {
+        OidnOptions o;
+        std::string error;
+        const int r = oidn_settings(o, settings, error) ? receptive_radius(o) : -1;
+        return StageReach { r, r, false };
+    };
+    s.can_run = [](const AovSet& aovs, std::string& how) {
+        const bool albedo = aovs.has(Role::Albedo), normal = aovs.has(Role::Normal);
+        std::string path;
+        if (!oidn_weights(path, OidnOptions(), albedo, normal, how)) {
+            how = "no OIDN weights at " + path + " (weights=FILE, $MCDN_OIDN_WEIGHTS, or "
+                  + oidn_weights_dir() + ")";
+            return false;
+        }
+        how = path + " on " + (albedo && normal ? "colour, albedo and normal"
+                               : albedo         ? "colour and albedo"
+                                                : "the colour alone");
+        return true;
+    };
     return s;
 }
 
@@ -368,7 +463,8 @@ StageInfo denoise_stage()
     s.help
         = "The best chain the inputs allow: with a colour variance --cnn --sure --mix "
           "(KPCN, its SURE, the progressive mix by the network: never much worse than the "
-          "better of render and CNN), without one --cnn alone. -v prints which and why. "
+          "better of render and CNN), without one --cnn alone; with OIDN's weights where "
+          "--oidn finds them, --oidn in the CNN's place. -v prints which and why. "
           "To choose stages and their settings, name them instead. In a sequence, frames=2 "
           "is cross-frame: the CNN's input is this frame combined with 2 previous and 2 next "
           "ones where they agree (as --cnn:frames=2), against flicker.";
@@ -382,7 +478,8 @@ StageInfo denoise_stage()
 std::vector<StageInfo> make_table()
 {
     std::vector<StageInfo> table = { denoise_stage(), prefilter_stage(), nfor_stage(),
-                                     cnn_stage(),     sure_stage(),      mix_stage() };
+                                     cnn_stage(),     oidn_stage(),      sure_stage(),
+                                     mix_stage() };
     // The plan's memory is that of its longest chain (mcdn/denoise.h): cnn, sure, mix.
     for (const char* planned : { "cnn", "sure", "mix" }) {
         const auto& stage = *std::find_if(table.begin(), table.end(),

@@ -4,13 +4,9 @@
 // per worker thread, each with its own copy of the networks.
 #include "mcdn/cnn.h"
 
-#include <dlfcn.h>
-
 #include <cmath>
 #include <cstdlib>
 #include <mutex>
-
-#include <tbb/task_arena.h>
 
 #include <OpenImageIO/imagebufalgo.h>
 
@@ -24,6 +20,7 @@
 #include "core/progress.h"
 #include "core/trace.h"
 #include "nn/network_regions.h"
+#include "nn/with_threads.h"
 #include "outliers/outliers.h"
 #include "skip/converged_tiles.h"
 #include "mcdn/color.h"
@@ -32,30 +29,6 @@
 namespace mcdn {
 
 namespace {
-
-/// Runs `body` on at most `nthreads` threads (0 = all): a TBB arena for our ops, and the
-/// OpenMP thread count of this thread for oneDNN's convolutions (looked up at run time, as
-/// only oneDNN links OpenMP; absent with a TBB-threaded oneDNN, where the arena suffices).
-/// No result depends on the count: every output value is computed by one thread.
-template <class Body>
-bool with_threads(int nthreads, Body&& body)
-{
-    if (nthreads <= 0)
-        return body();
-    using SetThreads = void (*)(int);
-    using GetThreads = int (*)();
-    auto set = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "omp_set_num_threads"));
-    auto get = reinterpret_cast<GetThreads>(dlsym(RTLD_DEFAULT, "omp_get_max_threads"));
-    const int previous = set && get ? get() : 0;
-    if (set && get)
-        set(nthreads);
-    bool ok = false;
-    tbb::task_arena arena(nthreads);
-    arena.execute([&] { ok = body(); });
-    if (set && get)
-        set(previous);
-    return ok;
-}
 
 /// Eq. 4 on `rect` (frame pixels inside the tile's core): colour = (albedo + eps) ·
 /// irradiance + exp(log specular) − 1, written into `colour_frame`'s channels `color` except
@@ -173,36 +146,6 @@ kpcn::DroppedOutliers find_outliers(const ImageBuf& src, const AovSet& aovs,
     return dropped;
 }
 
-// dst as the op writes it, `aovs` resolved on src: a copy of src (prepare_op), or for a SURE
-// probe's colour-only result its colour channels alone. The error goes on dst.
-bool prepare_output(ImageBuf& dst, const ImageBuf& src, const CnnOptions& options,
-                    bool colour_only, AovSet& aovs, int nthreads)
-{
-    std::string error;
-    if (colour_only) {
-        if (!check_op_input(src, options.aovs, aovs, "cnn", error)
-            || !aovs.require({ Role::Color }, src.spec(), error)) {
-            dst.errorfmt("{}", error);
-            return false;
-        }
-        const std::vector<int>& c = aovs.channels(Role::Color);
-        dst = OIIO::ImageBufAlgo::channels(src, 3, c, {}, { src.spec().channel_name(c[0]),
-                                                             src.spec().channel_name(c[1]),
-                                                             src.spec().channel_name(c[2]) });
-        if (dst.has_error() || !dst.localpixels()) {
-            dst.errorfmt("cnn: could not make the probe's colour frame");
-            return false;
-        }
-    } else if (!prepare_op(dst, src, options.aovs, aovs, "cnn", nthreads)) {
-        return false;
-    }
-    if (!aovs.require({ Role::Color }, src.spec(), error)) {
-        dst.errorfmt("cnn: {}", error);
-        return false;
-    }
-    return true;
-}
-
 // The network's tiles (nn/tiled.cpp) that write a pixel of `where`, only over tiles that are
 // not converged (nn/network_regions.h).
 bool network_tiles(std::vector<nn::Tile>& tiles, const nn::Net& net,
@@ -251,7 +194,7 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
     StageTrace trace("cnn");
     AovSet aovs;
     std::string error;
-    if (!prepare_output(dst, src, options, colour_only, aovs, nthreads))
+    if (!prepare_denoiser_output(dst, src, options.aovs, aovs, "cnn", colour_only, nthreads))
         return false;
     trace.mark("copy src to dst");
     const std::vector<int> out_color = colour_only ? std::vector<int> { 0, 1, 2 }
@@ -322,7 +265,7 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
     ProgressCounter progress(options.progress, "cnn", int(tiles.size()));
 
     // §4.2 then eq. 4, a tile at a time: one tile per worker, each with its own networks.
-    const bool ran = with_threads(nthreads, [&] {
+    const bool ran = nn::with_threads(nthreads, [&] {
         const int workers = std::min(nn::max_threads(), int(tiles.size()));
         while (int(worker.size()) < workers) {
             worker.push_back(kpcn::take_worker(path, image_channels, error));

@@ -85,6 +85,61 @@ std::string hex(double v)
 
 }  // namespace
 
+Autoexposure::Autoexposure(int width, int height)
+    : m_width(width), m_height(height), m_bins_x((width + 15) / 16), m_bins_y((height + 15) / 16)
+{
+    m_bin_of_x.resize(size_t(std::max(width, 0)));
+    for (int b = 0; b < m_bins_x; ++b)
+        for (int x = int(int64_t(b) * width / m_bins_x); x < int(int64_t(b + 1) * width / m_bins_x); ++x)
+            m_bin_of_x[size_t(x)] = b;
+    m_sums.assign(size_t(m_bins_x), 0.0);
+}
+
+void Autoexposure::end_row(int y)
+{
+    const int end = int(int64_t(m_bin_row + 1) * m_height / m_bins_y);
+    if (y + 1 < end)
+        return;
+    const int rows = end - int(int64_t(m_bin_row) * m_height / m_bins_y);
+    for (int b = 0; b < m_bins_x; ++b) {
+        const int columns = int(int64_t(b + 1) * m_width / m_bins_x)
+                            - int(int64_t(b) * m_width / m_bins_x);
+        const double mean = m_sums[size_t(b)] / (double(rows) * columns);
+        if (mean > 1e-8) {
+            m_log_sum += std::log2(mean);
+            ++m_count;
+        }
+        m_sums[size_t(b)] = 0.0;
+    }
+    ++m_bin_row;
+}
+
+float Autoexposure::scale() const
+{
+    return m_count > 0 ? float(0.18 / std::exp2(m_log_sum / double(m_count))) : 1.0f;
+}
+
+void Autoexposure::add_rows(const OIIO::ImageBuf& rows, const int colour[3], int first_row)
+{
+    const OIIO::ImageSpec& spec = rows.spec();
+    std::vector<float> row(size_t(spec.width) * 3);
+    for (int y = 0; y < spec.height; ++y) {
+        for (int c = 0; c < 3; ++c)
+            rows.get_pixels(OIIO::ROI(spec.x, spec.x + spec.width, spec.y + y, spec.y + y + 1,
+                                      0, 1, colour[c], colour[c] + 1),
+                            OIIO::TypeDesc::FLOAT, row.data() + c, 3 * sizeof(float));
+        add_rows(first_row + y, first_row + y + 1,
+                 [&](int x, int, int c) { return row[size_t(x) * 3 + size_t(c)]; });
+    }
+}
+
+float autoexposure(const OIIO::ImageBuf& src, const int colour[3])
+{
+    Autoexposure exposure(src.spec().width, src.spec().height);
+    exposure.add_rows(src, colour, 0);
+    return exposure.scale();
+}
+
 void set_frame_facts(OIIO::ImageSpec& spec, const FrameFacts& f)
 {
     // One line per value; channel names (which may hold spaces) last on their line.
@@ -93,6 +148,8 @@ void set_frame_facts(OIIO::ImageSpec& spec, const FrameFacts& f)
                                             hex(f.colour.sum), hex(f.colour.sum2), f.colour.n);
     if (f.has_depth)
         text += Strutil::fmt::format("depth {} {}\n", hex(f.depth_lo), hex(f.depth_span));
+    if (f.has_exposure)
+        text += Strutil::fmt::format("exposure {}\n", hex(f.exposure));
     if (f.has_constant) {
         text += "constants known\n";
         for (const auto& [name, value] : f.constant)
@@ -122,6 +179,9 @@ bool frame_facts(FrameFacts& f, const OIIO::ImageSpec& spec)
             f.has_depth = true;
             f.depth_lo = float(number(1));
             f.depth_span = float(number(2));
+        } else if (w[0] == "exposure") {
+            f.has_exposure = true;
+            f.exposure = float(number(1));
         } else if (w[0] == "constants") {
             f.has_constant = true;
         } else if (w[0] == "constant" && w.size() > 2) {

@@ -4,9 +4,12 @@
 // stages compute the same numbers from their own input, with the same formulas below.
 #pragma once
 
+#include <algorithm>
+#include <cfloat>
 #include <cstdint>
 #include <map>
 #include <string>
+#include <vector>
 
 #include <OpenImageIO/imagebuf.h>
 
@@ -44,12 +47,57 @@ double relative_probe_step(const ColourSums& sums, double relative);
 /// The t-test's sigma_s (PD §4.3): min(sqrt(Var[x]), 1) * scale, Var[x] over the frame.
 float t_test_sigma(const ColourSums& sums, float scale);
 
+/// Running sums of the autoexposure (Open Image Denoise's, which its networks were trained
+/// with): the frame cut into a grid of about 16×16
+/// pixel bins (ceil(H / 16) × ceil(W / 16), bin i of n covering [i·H/n, (i+1)·H/n)), each
+/// bin's mean luminance (Rec. 709 weights, NaN as 0, negatives clamped to 0); the scale is
+/// 0.18 over the geometric mean of the bins' means above 1e-8 (1 when none is). Rows come
+/// top to bottom, a band at a time or the whole frame: the same scale.
+class Autoexposure {
+public:
+    Autoexposure(int width, int height);
+    /// Adds rows [y0, y1) of the frame (frame coordinates 0..height), `rgb(x, y, c)` their
+    /// colour.
+    template <class Rgb> void add_rows(int y0, int y1, Rgb rgb);
+    /// The same for all rows of `rows` (the frame's rows from `first_row` on), its colour
+    /// channels `colour`.
+    void add_rows(const OIIO::ImageBuf& rows, const int colour[3], int first_row);
+    /// The exposure scale of the frame once every row is added.
+    float scale() const;
+
+private:
+    static float clamped(float v) { return v > 0 ? std::min(v, FLT_MAX) : 0.0f; }  // NaN: 0
+    void end_row(int y);
+    int m_width, m_height, m_bins_x, m_bins_y, m_bin_row = 0;
+    std::vector<int> m_bin_of_x;
+    std::vector<double> m_sums;  // the current row of bins
+    double m_log_sum = 0;
+    long m_count = 0;
+};
+
+template <class Rgb> void Autoexposure::add_rows(int y0, int y1, Rgb rgb)
+{
+    for (int y = y0; y < y1; ++y) {
+        for (int x = 0; x < m_width; ++x)
+            m_sums[size_t(m_bin_of_x[size_t(x)])]
+                += 0.212671f * clamped(rgb(x, y, 0)) + 0.715160f * clamped(rgb(x, y, 1))
+                   + 0.072169f * clamped(rgb(x, y, 2));
+        end_row(y);
+    }
+}
+
+/// The autoexposure scale of src's colour channels `colour` (whole frame).
+float autoexposure(const OIIO::ImageBuf& src, const int colour[3]);
+
 struct FrameFacts {
     int ybegin = 0, yend = 0;  // the frame's rows (a band's own are its spec's)
     ColourSums colour;
     /// The CNN's depth range (0, 0: no depth), when known.
     bool has_depth = false;
     float depth_lo = 0, depth_span = 0;
+    /// The autoexposure scale of the colour (Autoexposure below: OIDN's networks), when known.
+    bool has_exposure = false;
+    float exposure = 1;
     /// Channels holding one value over the frame (after sanitizing), with that value: the
     /// constant features nfor and prefilter leave out (skip/constant_features.h), when known.
     bool has_constant = false;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstring>
 
+#include <OpenImageIO/imagebufalgo.h>
 #include <OpenImageIO/strutil.h>
 
 #include "core/attributes.h"
@@ -111,6 +112,34 @@ ROI output_roi(const ImageBuf& src, ROI roi)
 {
     ROI all = OIIO::get_roi(src.spec());
     return roi.defined() ? OIIO::roi_intersection(roi, all) : all;
+}
+
+bool prepare_denoiser_output(ImageBuf& dst, const ImageBuf& src, const AovSpec& spec,
+                             AovSet& aovs, const char* op, bool colour_only, int nthreads)
+{
+    std::string error;
+    if (colour_only) {
+        if (!check_op_input(src, spec, aovs, op, error)
+            || !aovs.require({ Role::Color }, src.spec(), error)) {
+            dst.errorfmt("{}", error);
+            return false;
+        }
+        const std::vector<int>& c = aovs.channels(Role::Color);
+        dst = OIIO::ImageBufAlgo::channels(src, 3, c, {}, { src.spec().channel_name(c[0]),
+                                                             src.spec().channel_name(c[1]),
+                                                             src.spec().channel_name(c[2]) });
+        if (dst.has_error() || !dst.localpixels()) {
+            dst.errorfmt("{}: could not make the probe's colour frame", op);
+            return false;
+        }
+    } else if (!prepare_op(dst, src, spec, aovs, op, nthreads)) {
+        return false;
+    }
+    if (!aovs.require({ Role::Color }, src.spec(), error)) {
+        dst.errorfmt("{}: {}", op, error);
+        return false;
+    }
+    return true;
 }
 
 }  // namespace mcdn

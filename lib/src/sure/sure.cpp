@@ -65,6 +65,9 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
         facts.ybegin = frame.whole.ybegin;
         facts.yend = frame.whole.yend;
         facts.colour = colour_sums(src, frame.color.data(), frame.variance.data());
+        // The unprobed exposure too (OIDN's networks read it): every probe the same.
+        facts.has_exposure = true;
+        facts.exposure = autoexposure(src, frame.color.data());
     }
     frame.index_origin = facts.ybegin;
     // eps such that eps * mean(sqrt(Var)) = epsilon_relative * mean|x| over the frame.

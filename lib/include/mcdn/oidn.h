@@ -1,0 +1,64 @@
+// Intel Open Image Denoise's published networks on our engine: the user's copy of OIDN's
+// weights (`rt_hdr_alb_nrm.tza` and its siblings, Apache 2.0, from RenderKit/oidn-weights or
+// any OIDN 2.x package; we never ship them) read by our own reader and run by our oneDNN
+// engine, tiled and deterministic, as a denoiser stage our SURE and progressive mix can wrap
+// (Progressive Denoising §6 runs its mix over the pre-trained OIDN).
+//
+//   model   picked by the inputs: colour + albedo + normal: rt_hdr_alb_nrm; colour +
+//           albedo: rt_hdr_alb; colour alone: rt_hdr (a normal without an albedo is not
+//           read: OIDN has no such model)
+//   in      colour × the autoexposure scale (0.18 over the geometric mean of ~16×16-pixel
+//           bins' luminances, over the whole frame), through the PU transfer function
+//           normalised at 65504; albedo clamped to [0, 1]; normal clamped to [-1, 1] and
+//           mapped to [0, 1]
+//   net     OIDN's UNet (lib/src/oidn/oidn_steps.h), tiled with a halo of its receptive
+//           field, the image extended to a multiple of 16
+//   out     the inverse transfer of the output clamped at 0, divided by the scale
+#pragma once
+
+#include <string>
+
+#include <OpenImageIO/imagebuf.h>
+
+#include "mcdn/aov.h"
+#include "mcdn/progress.h"
+#include "mcdn/skip.h"
+
+namespace mcdn {
+
+struct OidnOptions {
+    AovSpec aovs;
+    /// A `.tza` file, or a folder holding OIDN's files by their names (rt_hdr_alb_nrm.tza,
+    /// rt_hdr_alb.tza, rt_hdr.tza); empty: $MCDN_OIDN_WEIGHTS (a file or a folder), else
+    /// <prefix>/share/mcdenoise/oidn/ (oidn_weights_dir()). A file's first convolution
+    /// says which inputs it reads (3: colour, 6: + albedo, 9: + normal).
+    std::string weights;
+    /// Output tile side of the tiled inference: memory follows (tile + 2 × halo)², not the
+    /// frame; the output does not depend on it.
+    int tile_size = 512;
+    /// Converged tiles are the render (mcdn/skip.h).
+    SkipOptions skip;
+    ProgressCallback progress;
+};
+
+/// <prefix>/share/mcdenoise/oidn: where a user puts OIDN's weight files for every user.
+std::string oidn_weights_dir();
+
+/// The weights file oidn() reads for inputs with or without an albedo and a normal; false
+/// with `error` naming the places looked in and where OIDN's weights come from.
+bool oidn_weights(std::string& path, const OidnOptions& options, bool has_albedo,
+                  bool has_normal, std::string& error);
+
+/// How far a pixel of oidn()'s result reaches into its input (the UNet's receptive field;
+/// -1 when no weights can be read).
+int receptive_radius(const OidnOptions& options);
+
+/// dst = src with the colour role replaced by OIDN's network's estimate (inside `roi`; every
+/// other channel kept). Needs the colour; reads the albedo and normal where present.
+/// Deterministic for any `nthreads` (0 = all cores).
+bool oidn(ImageBuf& dst, const ImageBuf& src, const OidnOptions& options = {}, ROI roi = {},
+          int nthreads = 0);
+ImageBuf oidn(const ImageBuf& src, const OidnOptions& options = {}, ROI roi = {},
+              int nthreads = 0);
+
+}  // namespace mcdn

@@ -1,0 +1,310 @@
+// The oidn op (mcdn/oidn.h) top to bottom: find the user's weights for the inputs there are,
+// read them (oidn_steps.h read_tza) and build OIDN's UNet on our engine, the frame's exposure,
+// then per network tile: the transformed inputs, the network, the inverse transform into the
+// output's colour — one tile per worker thread, each with its own copy of the network.
+#include "mcdn/oidn.h"
+
+#include <cstdlib>
+#include <map>
+#include <memory>
+#include <mutex>
+
+#include <OpenImageIO/filesystem.h>
+#include <OpenImageIO/strutil.h>
+
+#include "core/attributes.h"
+#include "core/frame_facts.h"
+#include "core/op_prepare.h"
+#include "core/planar.h"
+#include "core/progress.h"
+#include "mcdn/color.h"
+#include "mcdn/version.h"
+#include "nn/network_regions.h"
+#include "nn/with_threads.h"
+#include "oidn/oidn_steps.h"
+#include "skip/converged_tiles.h"
+
+namespace mcdn {
+
+using OIIO::Strutil::fmt::format;
+namespace Filesystem = OIIO::Filesystem;
+
+namespace {
+
+// ---- weights --------------------------------------------------------------------------
+
+// OIDN's model for the inputs there are (it has none for a normal without an albedo).
+std::string model_name(bool albedo, bool normal)
+{
+    return albedo && normal ? "rt_hdr_alb_nrm" : albedo ? "rt_hdr_alb" : "rt_hdr";
+}
+
+// A file's weights, read once per process while the file stays the same (SURE runs the
+// denoiser K + 1 times, a chain once per band).
+bool cached_weights(std::shared_ptr<const nn::Weights>& weights, const std::string& path,
+                    std::string& error)
+{
+    static std::mutex mutex;
+    static std::map<std::string, std::pair<std::string, std::shared_ptr<const nn::Weights>>> cache;
+    const std::string stamp = format("{} {}", Filesystem::file_size(path),
+                                     int64_t(Filesystem::last_write_time(path)));
+    std::lock_guard<std::mutex> lock(mutex);
+    auto& entry = cache[path];
+    if (entry.second && entry.first == stamp) {
+        weights = entry.second;
+        return true;
+    }
+    auto read = std::make_shared<nn::Weights>();
+    if (!oidn_net::read_tza(path, *read, error))
+        return false;
+    entry = { stamp, read };
+    weights = read;
+    return true;
+}
+
+// The inputs a network reads, by its first convolution's input channels.
+bool network_inputs(const nn::Weights& weights, bool& albedo, bool& normal, std::string& error)
+{
+    const nn::NamedTensor* first = weights.find("enc_conv0.weight");
+    const int channels = first && first->shape.size() == 4 ? first->shape[1] : 0;
+    albedo = channels >= 6;
+    normal = channels == 9;
+    if (channels == 3 || channels == 6 || channels == 9)
+        return true;
+    error = format("{}: reads {} input channels; oidn runs OIDN's HDR colour models (3: "
+                   "colour, 6: + albedo, 9: + normal)",
+                   weights.path, channels);
+    return false;
+}
+
+// ---- one tile -------------------------------------------------------------------------
+
+/// The frame's channels a network reads, and how.
+struct Inputs {
+    int colour[3], albedo[3], normal[3];
+    bool has_albedo = false, has_normal = false;
+    float exposure = 1;
+};
+
+/// The network's input on `window` (coordinates of the frame extended to a multiple of the
+/// network's alignment: rows and columns past the frame repeat its last ones).
+void tile_input(nn::Tensor& input, const ImageBuf& src, const Inputs& in, const Rect& window)
+{
+    const ImageSpec& spec = src.spec();
+    const int channels = 3 + 3 * in.has_albedo + 3 * in.has_normal;
+    input = nn::Tensor(window.height(), window.width(), channels);
+    const Rect inside { window.x0, window.y0, std::min(window.x1, spec.width),
+                        std::min(window.y1, spec.height) };
+    std::vector<float> plane(size_t(inside.width()) * inside.height());
+    auto read = [&](int channel, int to, auto transform) {
+        src.get_pixels(OIIO::ROI(spec.x + inside.x0, spec.x + inside.x1, spec.y + inside.y0,
+                                 spec.y + inside.y1, 0, 1, channel, channel + 1),
+                       OIIO::TypeDesc::FLOAT, plane.data());
+        for (int y = window.y0; y < window.y1; ++y)
+            for (int x = window.x0; x < window.x1; ++x) {
+                const int sy = std::min(y, inside.y1 - 1), sx = std::min(x, inside.x1 - 1);
+                const float v = plane[size_t(sy - inside.y0) * inside.width() + (sx - inside.x0)];
+                input.at(y - window.y0, x - window.x0, to) = transform(sanitize(v));
+            }
+    };
+    for (int c = 0; c < 3; ++c)
+        read(in.colour[c], c, [&](float v) {
+            return oidn_net::pu_forward(std::clamp(v * in.exposure, 0.0f, FLT_MAX));
+        });
+    for (int c = 0; c < 3 && in.has_albedo; ++c)
+        read(in.albedo[c], 3 + c, [](float v) { return std::clamp(v, 0.0f, 1.0f); });
+    for (int c = 0; c < 3 && in.has_normal; ++c)
+        read(in.normal[c], 6 + c, [](float v) { return std::clamp(v, -1.0f, 1.0f) * 0.5f + 0.5f; });
+}
+
+/// The network's output on the frame pixels `rect` (inside its tile's core) into dst's
+/// colour channels `out`, through the inverse transform, except on converged tiles.
+void write_output(ImageBuf& dst, const int out[3], const nn::Tensor& result, const Rect& window,
+                  const Rect& rect, float exposure, const ConvergedTiles& converged)
+{
+    const ImageSpec& spec = dst.spec();
+    float* pixels = const_cast<float*>(float_frame_pixels(dst));
+    for (int y = rect.y0; y < rect.y1; ++y)
+        for (int x = rect.x0; x < rect.x1; ++x) {
+            if (converged.pixel(x, y))
+                continue;
+            float* pixel = pixels + (size_t(y) * spec.width + x) * spec.nchannels;
+            const float* value = result.pixel(y - window.y0, x - window.x0);
+            for (int c = 0; c < 3; ++c)
+                pixel[out[c]] = sanitize(oidn_net::pu_inverse(std::max(value[c], 0.0f)) / exposure);
+        }
+}
+
+// ---- the op ---------------------------------------------------------------------------
+
+bool oidn_in_working_space(ImageBuf& dst, const ImageBuf& src, const OidnOptions& options,
+                           ROI roi, int nthreads)
+{
+    // The tiles read the render's colour around them while others write theirs: in place,
+    // from a copy.
+    if (&dst == &src) {
+        const ImageBuf render = src.copy(OIIO::TypeDesc::FLOAT);
+        return oidn_in_working_space(dst, render, options, roi, nthreads);
+    }
+    const bool colour_only = src.spec().get_int_attribute(kColourOnlyAttribute, 0) == 1;
+    AovSet aovs;
+    std::string error;
+    if (!prepare_denoiser_output(dst, src, options.aovs, aovs, "oidn", colour_only, nthreads))
+        return false;
+    if (!float_frame_pixels(dst)) {
+        dst.errorfmt("oidn: the output frame is not in memory");
+        return false;
+    }
+    Inputs in;
+    std::string path;
+    std::shared_ptr<const nn::Weights> weights;
+    const bool has_albedo = aovs.channels(Role::Albedo).size() == 3;
+    const bool has_normal = aovs.channels(Role::Normal).size() == 3;
+    if (!oidn_weights(path, options, has_albedo, has_normal, error)
+        || !cached_weights(weights, path, error)
+        || !network_inputs(*weights, in.has_albedo, in.has_normal, error)) {
+        dst.errorfmt("oidn: {}", error);
+        return false;
+    }
+    if ((in.has_albedo && !has_albedo) || (in.has_normal && !has_normal)) {
+        dst.errorfmt("oidn: {} reads {}, which the input has not (-v --info lists its AOVs); "
+                     "give {}.tza",
+                     path, in.has_normal && !has_normal ? "a normal" : "an albedo",
+                     model_name(has_albedo, has_normal && has_albedo));
+        return false;
+    }
+    for (int c = 0; c < 3; ++c) {
+        in.colour[c] = aovs.channels(Role::Color)[size_t(c)];
+        in.albedo[c] = in.has_albedo ? aovs.channels(Role::Albedo)[size_t(c)] : -1;
+        in.normal[c] = in.has_normal ? aovs.channels(Role::Normal)[size_t(c)] : -1;
+    }
+    const int out[3] = { colour_only ? 0 : in.colour[0], colour_only ? 1 : in.colour[1],
+                         colour_only ? 2 : in.colour[2] };
+    const ConvergedTiles converged = converged_tiles_of(src, aovs, options.skip);
+    if (converged.all())
+        return true;
+    // The exposure of the whole frame (a band of a larger one carries it).
+    FrameFacts facts;
+    in.exposure = frame_facts(facts, src.spec()) && facts.has_exposure
+                      ? facts.exposure
+                      : autoexposure(src, in.colour);
+
+    std::vector<std::unique_ptr<nn::Net>> nets;
+    nets.push_back(std::make_unique<nn::Net>());
+    if (!oidn_net::build_unet(*nets[0], *weights, error)) {
+        dst.errorfmt("oidn: {}", error);
+        return false;
+    }
+    nn::TileOptions tile_options;
+    tile_options.tile_size = options.tile_size;
+    tile_options.regions = network_regions(converged, *nets[0], options.tile_size);
+    std::vector<nn::Tile> planned, tiles;
+    const ImageSpec& spec = src.spec();
+    if (!nn::plan_tiles(*nets[0], spec.height, spec.width, tile_options, planned, error)) {
+        dst.errorfmt("oidn: {}", error);
+        return false;
+    }
+    const ROI where = output_roi(src, roi);
+    auto output_rect = [&](const Rect& core) {
+        return Rect { std::max(core.x0, where.xbegin - spec.x),
+                      std::max(core.y0, where.ybegin - spec.y),
+                      std::min(core.x1, where.xend - spec.x), std::min(core.y1, where.yend - spec.y) };
+    };
+    for (const nn::Tile& tile : planned)
+        if (!output_rect(tile.core).empty())
+            tiles.push_back(tile);
+    ProgressCounter progress(options.progress, "oidn", int(tiles.size()));
+    std::mutex failed;
+    const bool ran = nn::with_threads(nthreads, [&] {
+        const int workers = std::min(nn::max_threads(), int(tiles.size()));
+        while (int(nets.size()) < workers) {
+            nets.push_back(std::make_unique<nn::Net>());
+            if (!oidn_net::build_unet(*nets.back(), *weights, error))
+                return false;
+        }
+        std::vector<std::vector<nn::Tensor>> inputs(static_cast<size_t>(workers)),
+            results(static_cast<size_t>(workers));
+        return nn::for_each_tile(int(tiles.size()), workers, [&](int index, int worker) {
+            const nn::Tile& tile = tiles[size_t(index)];
+            std::vector<nn::Tensor>& input = inputs[size_t(worker)];
+            std::string tile_error;
+            input.resize(1);
+            tile_input(input[0], src, in, tile.window);
+            if (!nets[size_t(worker)]->run(input, results[size_t(worker)], tile_error)) {
+                std::lock_guard<std::mutex> lock(failed);
+                error = format("oidn: '{}': {}", path, tile_error);
+                return false;
+            }
+            write_output(dst, out, results[size_t(worker)][0], tile.window,
+                         output_rect(tile.core), in.exposure, converged);
+            progress.advance();
+            return true;
+        });
+    });
+    if (!ran) {
+        dst.errorfmt("{}", error);
+        return false;
+    }
+    return true;
+}
+
+}  // namespace
+
+std::string oidn_weights_dir()
+{
+    return install_paths().data_dir + "/oidn";
+}
+
+bool oidn_weights(std::string& path, const OidnOptions& options, bool has_albedo,
+                  bool has_normal, std::string& error)
+{
+    const char* env = std::getenv("MCDN_OIDN_WEIGHTS");
+    const std::string given = !options.weights.empty() ? options.weights
+                              : env && *env           ? std::string(env)
+                                                      : oidn_weights_dir();
+    const std::string model = model_name(has_albedo, has_normal) + ".tza";
+    path = Filesystem::is_directory(given) ? given + "/" + model : given;
+    if (Filesystem::is_regular(path))
+        return true;
+    error = format("no OIDN weights at {} (looked for {} by weights=FILE or a folder, then "
+                   "$MCDN_OIDN_WEIGHTS, then {}). mcdenoise does not ship them: they are "
+                   "Intel Open Image Denoise's (Apache 2.0), in RenderKit/oidn-weights on "
+                   "GitHub or the weights/ folder of an OIDN 2.x source package",
+                   path, model, oidn_weights_dir());
+    return false;
+}
+
+int receptive_radius(const OidnOptions& options)
+{
+    // Every model has the one UNet: any of them says.
+    for (bool albedo : { true, false }) {
+        std::string path, error;
+        std::shared_ptr<const nn::Weights> weights;
+        nn::Net net;
+        if (oidn_weights(path, options, albedo, albedo, error)
+            && cached_weights(weights, path, error) && oidn_net::build_unet(net, *weights, error))
+            return net.receptive_radius();
+    }
+    return -1;
+}
+
+bool oidn(ImageBuf& dst, const ImageBuf& src, const OidnOptions& options, ROI roi, int nthreads)
+{
+    if (!check_op_threads(dst, nthreads, "oidn"))
+        return false;
+    if (!run_in_working_space(dst, src, options.aovs, "oidn", [&](ImageBuf& d, const ImageBuf& s) {
+            return oidn_in_working_space(d, s, options, roi, nthreads);
+        }))
+        return false;
+    dst.specmod().attribute(kDenoiserAttribute, "oidn");
+    return true;
+}
+
+ImageBuf oidn(const ImageBuf& src, const OidnOptions& options, ROI roi, int nthreads)
+{
+    ImageBuf dst;
+    oidn(dst, src, options, roi, nthreads);
+    return dst;
+}
+
+}  // namespace mcdn

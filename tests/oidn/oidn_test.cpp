@@ -1,0 +1,304 @@
+// The oidn op (lib/src/oidn): our reader of OIDN's tensor archives on a tiny archive this
+// test writes itself (every CI run, no OIDN file needed), the UNet on our engine against the
+// engine's plain reference loops, the op's properties (threads, tiles, bands, errors), and,
+// where ../shared holds OIDN's published weights, the published measurements reproduced.
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <unistd.h>
+#include <fstream>
+#include <random>
+
+#include <Imath/half.h>
+#include <OpenImageIO/filesystem.h>
+#include <OpenImageIO/imagebufalgo.h>
+
+#include "mcdn/chain.h"
+#include "mcdn/io.h"
+#include "mcdn/metrics.h"
+#include "mcdn/oidn.h"
+#include "oidn/oidn_steps.h"
+
+#include "mcdn_test.h"
+
+using namespace mcdn;
+
+namespace {
+
+const std::string kPeers = std::string(MCDN_SHARED_DATA) + "/../peers/oidn";
+
+// The UNet's convolutions and the input channels of each (OIDN's layout, channel counts
+// shrunk to `width`): the skip joins add pool3/2/1's and the input's channels.
+std::vector<std::pair<std::string, std::array<int, 2>>> tiny_unet(int inputs, int width)
+{
+    const int w = width;
+    return { { "enc_conv0", { w, inputs } },  { "enc_conv1", { w, w } },
+             { "enc_conv2", { w, w } },       { "enc_conv3", { w, w } },
+             { "enc_conv4", { w, w } },       { "enc_conv5a", { w, w } },
+             { "enc_conv5b", { w, w } },      { "dec_conv4a", { w, 2 * w } },
+             { "dec_conv4b", { w, w } },      { "dec_conv3a", { w, 2 * w } },
+             { "dec_conv3b", { w, w } },      { "dec_conv2a", { w, 2 * w } },
+             { "dec_conv2b", { w, w } },      { "dec_conv1a", { w, w + inputs } },
+             { "dec_conv1b", { w, w } },      { "dec_conv0", { 3, w } } };
+}
+
+void put(std::string& bytes, uint64_t value, int size)
+{
+    for (int i = 0; i < size; ++i)
+        bytes.push_back(char(value >> (8 * i) & 0xff));
+}
+
+// A tensor archive in OIDN's layout (oidn_steps.h read_tza), written here: weights in half
+// floats, biases in floats, random values scaled so that activations stay O(1).
+nn::Weights write_tiny_tza(const std::string& path, int inputs, int width, uint32_t seed)
+{
+    std::mt19937 random(seed);
+    std::normal_distribution<float> normal(0.0f, 1.0f);
+    nn::Weights expected;
+    std::string data, table;
+    put(table, 0, 4);  // the count, set below
+    uint32_t count = 0;
+    for (const auto& [name, shape] : tiny_unet(inputs, width)) {
+        for (bool weight : { true, false }) {
+            nn::NamedTensor t;
+            t.name = name + (weight ? ".weight" : ".bias");
+            t.shape = weight ? std::vector<int> { shape[0], shape[1], 3, 3 }
+                             : std::vector<int> { shape[0] };
+            const size_t n = weight ? size_t(shape[0]) * shape[1] * 9 : size_t(shape[0]);
+            const float scale = weight ? std::sqrt(2.0f / (9.0f * shape[1])) : 0.05f;
+            while (data.size() % 64)
+                data.push_back(0);
+            const uint64_t offset = 16 + data.size();
+            for (size_t i = 0; i < n; ++i) {
+                const float v = normal(random) * scale;
+                if (weight) {
+                    const Imath::half h(v);
+                    put(data, h.bits(), 2);
+                    t.values.push_back(float(h));
+                } else {
+                    uint32_t bits;
+                    std::memcpy(&bits, &v, 4);
+                    put(data, bits, 4);
+                    t.values.push_back(v);
+                }
+            }
+            put(table, t.name.size(), 2);
+            table += t.name;
+            put(table, t.shape.size(), 1);
+            for (int d : t.shape)
+                put(table, uint64_t(d), 4);
+            table += weight ? "oihw" : "x";
+            table += weight ? "h" : "f";
+            put(table, offset, 8);
+            expected.tensors.push_back(t);
+            ++count;
+        }
+    }
+    for (int i = 0; i < 4; ++i)
+        table[size_t(i)] = char(count >> (8 * i) & 0xff);
+    std::string header;
+    put(header, 0x41D7, 2);
+    put(header, 2, 1);
+    put(header, 0, 1);
+    put(header, 16 + data.size(), 8);
+    put(header, 0, 4);  // to 16 bytes: the data starts aligned
+    std::ofstream(path, std::ios::binary) << header << data << table;
+    return expected;
+}
+
+// A render with colour, albedo and normal of w x h pixels, HDR with a few bright pixels.
+ImageBuf render(int w, int h, uint32_t seed)
+{
+    ImageSpec spec(w, h, 9, OIIO::TypeDesc::FLOAT);
+    spec.channelnames = { "R", "G", "B", "albedo.R", "albedo.G", "albedo.B",
+                          "N.X", "N.Y", "N.Z" };
+    ImageBuf buf(spec);
+    std::mt19937 random(seed);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            float p[9];
+            for (int c = 0; c < 3; ++c)
+                p[c] = u(random) * (u(random) < 0.01f ? 50.0f : 1.0f);
+            for (int c = 3; c < 6; ++c)
+                p[c] = u(random);
+            for (int c = 6; c < 9; ++c)
+                p[c] = 2.0f * u(random) - 1.0f;
+            buf.setpixel(x, y, p);
+        }
+    return buf;
+}
+
+OidnOptions options_with(const std::string& weights)
+{
+    OidnOptions o;
+    o.aovs.preset = "generic";
+    o.aovs.overrides = { { "albedo", { "albedo.R", "albedo.G", "albedo.B" } },
+                         { "normal", { "N.X", "N.Y", "N.Z" } } };
+    o.weights = weights;
+    o.skip.enabled = false;
+    return o;
+}
+
+std::string temp_path(const std::string& name)
+{
+    return OIIO::Filesystem::temp_directory_path() + "/mcdn_oidn_" + std::to_string(getpid())
+           + "_" + name;
+}
+
+float max_abs_difference(const ImageBuf& a, const ImageBuf& b)
+{
+    auto stats = OIIO::ImageBufAlgo::compare(a, b, 0, 0);
+    return float(stats.maxerror);
+}
+
+}  // namespace
+
+TEST(Oidn, TensorArchiveReadAsWritten)
+{
+    const std::string path = temp_path("tiny.tza");
+    const nn::Weights expected = write_tiny_tza(path, 9, 4, 1);
+    nn::Weights read;
+    std::string error;
+    ASSERT_TRUE(oidn_net::read_tza(path, read, error)) << error;
+    ASSERT_EQ(read.tensors.size(), expected.tensors.size());
+    for (size_t i = 0; i < read.tensors.size(); ++i) {
+        EXPECT_EQ(read.tensors[i].name, expected.tensors[i].name);
+        EXPECT_EQ(read.tensors[i].shape, expected.tensors[i].shape);
+        EXPECT_EQ(read.tensors[i].values, expected.tensors[i].values) << read.tensors[i].name;
+    }
+    // Cut short anywhere: an error naming the file, never a crash.
+    std::string bytes;
+    {
+        std::ifstream in(path, std::ios::binary);
+        bytes.assign(std::istreambuf_iterator<char>(in), {});
+    }
+    for (size_t cut : { size_t(3), size_t(15), bytes.size() / 2, bytes.size() - 9 }) {
+        std::ofstream(path, std::ios::binary) << bytes.substr(0, cut);
+        EXPECT_FALSE(oidn_net::read_tza(path, read, error)) << cut;
+        EXPECT_NE(error.find(path), std::string::npos) << error;
+    }
+    std::remove(path.c_str());
+}
+
+TEST(Oidn, UnetOnTheEngineIsItsReferenceLoops)
+{
+    const std::string path = temp_path("unet.tza");
+    write_tiny_tza(path, 9, 8, 2);
+    nn::Weights weights;
+    nn::Net fast, plain;
+    std::string error;
+    ASSERT_TRUE(oidn_net::read_tza(path, weights, error)) << error;
+    ASSERT_TRUE(oidn_net::build_unet(fast, weights, error)) << error;
+    ASSERT_TRUE(oidn_net::build_unet(plain, weights, error)) << error;
+    EXPECT_EQ(fast.alignment(), 16);
+    nn::Tensor input(48, 64, 9);
+    std::mt19937 random(3);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    for (float& v : input.data)
+        v = u(random);
+    std::vector<nn::Tensor> a, b;
+    ASSERT_TRUE(fast.run({ input }, a, error)) << error;
+    ASSERT_TRUE(plain.run({ input }, b, error, nn::Backend::reference)) << error;
+    ASSERT_EQ(a[0].data.size(), b[0].data.size());
+    double worst = 0;
+    for (size_t i = 0; i < a[0].data.size(); ++i)
+        worst = std::max(worst, double(std::abs(a[0].data[i] - b[0].data[i])));
+    EXPECT_LT(worst, 1e-4);
+    std::remove(path.c_str());
+}
+
+TEST(Oidn, TransferFunctionRoundTrips)
+{
+    EXPECT_NEAR(oidn_net::pu_forward(65504.0f), 1.0f, 1e-6f);
+    for (float y : { 0.0f, 1e-7f, 1e-4f, 0.01f, 0.18f, 1.0f, 30.0f, 1000.0f, 65504.0f })
+        EXPECT_NEAR(oidn_net::pu_inverse(oidn_net::pu_forward(y)), y, 1e-4f * std::max(y, 1e-3f)) << y;
+}
+
+TEST(Oidn, SameForAnyThreadsTilesAndBands)
+{
+    const std::string path = temp_path("same.tza");
+    write_tiny_tza(path, 9, 8, 4);
+    const ImageBuf src = render(83, 61, 5);
+    OidnOptions o = options_with(path);
+    ImageBuf one, two, small_tiles;
+    ASSERT_TRUE(oidn(one, src, o, {}, 1)) << one.geterror();
+    ASSERT_TRUE(oidn(two, src, o, {}, 2)) << two.geterror();
+    EXPECT_EQ(max_abs_difference(one, two), 0.0f);
+    o.tile_size = 16;
+    ASSERT_TRUE(oidn(small_tiles, src, o, {}, 2)) << small_tiles.geterror();
+    EXPECT_LT(max_abs_difference(one, small_tiles), 1e-5f);
+    // In a chain cut into bands of rows, the frame's exposure travels with each band.
+    ChainOptions chain;
+    chain.aovs = o.aovs;
+    chain.stages = { "oidn" };
+    chain.settings = { { "oidn.weights", path }, { "oidn.skip", "0" } };
+    chain.band_pixels = 83 * 16;
+    ImageBuf banded;
+    ASSERT_TRUE(run_chain(banded, src, chain, {}, 2)) << banded.geterror();
+    EXPECT_LT(max_abs_difference(one, banded), 1e-5f);
+    // The input's own channels besides the colour are kept.
+    EXPECT_EQ(one.nchannels(), 9);
+    std::remove(path.c_str());
+}
+
+TEST(Oidn, ErrorsNameTheFileAndWhereWeightsComeFrom)
+{
+    const ImageBuf src = render(32, 32, 6);
+    ImageBuf dst;
+    OidnOptions o = options_with("/nonexistent/rt_hdr_alb_nrm.tza");
+    EXPECT_FALSE(oidn(dst, src, o));
+    const std::string message = dst.geterror();
+    for (const char* part : { "/nonexistent/rt_hdr_alb_nrm.tza", "$MCDN_OIDN_WEIGHTS",
+                              "share/mcdenoise/oidn", "RenderKit/oidn-weights" })
+        EXPECT_NE(message.find(part), std::string::npos) << message;
+    // A model reading an albedo on an input without one.
+    const std::string path = temp_path("albedo.tza");
+    write_tiny_tza(path, 6, 4, 7);
+    OidnOptions colour_only;
+    colour_only.aovs.preset = "generic";
+    colour_only.weights = path;
+    ImageBuf rgb = OIIO::ImageBufAlgo::channels(src, 3, {}, {}, { "R", "G", "B" });
+    ImageBuf out;
+    EXPECT_FALSE(oidn(out, rgb, colour_only));
+    EXPECT_NE(out.geterror().find("an albedo"), std::string::npos) << out.geterror();
+    std::remove(path.c_str());
+}
+
+// ../peers/oidn/README.md's measurements: relMSE of rt_hdr_alb_nrm against the reference.
+TEST(Oidn, PublishedWeightsReproduceThePublishedNumbers)
+{
+    if (!OIIO::Filesystem::exists(kPeers + "/rt_hdr_alb_nrm.tza"))
+        GTEST_SKIP() << "no " << kPeers;
+    const std::string data = MCDN_SHARED_DATA;
+    struct Row {
+        std::vector<InputFile> inputs;
+        std::string reference;
+        double relmse;
+    };
+    const std::vector<Row> rows = {
+        { { { data + "/box/box_0016spp.exr", InputKind::Mean } }, data + "/box/box_ref.exr", 0.00562 },
+        { { { data + "/box/box_0064spp.exr", InputKind::Mean } }, data + "/box/box_ref.exr", 0.00194 },
+        { { { data + "/box/box_0256spp.exr", InputKind::Mean } }, data + "/box/box_ref.exr", 0.00118 },
+        { { { data + "/tungsten/cornell20", InputKind::Mean } }, data + "/tungsten/cornell20/ref.pfm", 0.00055 },
+        { { { data + "/tungsten/materialtest", InputKind::Mean } }, data + "/tungsten/materialtest/ref.pfm", 0.00235 },
+    };
+    for (const Row& row : rows) {
+        ImageBuf src, out;
+        ASSERT_TRUE(read_inputs(src, row.inputs)) << src.geterror();
+        OidnOptions o;
+        o.weights = kPeers;
+        o.skip.enabled = false;
+        ASSERT_TRUE(oidn(out, src, o, {}, 2)) << out.geterror();
+        AovSet aovs;
+        std::string error;
+        ASSERT_TRUE(resolve_aovs(aovs, {}, out.spec(), error)) << error;
+        const ImageBuf reference(row.reference);
+        MetricsOptions mo;
+        mo.image_channels = aovs.channels(Role::Color);
+        Metrics m;
+        ASSERT_TRUE(compute_metrics(m, out, reference, mo, error)) << error;
+        EXPECT_NEAR(m.relmse, row.relmse, 0.02 * row.relmse) << row.reference;
+    }
+}
