@@ -6,7 +6,8 @@
 // the convs cost without tiling, halos or anything between them. Both timed in this run;
 // bench/production divides whole-process times by them.
 //
-//   bench_floor WIDTH HEIGHT      prints one JSON object
+//   bench_floor WIDTH HEIGHT [OIDN.tza]   prints one JSON object; with OIDN's weights also
+//                                         OIDN's UNet's floor (--oidn; --oidn --sure --mix)
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
@@ -16,6 +17,7 @@
 #include "mcdn/cnn.h"
 #include "mcdn/mix.h"
 #include "mix/mix_steps.h"
+#include "oidn/oidn_steps.h"
 
 #include "net_flops.h"
 #include "plain_conv.h"
@@ -42,8 +44,8 @@ double plain_layers_seconds(const nn::Net& net, int height, int width)
 
 int main(int argc, char** argv)
 {
-    if (argc != 3) {
-        std::fprintf(stderr, "usage: bench_floor WIDTH HEIGHT\n");
+    if (argc != 3 && argc != 4) {
+        std::fprintf(stderr, "usage: bench_floor WIDTH HEIGHT [OIDN.tza]\n");
         return 2;
     }
     const int w = std::atoi(argv[1]), h = std::atoi(argv[2]);
@@ -64,11 +66,31 @@ int main(int argc, char** argv)
     const double layers_cnn = plain_layers_seconds(kpcn.diffuse, h, w)
                               + plain_layers_seconds(kpcn.specular, h, w);
     const double layers_mix = plain_layers_seconds(mix, h, w);
+    std::string oidn_fields;
+    if (argc == 4) {
+        nn::Weights weights;
+        nn::Net unet;
+        if (!oidn_net::read_tza(argv[3], weights, error)
+            || !oidn_net::build_unet(unet, weights, error)) {
+            std::fprintf(stderr, "bench_floor: %s\n", error.c_str());
+            return 1;
+        }
+        const double oidn = flops_per_pixel(unet) * pixels;
+        const double layers_oidn = plain_layers_seconds(unet, h, w);
+        char text[256];
+        std::snprintf(text, sizeof text,
+                      ", \"oidn_gflop\": %.1f, \"floor_oidn_s\": %.3f, \"floor_oidn_best_s\": "
+                      "%.3f, \"layers_oidn_s\": %.3f, \"layers_oidn_best_s\": %.3f",
+                      oidn / 1e9, oidn / rate, (2 * oidn + mixing) / rate, layers_oidn,
+                      2 * layers_oidn + plain_layers_seconds(mix, h, w));
+        oidn_fields = text;
+    }
     std::printf("{\"width\": %d, \"height\": %d, \"cnn_gflop\": %.1f, \"mix_gflop\": %.1f, "
                 "\"conv_gflop_per_s\": %.1f, \"conv_cpu_s\": %.3f, \"conv_wall_s\": %.3f, "
                 "\"floor_cnn_s\": %.3f, \"floor_best_s\": %.3f, \"layers_cnn_s\": %.3f, "
-                "\"layers_best_s\": %.3f}\n",
+                "\"layers_best_s\": %.3f%s}\n",
                 w, h, cnn / 1e9, mixing / 1e9, rate / 1e9, t.cpu, t.wall, cnn / rate,
-                (2 * cnn + mixing) / rate, layers_cnn, 2 * layers_cnn + layers_mix);
+                (2 * cnn + mixing) / rate, layers_cnn, 2 * layers_cnn + layers_mix,
+                oidn_fields.c_str());
     return 0;
 }

@@ -176,7 +176,8 @@ public:
     bool load(const Weights& weights, std::string& error);
     bool loaded() const { return loaded_; }
 
-    /// Runs on whole tensors, one per input(), all of one size (a multiple of alignment()).
+    /// Runs on whole tensors, one per input(), all of one size (a multiple of alignment()):
+    /// the steps decided when its state was made (nn/net_plan.h), in order.
     bool run(const std::vector<Tensor>& inputs, std::vector<Tensor>& outputs,
              std::string& error, Backend backend = Backend::onednn);
     /// Hands the buffers this network keeps between runs to `other`, which runs next (the
@@ -184,6 +185,7 @@ public:
     void give_buffers(Net& other);
 
 private:
+    bool check_inputs(const std::vector<Tensor>& inputs, std::string& error) const;
     Value add_node(Node node);
     bool check(Value x, const char* op);
     void make_state();

@@ -11,6 +11,7 @@
 
 #include <oneapi/dnnl/dnnl.hpp>
 
+#include "nn/net_plan.h"
 #include "nn/nn.h"
 
 namespace mcdn {
@@ -57,6 +58,8 @@ struct NetState {
     dnnl::stream stream { engine };
     std::map<int, ConvLayer> convs;  // by node id
     std::vector<std::vector<float>> spare;
+    /// How the network runs (net_plan.h): [0] the oneDNN backend's, [1] the reference's.
+    std::vector<Step> plan[2];
 };
 
 }  // namespace nn

@@ -17,6 +17,7 @@
 #include "core/op_prepare.h"
 #include "core/planar.h"
 #include "core/progress.h"
+#include "core/trace.h"
 #include "mcdn/color.h"
 #include "mcdn/version.h"
 #include "nn/network_regions.h"
@@ -91,8 +92,13 @@ struct Inputs {
 void tile_input(nn::Tensor& input, const ImageBuf& src, const Inputs& in, const Rect& window)
 {
     const ImageSpec& spec = src.spec();
-    const int channels = 3 + 3 * in.has_albedo + 3 * in.has_normal;
-    input = nn::Tensor(window.height(), window.width(), channels);
+    // Reshaped in the storage of the worker's last tile (every value is written below):
+    // fresh pages cost a fault and a clear each.
+    input.height = window.height();
+    input.width = window.width();
+    input.channels = 3 + 3 * in.has_albedo + 3 * in.has_normal;
+    if (input.data.size() < input.size())
+        input.data.resize(input.size());
     const Rect inside { window.x0, window.y0, std::min(window.x1, spec.width),
                         std::min(window.y1, spec.height) };
     std::vector<float> plane(size_t(inside.width()) * inside.height());
@@ -147,6 +153,7 @@ bool oidn_in_working_space(ImageBuf& dst, const ImageBuf& src, const OidnOptions
         return oidn_in_working_space(dst, render, options, roi, nthreads);
     }
     const bool colour_only = src.spec().get_int_attribute(kColourOnlyAttribute, 0) == 1;
+    StageTrace trace("oidn");
     AovSet aovs;
     std::string error;
     if (!prepare_denoiser_output(dst, src, options.aovs, aovs, "oidn", colour_only, nthreads))
@@ -155,6 +162,7 @@ bool oidn_in_working_space(ImageBuf& dst, const ImageBuf& src, const OidnOptions
         dst.errorfmt("oidn: the output frame is not in memory");
         return false;
     }
+    trace.mark("copy src to dst");
     Inputs in;
     std::string path;
     std::shared_ptr<const nn::Weights> weights;
@@ -189,6 +197,7 @@ bool oidn_in_working_space(ImageBuf& dst, const ImageBuf& src, const OidnOptions
                       ? facts.exposure
                       : autoexposure(src, in.colour);
 
+    trace.mark("weights, converged tiles, exposure");
     std::vector<std::unique_ptr<nn::Net>> nets;
     nets.push_back(std::make_unique<nn::Net>());
     if (!oidn_net::build_unet(*nets[0], *weights, error)) {
@@ -245,6 +254,7 @@ bool oidn_in_working_space(ImageBuf& dst, const ImageBuf& src, const OidnOptions
         dst.errorfmt("{}", error);
         return false;
     }
+    trace.mark("network tiles");
     return true;
 }
 

@@ -186,6 +186,275 @@ void add_count(ImageBuf& dst, const char* attribute, const ConvergedTiles& worse
         dst.specmod().attribute(attribute, dst.spec().get_int_attribute(attribute, 0) + count);
 }
 
+// ---- the steps of one band ------------------------------------------------------------
+
+// One channel of a band, every row.
+ROI channel_roi(const ImageBuf& noisy, int channel)
+{
+    ROI r = noisy.roi();
+    r.chbegin = channel;
+    r.chend = channel + 1;
+    return r;
+}
+
+// The exact bits of `channels` (read_plane would sanitize them), one plane each.
+std::vector<std::vector<float>> exact_bits(const ImageBuf& noisy, const std::vector<int>& channels)
+{
+    std::vector<std::vector<float>> bits(channels.size());
+    for (size_t m = 0; m < channels.size(); ++m) {
+        bits[m].resize(size_t(noisy.spec().width) * noisy.spec().height);
+        noisy.get_pixels(channel_roi(noisy, channels[m]), OIIO::TypeDesc::FLOAT, bits[m].data());
+    }
+    return bits;
+}
+
+void put_back_bits(ImageBuf& noisy, const std::vector<int>& channels,
+                   const std::vector<std::vector<float>>& bits)
+{
+    for (size_t m = 0; m < channels.size(); ++m)
+        noisy.set_pixels(channel_roi(noisy, channels[m]), OIIO::TypeDesc::FLOAT, bits[m].data());
+}
+
+/// What one band's steps share: the render x and its variance, the converged tiles, the
+/// denoised y, and the divergence the probes estimate.
+struct BandState {
+    Plane x[3], variance[3], y[3];
+    ConvergedTiles converged;
+    /// The moved channels' exact bits, restored after each probe.
+    std::vector<std::vector<float>> unprobed;
+    /// The extras' x, recorded for the mix.
+    std::vector<Plane> extras;
+    /// The denoiser's own tile decisions, which hold for its probes (core/attributes.h).
+    std::string denoiser_tiles;
+    /// In place: noisy's spec as the denoiser left it, and the colour it made.
+    ImageSpec result_spec;
+    std::vector<std::vector<float>> y_bits;
+    Plane divergence[3];
+};
+
+// x, its variance and the converged tiles (mcdn/skip.h: the denoiser's runs all skip the
+// tiles of this map; bands start on whole tiles, so a band's map is the frame's); the
+// moved channels' bits and the extras, before the denoiser, which may write them
+// (SureFrame::denoise_in_place).
+void read_band(BandState& st, ImageBuf& noisy, const SureOptions& options, const SureFrame& frame)
+{
+    read_planes(noisy, { { frame.color[0], &st.x[0] }, { frame.color[1], &st.x[1] },
+                         { frame.color[2], &st.x[2] }, { frame.variance[0], &st.variance[0], true },
+                         { frame.variance[1], &st.variance[1], true },
+                         { frame.variance[2], &st.variance[2], true } },
+                {}, frame.nthreads);
+    st.converged = converged_tiles_of(noisy, st.x, st.variance, options.skip);
+    if (options.skip.enabled)
+        noisy.specmod().attribute(kConvergedAttribute, encode_converged_tiles(st.converged));
+    if (frame.eps > 0 || frame.denoise_in_place)
+        st.unprobed = exact_bits(noisy, frame.moved);
+    st.extras.resize(frame.extras.size());
+    std::vector<PlaneRead> reads;
+    for (size_t e = 0; e < frame.extras.size(); ++e)
+        reads.push_back({ frame.extras[e], &st.extras[e] });
+    read_planes(noisy, reads, {}, frame.nthreads);
+}
+
+// y = F(x) made in noisy itself, which becomes dst once the probes are done; the probes
+// then see the input as it was (x and its spec; the extras they do not read).
+bool denoise_in_place(BandState& st, ImageBuf& noisy, const Denoiser& denoiser,
+                      const SureFrame& frame, StageTrace& trace, std::string& error)
+{
+    const ImageSpec unprobed_spec = noisy.spec();
+    const std::vector<std::vector<float>> extras_bits = exact_bits(noisy, frame.extras);
+    if (!denoiser(noisy, noisy)) {
+        error = format("sure: the denoiser failed: {}", noisy.geterror());
+        return false;
+    }
+    trace.mark("y = F(x)");
+    st.y_bits = exact_bits(noisy, frame.color);
+    if (!check_finite_in_place(noisy.spec(), frame.color, st.y_bits,
+                               { st.unprobed.begin(), st.unprobed.begin() + 3 }, error)
+        || !check_finite_in_place(noisy.spec(), frame.extras, exact_bits(noisy, frame.extras),
+                                  extras_bits, error))
+        return false;
+    for (int c = 0; c < 3; ++c) {  // as read_plane reads them
+        st.y[c] = Plane(st.x[c].width, st.x[c].height);
+        for (size_t i = 0; i < st.y[c].size(); ++i)
+            st.y[c].px[i] = sanitize(st.y_bits[size_t(c)][i]);
+    }
+    st.result_spec = noisy.spec();
+    st.result_spec.erase_attribute(kOutputRoomAttribute);
+    st.result_spec.erase_attribute(kConvergedAttribute);
+    st.result_spec.erase_attribute(kDenoiserTilesAttribute);
+    st.denoiser_tiles = noisy.spec().get_string_attribute(kDenoiserTilesAttribute);
+    noisy.specmod() = unprobed_spec;
+    noisy.specmod().erase_attribute(kOutputRoomAttribute);
+    put_back_bits(noisy, { frame.color[0], frame.color[1], frame.color[2] },
+                  { st.unprobed.begin(), st.unprobed.begin() + 3 });
+    trace.mark("y is finite, x put back");
+    return true;
+}
+
+// y = F(x) into a buffer of its own, written to dst at once, its colour kept.
+bool denoise_into_output(BandState& st, ImageBuf& dst, ImageBuf& noisy, const Band& band,
+                         const Denoiser& denoiser, const SureFrame& frame, StageTrace& trace,
+                         std::string& error)
+{
+    ImageBuf denoised;
+    const bool ran = denoiser(denoised, noisy);
+    noisy.specmod().erase_attribute(kOutputRoomAttribute);     // for this run only
+    denoised.specmod().erase_attribute(kOutputRoomAttribute);  // a callable's copy of it
+    if (!ran) {
+        error = format("sure: the denoiser failed: {}", denoised.geterror());
+        return false;
+    }
+    trace.mark("y = F(x)");
+    // Its channels become the output's: a NaN there would leave the op.
+    if (!check_finite(denoised, noisy, frame.nthreads, error))
+        return false;
+    trace.mark("y is finite");
+    read_planes(denoised, { { frame.color[0], &st.y[0] }, { frame.color[1], &st.y[1] },
+                            { frame.color[2], &st.y[2] } },
+                {}, frame.nthreads);
+    st.denoiser_tiles = denoised.spec().get_string_attribute(kDenoiserTilesAttribute);
+    if (!dst.initialized() && is_whole_output(denoised, band, frame)) {
+        // What allocate_output and write_denoised_rows would make of it.
+        dst = std::move(denoised);
+        dst.specmod().erase_attribute(kConvergedAttribute);
+        dst.specmod().erase_attribute(kDenoiserTilesAttribute);
+    } else if (!write_denoised_rows(dst, denoised, band, frame, error)) {
+        return false;
+    }
+    trace.mark("y into the output");
+    return true;
+}
+
+// Eq. 2: probe with b ~ N(0, Sigma) K times; the render and both halves move together. b of
+// a pixel is drawn by its index in the frame, so every band sees the same probe there. No
+// probe on the tiles the denoiser passed through (`passed`).
+bool probe_divergence(BandState& st, ImageBuf& noisy, const Denoiser& denoiser,
+                      const SureOptions& options, const SureFrame& frame,
+                      const ConvergedTiles& passed, StageTrace& trace, std::string& error)
+{
+    const int w = st.x[0].width, h = st.x[0].height;
+    const Plane no_probe(w, h);
+    const uint64_t first_index = uint64_t(noisy.spec().y - frame.index_origin) * uint64_t(w);
+    const double eps = frame.eps;
+    for (int c = 0; c < 3; ++c)
+        st.divergence[c] = Plane(w, h);
+    for (int k = 0; eps > 0 && k < options.probes; ++k) {
+        Plane b[3];
+        for (int c = 0; c < 3; ++c)
+            b[c] = Plane(w, h);
+        parallel_for_index(h, frame.nthreads, [&](int row) {
+            for (int c = 0; c < 3; ++c)
+                for (size_t i = size_t(row) * w; i < size_t(row + 1) * w; ++i)
+                    b[c].px[i] = std::sqrt(st.variance[c].px[i])
+                                 * standard_normal(options.seed, uint64_t(k),
+                                                   (first_index + i) * 3 + c);
+        });
+        for (int c = 0; c < 3; ++c)
+            pass_through_converged(b[c], no_probe, passed);
+        // Probed in place and restored after (a copy of every channel per probe would cost
+        // as much as the denoiser's own work on half-converged frames).
+        noisy.specmod().attribute(kProbeAttribute, 1);
+        noisy.specmod().attribute(kColourOnlyAttribute, 1);
+        if (!st.denoiser_tiles.empty())
+            noisy.specmod().attribute(kDenoiserTilesAttribute, st.denoiser_tiles);
+        for (size_t g = 0; g < frame.moved.size(); g += 3)
+            add_probe(noisy, { frame.moved[g], frame.moved[g + 1], frame.moved[g + 2] }, b, eps);
+        trace.mark("probe b");
+        ImageBuf response;
+        const bool probe_ok = denoiser(response, noisy);
+        trace.mark("F(x + eps b)");
+        put_back_bits(noisy, frame.moved, st.unprobed);
+        noisy.specmod().erase_attribute(kProbeAttribute);
+        noisy.specmod().erase_attribute(kColourOnlyAttribute);
+        noisy.specmod().erase_attribute(kDenoiserTilesAttribute);
+        if (!probe_ok) {
+            error = format("sure: the denoiser failed on probe {}: {}", k, response.geterror());
+            return false;
+        }
+        for (int c = 0; c < 3; ++c) {
+            const std::string& name = noisy.spec().channel_name(frame.color[c]);
+            const int index = response.spec().channelindex(name);
+            if (index < 0) {
+                error = format("sure: the denoiser's result on probe {} has no channel '{}'", k,
+                               name);
+                return false;
+            }
+            Plane f = read_plane(response, index);
+            for (size_t i = 0; i < f.size(); ++i)
+                st.divergence[c].px[i] += float(b[c].px[i] * (double(f.px[i]) - st.y[c].px[i])
+                                                / (eps * options.probes));
+        }
+    }
+    return true;
+}
+
+// Eq. 1 per pixel and channel (d = 1): SURE = (y - x)^2 + 2 sigma^2 f'(x) - sigma^2; the
+// safety net (skip/worse_tiles.h: where SURE says y is worse than x, y = x and SURE is the
+// render's own error, as on a tile passed through); all of sure's channels in one pass over
+// the output's rows (and, where the net fell back, the colour and the extras).
+void write_sure(BandState& st, ImageBuf& dst, const ImageSpec& in_spec, const Band& band,
+                int band_y, const SureOptions& options, const SureFrame& frame,
+                const ConvergedTiles& passed)
+{
+    const int w = st.x[0].width, h = st.x[0].height;
+    for (int c = 0; c < 3; ++c)  // the pass-through's f'(x) = 1
+        pass_through_converged(st.divergence[c], st.variance[c], passed);
+    const std::vector<std::string> names = sure_channel_names(frame);
+    std::vector<int> out;
+    for (const std::string& name : names)
+        out.push_back(dst.spec().channelindex(name));
+    ROI where = frame.where;
+    where.ybegin = std::max(where.ybegin, band.own_begin);
+    where.yend = std::min(where.yend, band.own_end);
+    Plane residual[3], estimate[3];
+    for (int c = 0; c < 3; ++c) {
+        residual[c] = Plane(w, h);
+        estimate[c] = Plane(w, h);
+        parallel_for_index(h, frame.nthreads, [&](int row) {
+            for (size_t i = size_t(row) * w; i < size_t(row + 1) * w; ++i) {
+                double d = double(st.y[c].px[i]) - st.x[c].px[i];
+                residual[c].px[i] = sanitize(float(d * d));
+                st.divergence[c].px[i] = sanitize(st.divergence[c].px[i]);
+                estimate[c].px[i] = sanitize(residual[c].px[i] + 2 * st.divergence[c].px[i]
+                                             - st.variance[c].px[i]);
+            }
+        });
+    }
+    const ConvergedTiles worse = tiles_worse_than_render(estimate, st.variance, st.y, passed);
+    const Plane fell_back = frame.fallback_channel ? tile_flags(worse, w, h) : Plane();
+    add_count(dst, options.fallback ? kSureFallbackCountAttribute : kSureWorseCountAttribute,
+              worse, band, band_y);
+    const bool fall_back = options.fallback && worse.any();
+    if (fall_back) {
+        const Plane zero(w, h);
+        for (int c = 0; c < 3; ++c) {
+            pass_through_converged(st.y[c], st.x[c], worse);
+            pass_through_converged(estimate[c], st.variance[c], worse);
+            pass_through_converged(st.divergence[c], st.variance[c], worse);
+            pass_through_converged(residual[c], zero, worse);
+        }
+    }
+    std::vector<const Plane*> planes;
+    for (const Plane* group : { st.x, estimate, st.divergence, residual })
+        for (int c = 0; c < 3; ++c)
+            planes.push_back(&group[c]);
+    for (const Plane& e : st.extras)
+        planes.push_back(&e);
+    if (frame.fallback_channel)
+        planes.push_back(&fell_back);
+    if (fall_back) {
+        for (int c = 0; c < 3; ++c) {
+            out.push_back(dst.spec().channelindex(in_spec.channel_name(frame.color[c])));
+            planes.push_back(&st.y[c]);
+        }
+        for (size_t e = 0; e < frame.extras.size(); ++e) {
+            out.push_back(dst.spec().channelindex(in_spec.channel_name(frame.extras[e])));
+            planes.push_back(&st.extras[e]);
+        }
+    }
+    write_rows(dst, out, planes, band_y, where);
+}
+
 }  // namespace
 
 std::vector<std::string> sure_channel_names(const SureFrame& frame)
@@ -223,249 +492,26 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
                const SureOptions& options, const SureFrame& frame, std::string& error)
 {
     StageTrace trace("sure");
-    Plane x[3], variance[3];
-    read_planes(noisy, { { frame.color[0], &x[0] }, { frame.color[1], &x[1] },
-                         { frame.color[2], &x[2] }, { frame.variance[0], &variance[0], true },
-                         { frame.variance[1], &variance[1], true },
-                         { frame.variance[2], &variance[2], true } },
-                {}, frame.nthreads);
-
-    // mcdn/skip.h: the denoiser's runs all skip the tiles of this map (bands start on whole
-    // tiles, so a band's map is the frame's).
-    const ConvergedTiles converged = converged_tiles_of(noisy, x, variance, options.skip);
-    if (options.skip.enabled)
-        noisy.specmod().attribute(kConvergedAttribute, encode_converged_tiles(converged));
-
-    // The moved channels' exact bits (read_plane would sanitize), restored after each probe;
-    // the extras' x, recorded for the mix. Both before the denoiser, which may write them
-    // (SureFrame::denoise_in_place).
-    const int w = x[0].width, h = x[0].height;
-    auto channel_roi = [&](int channel) {
-        ROI r = noisy.roi();
-        r.chbegin = channel;
-        r.chend = channel + 1;
-        return r;
-    };
-    auto exact = [&](const std::vector<int>& channels) {
-        std::vector<std::vector<float>> bits(channels.size());
-        for (size_t m = 0; m < channels.size(); ++m) {
-            bits[m].resize(size_t(w) * h);
-            noisy.get_pixels(channel_roi(channels[m]), OIIO::TypeDesc::FLOAT, bits[m].data());
-        }
-        return bits;
-    };
-    auto put_back = [&](const std::vector<int>& channels,
-                        const std::vector<std::vector<float>>& bits) {
-        for (size_t m = 0; m < channels.size(); ++m)
-            noisy.set_pixels(channel_roi(channels[m]), OIIO::TypeDesc::FLOAT, bits[m].data());
-    };
-    const std::vector<std::vector<float>> unprobed = frame.eps > 0 || frame.denoise_in_place
-                                                         ? exact(frame.moved)
-                                                         : std::vector<std::vector<float>>();
-    std::vector<Plane> extras(frame.extras.size());
-    {
-        std::vector<PlaneRead> reads;
-        for (size_t e = 0; e < frame.extras.size(); ++e)
-            reads.push_back({ frame.extras[e], &extras[e] });
-        read_planes(noisy, reads, {}, frame.nthreads);
-    }
-
-    // y = F(x): the result we report SURE for. Written to dst at once, its colour kept; in
-    // place, made in noisy itself, which becomes dst once the probes are done.
-    Plane y[3];
-    std::string denoiser_tiles;
-    ImageSpec result_spec;                 // in place: noisy's spec as the denoiser left it
-    std::vector<std::vector<float>> y_bits;  // in place: the colour as the denoiser made it
-    if (frame.denoise_in_place) {
-        trace.mark("read x, converged tiles");
-        const ImageSpec unprobed_spec = noisy.spec();
-        const std::vector<std::vector<float>> extras_bits = exact(frame.extras);
-        if (!denoiser(noisy, noisy)) {
-            error = format("sure: the denoiser failed: {}", noisy.geterror());
-            return false;
-        }
-        trace.mark("y = F(x)");
-        y_bits = exact(frame.color);
-        if (!check_finite_in_place(noisy.spec(), frame.color, y_bits,
-                                   { unprobed.begin(), unprobed.begin() + 3 }, error)
-            || !check_finite_in_place(noisy.spec(), frame.extras, exact(frame.extras),
-                                      extras_bits, error))
-            return false;
-        for (int c = 0; c < 3; ++c) {  // as read_plane reads them
-            y[c] = Plane(w, h);
-            for (size_t i = 0; i < y[c].size(); ++i)
-                y[c].px[i] = sanitize(y_bits[c][i]);
-        }
-        result_spec = noisy.spec();
-        result_spec.erase_attribute(kOutputRoomAttribute);
-        result_spec.erase_attribute(kConvergedAttribute);
-        result_spec.erase_attribute(kDenoiserTilesAttribute);
-        denoiser_tiles = noisy.spec().get_string_attribute(kDenoiserTilesAttribute);
-        // The probes see the input as it was: x and its spec (the extras they do not read).
-        noisy.specmod() = unprobed_spec;
-        noisy.specmod().erase_attribute(kOutputRoomAttribute);
-        put_back({ frame.color[0], frame.color[1], frame.color[2] },
-                 { unprobed.begin(), unprobed.begin() + 3 });
-        trace.mark("y is finite, x put back");
-    } else {
-        ImageBuf denoised;
-        trace.mark("read x, converged tiles");
-        const bool ran = denoiser(denoised, noisy);
-        noisy.specmod().erase_attribute(kOutputRoomAttribute);  // for this run only
-        denoised.specmod().erase_attribute(kOutputRoomAttribute);  // a callable's copy of it
-        if (!ran) {
-            error = format("sure: the denoiser failed: {}", denoised.geterror());
-            return false;
-        }
-        trace.mark("y = F(x)");
-        // Its channels become the output's: a NaN there would leave the op.
-        if (!check_finite(denoised, noisy, frame.nthreads, error))
-            return false;
-        trace.mark("y is finite");
-        read_planes(denoised, { { frame.color[0], &y[0] }, { frame.color[1], &y[1] },
-                                { frame.color[2], &y[2] } },
-                    {}, frame.nthreads);
-        // The denoiser's own tile decisions hold for its probes (core/attributes.h).
-        denoiser_tiles = denoised.spec().get_string_attribute(kDenoiserTilesAttribute);
-        if (!dst.initialized() && is_whole_output(denoised, band, frame)) {
-            // What allocate_output and write_denoised_rows would make of it.
-            dst = std::move(denoised);
-            dst.specmod().erase_attribute(kConvergedAttribute);
-            dst.specmod().erase_attribute(kDenoiserTilesAttribute);
-        } else if (!write_denoised_rows(dst, denoised, band, frame, error)) {
-            return false;
-        }
-        trace.mark("y into the output");
-    }
+    BandState st;
+    read_band(st, noisy, options, frame);
+    trace.mark("read x, converged tiles");
+    if (!(frame.denoise_in_place
+              ? denoise_in_place(st, noisy, denoiser, frame, trace, error)
+              : denoise_into_output(st, dst, noisy, band, denoiser, frame, trace, error)))
+        return false;
     // Of those, the tiles the denoiser did pass through (a callable may not skip): no probes.
-    const ConvergedTiles passed = tiles_where_equal(y, x, &converged);
-    const Plane no_probe(w, h);
-
-    // Eq. 2: probe with b ~ N(0, Sigma); the render and both halves move together. b of a
-    // pixel is drawn by its index in the frame, so every band sees the same probe there.
-    const uint64_t first_index = uint64_t(noisy.spec().y - frame.index_origin) * uint64_t(w);
-    const double eps = frame.eps;
-    Plane divergence[3] = { Plane(w, h), Plane(w, h), Plane(w, h) };
-    for (int k = 0; eps > 0 && k < options.probes; ++k) {
-        Plane b[3];
-        for (int c = 0; c < 3; ++c)
-            b[c] = Plane(w, h);
-        parallel_for_index(h, frame.nthreads, [&](int row) {
-            for (int c = 0; c < 3; ++c)
-                for (size_t i = size_t(row) * w; i < size_t(row + 1) * w; ++i)
-                    b[c].px[i] = std::sqrt(variance[c].px[i])
-                                 * standard_normal(options.seed, uint64_t(k),
-                                                   (first_index + i) * 3 + c);
-        });
-        for (int c = 0; c < 3; ++c)
-            pass_through_converged(b[c], no_probe, passed);
-        // Probed in place and restored after (a copy of every channel per probe would cost
-        // as much as the denoiser's own work on half-converged frames).
-        noisy.specmod().attribute(kProbeAttribute, 1);
-        noisy.specmod().attribute(kColourOnlyAttribute, 1);
-        if (!denoiser_tiles.empty())
-            noisy.specmod().attribute(kDenoiserTilesAttribute, denoiser_tiles);
-        for (size_t g = 0; g < frame.moved.size(); g += 3)
-            add_probe(noisy, { frame.moved[g], frame.moved[g + 1], frame.moved[g + 2] }, b, eps);
-        trace.mark("probe b");
-        ImageBuf response;
-        const bool probe_ok = denoiser(response, noisy);
-        trace.mark("F(x + eps b)");
-        put_back(frame.moved, unprobed);
-        noisy.specmod().erase_attribute(kProbeAttribute);
-        noisy.specmod().erase_attribute(kColourOnlyAttribute);
-        noisy.specmod().erase_attribute(kDenoiserTilesAttribute);
-        if (!probe_ok) {
-            error = format("sure: the denoiser failed on probe {}: {}", k, response.geterror());
-            return false;
-        }
-        for (int c = 0; c < 3; ++c) {
-            const std::string& name = noisy.spec().channel_name(frame.color[c]);
-            const int index = response.spec().channelindex(name);
-            if (index < 0) {
-                error = format("sure: the denoiser's result on probe {} has no channel '{}'", k,
-                               name);
-                return false;
-            }
-            Plane f = read_plane(response, index);
-            for (size_t i = 0; i < f.size(); ++i)
-                divergence[c].px[i] += float(b[c].px[i] * (double(f.px[i]) - y[c].px[i])
-                                             / (eps * options.probes));
-        }
-    }
-
+    const ConvergedTiles passed = tiles_where_equal(st.y, st.x, &st.converged);
+    if (!probe_divergence(st, noisy, denoiser, options, frame, passed, trace, error))
+        return false;
     const int band_y = noisy.spec().y;
     // In place, noisy is the result now: y and the spec the denoiser gave it.
     if (frame.denoise_in_place) {
-        put_back(frame.color, y_bits);
-        noisy.specmod() = result_spec;
+        put_back_bits(noisy, frame.color, st.y_bits);
+        noisy.specmod() = st.result_spec;
         dst = std::move(noisy);
     }
-    const ImageSpec& in_spec = frame.denoise_in_place ? dst.spec() : noisy.spec();
-
-    // Eq. 1 per pixel and channel (d = 1): SURE = (y - x)^2 + 2 sigma^2 f'(x) - sigma^2.
-    for (int c = 0; c < 3; ++c)  // the pass-through's f'(x) = 1
-        pass_through_converged(divergence[c], variance[c], passed);
-    const std::vector<std::string> names = sure_channel_names(frame);
-    std::vector<int> out;
-    for (const std::string& name : names)
-        out.push_back(dst.spec().channelindex(name));
-    ROI where = frame.where;
-    where.ybegin = std::max(where.ybegin, band.own_begin);
-    where.yend = std::min(where.yend, band.own_end);
-    Plane residual[3], estimate[3];
-    for (int c = 0; c < 3; ++c) {
-        residual[c] = Plane(w, h);
-        estimate[c] = Plane(w, h);
-        parallel_for_index(h, frame.nthreads, [&](int row) {
-            for (size_t i = size_t(row) * w; i < size_t(row + 1) * w; ++i) {
-                double d = double(y[c].px[i]) - x[c].px[i];
-                residual[c].px[i] = sanitize(float(d * d));
-                divergence[c].px[i] = sanitize(divergence[c].px[i]);
-                estimate[c].px[i] = sanitize(residual[c].px[i] + 2 * divergence[c].px[i]
-                                             - variance[c].px[i]);
-            }
-        });
-    }
-
-    // The safety net (skip/worse_tiles.h): where SURE says y is worse than x, y = x and SURE
-    // is the render's own error, as on a tile passed through.
-    const ConvergedTiles worse = tiles_worse_than_render(estimate, variance, y, passed);
-    const Plane fell_back = frame.fallback_channel ? tile_flags(worse, w, h) : Plane();
-    add_count(dst, options.fallback ? kSureFallbackCountAttribute : kSureWorseCountAttribute,
-              worse, band, band_y);
-    const bool fall_back = options.fallback && worse.any();
-    if (fall_back) {
-        const Plane zero(w, h);
-        for (int c = 0; c < 3; ++c) {
-            pass_through_converged(y[c], x[c], worse);
-            pass_through_converged(estimate[c], variance[c], worse);
-            pass_through_converged(divergence[c], variance[c], worse);
-            pass_through_converged(residual[c], zero, worse);
-        }
-    }
-
-    // All of sure's channels in one pass over the output's rows (and, where the net fell
-    // back, the colour and the extras).
-    std::vector<const Plane*> planes;
-    for (const Plane* group : { x, estimate, divergence, residual })
-        for (int c = 0; c < 3; ++c)
-            planes.push_back(&group[c]);
-    for (const Plane& e : extras)
-        planes.push_back(&e);
-    if (frame.fallback_channel)
-        planes.push_back(&fell_back);
-    if (fall_back) {
-        for (int c = 0; c < 3; ++c) {
-            out.push_back(dst.spec().channelindex(in_spec.channel_name(frame.color[c])));
-            planes.push_back(&y[c]);
-        }
-        for (size_t e = 0; e < frame.extras.size(); ++e) {
-            out.push_back(dst.spec().channelindex(in_spec.channel_name(frame.extras[e])));
-            planes.push_back(&extras[e]);
-        }
-    }
-    write_rows(dst, out, planes, band_y, where);
+    write_sure(st, dst, frame.denoise_in_place ? dst.spec() : noisy.spec(), band, band_y,
+               options, frame, passed);
     trace.mark("eq. 1, sure.* channels");
     return true;
 }

@@ -1,0 +1,247 @@
+// Net::run (nn.h): its input checks, then the steps its plan decided (net_plan.h), each
+// value's storage taken from values freed earlier, this run or the last.
+#include <algorithm>
+
+#include "nn/net_plan.h"
+#include "nn/onednn_conv.h"
+#include "nn/ops.h"
+
+namespace mcdn {
+namespace nn {
+
+namespace {
+
+/// Storage for `size` floats: the smallest spare buffer that holds it, or none (then the
+/// op allocates). A buffer is never grown, as two values could then trade buffers and grow
+/// them at every tile; run_tiled runs its largest tiles first, so every value of the later
+/// tiles finds a buffer.
+std::vector<float> take_storage(std::vector<std::vector<float>>& spare, size_t size)
+{
+    size_t best = spare.size();
+    for (size_t i = 0; i < spare.size(); ++i)
+        if (spare[i].capacity() >= size
+            && (best == spare.size() || spare[i].capacity() < spare[best].capacity()))
+            best = i;
+    if (best == spare.size())
+        return {};
+    std::vector<float> storage = std::move(spare[best]);
+    spare.erase(spare.begin() + best);
+    return storage;
+}
+
+void give_back(std::vector<std::vector<float>>& spare, Tensor& t)
+{
+    if (t.data.capacity() > 0)
+        spare.push_back(std::move(t.data));
+    t = Tensor();
+}
+
+
+/// The values of one run: owned[id] holds what node id computed (or nothing: an input, a
+/// view), value[id] where its values are.
+struct Values {
+    std::vector<Tensor> owned;
+    std::vector<const Tensor*> value;
+    std::vector<std::vector<float>>& spare;
+    int height, width;
+
+    /// owned[id] with storage for node's values, reshaped by the op that fills it.
+    Tensor& fresh(int id, const Net::Node& node)
+    {
+        owned[size_t(id)].data = take_storage(
+            spare, size_t(height / node.scale) * (width / node.scale) * node.channels);
+        return owned[size_t(id)];
+    }
+};
+
+/// Runs one step of the oneDNN backend (`fast`) or of the reference loops.
+void run_step(const Step& step, const std::vector<Net::Node>& nodes, NetState& state,
+              const std::vector<std::vector<float>>& weights,
+              const std::vector<std::vector<float>>& biases, bool fast, Values& v)
+{
+    const Net::Node& node = nodes[size_t(step.id)];
+    auto in = [&](int k) -> const Tensor& { return *v.value[size_t(node.inputs[size_t(k)])]; };
+    Tensor& out = v.owned[size_t(step.id)];
+    switch (step.kind) {
+    case Step::Kind::conv:
+        v.fresh(step.id, node);
+        if (fast)
+            state.convs.at(step.id).run(state.engine, state.stream, in(0), out);
+        else
+            reference::conv(in(0), weights[size_t(step.id)], biases[size_t(step.id)], node.kernel,
+                            node.activation, out);
+        break;
+    case Step::Kind::conv_sum: {
+        const Tensor& residual = *v.value[size_t(step.other)];
+        if (step.in_place)
+            out = std::move(v.owned[size_t(step.other)]);  // nobody else reads it any more
+        else {
+            v.fresh(step.id, node);
+            out.height = residual.height;
+            out.width = residual.width;
+            out.channels = residual.channels;
+            out.data.assign(residual.data.begin(), residual.data.begin() + residual.size());
+        }
+        state.convs.at(step.id).run_accumulate(state.engine, state.stream, in(0), out,
+                                               step.after_sum);
+        break;
+    }
+    case Step::Kind::take:
+        out = std::move(v.owned[size_t(step.other)]);  // summed, activated by the conv
+        break;
+    case Step::Kind::add:
+        v.fresh(step.id, node);
+        fast ? ops::add(in(0), in(1), node.activation, out)
+             : reference::add(in(0), in(1), node.activation, out);
+        break;
+    case Step::Kind::max_pool2:
+        v.fresh(step.id, node);
+        fast ? ops::max_pool2(in(0), out) : reference::max_pool2(in(0), out);
+        break;
+    case Step::Kind::upsample2:
+        v.fresh(step.id, node);
+        fast ? ops::upsample2(in(0), out) : reference::upsample2(in(0), out);
+        break;
+    case Step::Kind::concat: {
+        std::vector<const Tensor*> parts;
+        for (int k = 0; k < int(node.inputs.size()); ++k)
+            parts.push_back(&in(k));
+        v.fresh(step.id, node);
+        fast ? ops::concat(parts, out) : reference::concat(parts, out);
+        break;
+    }
+    case Step::Kind::slice:
+        v.fresh(step.id, node);
+        fast ? ops::slice(in(0), node.first_channel, node.channels, out)
+             : reference::slice(in(0), node.first_channel, node.channels, out);
+        break;
+    case Step::Kind::view:
+        v.value[size_t(step.id)] = v.value[size_t(step.other)];
+        return;
+    case Step::Kind::apply_kernel:
+        v.fresh(step.id, node);
+        if (fast)
+            ops::apply_kernel(*v.value[size_t(step.other)], step.first_channel, in(1),
+                              node.kernel, out);
+        else
+            reference::apply_kernel(in(0), in(1), node.kernel, out);
+        break;
+    case Step::Kind::apply_kernel_head: {
+        v.fresh(step.id, node);
+        const int head = step.other;
+        const Tensor& features = *v.value[size_t(nodes[size_t(head)].inputs[0])];
+        ops::apply_kernel_head(features,
+                               weights[size_t(head)].data()
+                                   + size_t(step.first_channel) * features.channels,
+                               biases[size_t(head)].data() + step.first_channel, in(1),
+                               node.kernel, out);
+        break;
+    }
+    }
+    v.value[size_t(step.id)] = &out;
+}
+
+}  // namespace
+
+void Net::make_state()
+{
+    state_ = std::make_unique<NetState>();
+    for (size_t id = 0; id < nodes_.size(); ++id)
+        if (nodes_[id].op == Op::conv)
+            state_->convs.emplace(
+                std::piecewise_construct, std::forward_as_tuple(int(id)),
+                std::forward_as_tuple(nodes_[nodes_[id].inputs[0]].channels, nodes_[id].channels,
+                                      nodes_[id].kernel, nodes_[id].activation, weights_[id],
+                                      biases_[id]));
+    state_->plan[0] = plan_steps(nodes_, output_ids_, true);
+    state_->plan[1] = plan_steps(nodes_, output_ids_, false);
+}
+
+void Net::give_buffers(Net& other)
+{
+    if (!state_ || &other == this || !other.loaded_)
+        return;
+    if (!other.state_)
+        other.make_state();
+    for (std::vector<float>& buffer : state_->spare)
+        other.state_->spare.push_back(std::move(buffer));
+    state_->spare.clear();
+}
+
+bool Net::check_inputs(const std::vector<Tensor>& inputs, std::string& error) const
+{
+    const std::string prefix = "network '" + name_ + "': ";
+    if (!build_error_.empty()) {
+        error = build_error_;
+        return false;
+    }
+    if (!loaded_) {
+        error = prefix + "run before load() of its weights";
+        return false;
+    }
+    if (inputs.size() != input_ids_.size() || output_ids_.empty()) {
+        error = prefix + "expects " + std::to_string(input_ids_.size()) + " inputs, got "
+                + std::to_string(inputs.size()) + (output_ids_.empty() ? " (and has no output)" : "");
+        return false;
+    }
+    const int alignment = this->alignment();
+    for (size_t i = 0; i < inputs.size(); ++i) {
+        const Node& node = nodes_[input_ids_[i]];
+        const Tensor& t = inputs[i];
+        if (t.channels != node.channels || t.height != inputs[0].height
+            || t.width != inputs[0].width || t.data.size() < t.size()) {
+            error = prefix + "input '" + node.name + "' is " + std::to_string(t.width) + "x"
+                    + std::to_string(t.height) + "x" + std::to_string(t.channels) + ", expected "
+                    + std::to_string(node.channels) + " channels and the size of the first input";
+            return false;
+        }
+        if (t.height % alignment || t.width % alignment || t.height == 0 || t.width == 0) {
+            error = prefix + "input '" + node.name + "' is " + std::to_string(t.width) + "x"
+                    + std::to_string(t.height) + "; sizes must be multiples of "
+                    + std::to_string(alignment) + " (run_tiled extends any size)";
+            return false;
+        }
+    }
+    return true;
+}
+
+bool Net::run(const std::vector<Tensor>& inputs, std::vector<Tensor>& outputs, std::string& error,
+              Backend backend)
+{
+    if (!check_inputs(inputs, error))
+        return false;
+    if (!state_)
+        make_state();
+    const bool fast = backend == Backend::onednn;
+    // Storage comes from values freed earlier, this run or the last (whose outputs the
+    // caller hands back in `outputs`): a tiled run allocates for its first tile only.
+    Values v { std::vector<Tensor>(nodes_.size()), std::vector<const Tensor*>(nodes_.size()),
+               state_->spare, inputs[0].height, inputs[0].width };
+    for (size_t i = 0; i < inputs.size(); ++i)
+        v.value[size_t(input_ids_[i])] = &inputs[i];
+    for (Tensor& t : outputs)
+        give_back(v.spare, t);
+    outputs.clear();
+    for (const Step& step : state_->plan[fast ? 0 : 1]) {
+        run_step(step, nodes_, *state_, weights_, biases_, fast, v);
+        for (int k : step.free_after)
+            if (v.value[size_t(k)] == &v.owned[size_t(k)])
+                give_back(v.spare, v.owned[size_t(k)]);
+    }
+    for (size_t i = 0; i < output_ids_.size(); ++i) {
+        const int id = output_ids_[i];
+        const bool output_again = std::find(output_ids_.begin() + i + 1, output_ids_.end(), id)
+                                  != output_ids_.end();
+        if (v.value[size_t(id)] == &v.owned[size_t(id)] && !output_again)
+            outputs.push_back(std::move(v.owned[size_t(id)]));
+        else
+            outputs.push_back(*v.value[size_t(id)]);  // an input, or a value output twice
+        outputs.back().data.resize(outputs.back().size());  // exact, as the caller expects
+    }
+    for (Tensor& t : v.owned)  // values nobody read
+        give_back(v.spare, t);
+    return true;
+}
+
+}  // namespace nn
+}  // namespace mcdn
