@@ -64,10 +64,10 @@ void expect_rows_match(const std::vector<InputFile>& files, const InputSelection
     const int a = rows.spec().channelindex("A.ViewLayer.Combined.R");
     ASSERT_GE(r, 0);
     ASSERT_GE(a, 0);
-    std::vector<bool> colour(size_t(rows.spec().nchannels), false);
-    colour[size_t(r)] = true;
+    std::vector<bool> color(size_t(rows.spec().nchannels), false);
+    color[size_t(r)] = true;
     ImageBuf some;
-    ASSERT_TRUE(rows.read(some, 32, 64, error, colour)) << error;
+    ASSERT_TRUE(rows.read(some, 32, 64, error, color)) << error;
     EXPECT_EQ(some.getchannel(0, 40, 0, a), 0.0f);
     EXPECT_NE(whole.getchannel(0, 40, 0, a), 0.0f);
     EXPECT_EQ(some.getchannel(5, 40, 0, r), whole.getchannel(5, 40, 0, r));

@@ -35,7 +35,7 @@ TEST(CnnOutliers, AFireflyIsNotSpreadOverItsNeighbours)
     AovSpec spec;
     spec.preset = "cycles";
     const ImageBuf fire = with_firefly(clean, spec, kX, kY, 500.0f);
-    const std::vector<int> colour = colour_channels(clean, spec).mean;
+    const std::vector<int> color = color_channels(clean, spec).mean;
 
     const ImageBuf clean_out = cnn(clean, options(CnnOptions::Outliers::Drop));
     const ImageBuf drop = cnn(fire, options(CnnOptions::Outliers::Drop));
@@ -44,9 +44,9 @@ TEST(CnnOutliers, AFireflyIsNotSpreadOverItsNeighbours)
     ASSERT_FALSE(off.has_error()) << off.geterror();
     // Taken out: the neighbours are within a few percent of the render without the firefly
     // (its median stands in for the pixel's own value); left in, the kernels spread it.
-    EXPECT_LT(largest_change_around(drop, clean_out, colour, kX, kY, kReach), 0.03f);
-    EXPECT_GT(largest_change_around(off, clean_out, colour, kX, kY, kReach), 0.5f);
-    for (int c : colour) {  // and the excess is gone from the pixel too
+    EXPECT_LT(largest_change_around(drop, clean_out, color, kX, kY, kReach), 0.03f);
+    EXPECT_GT(largest_change_around(off, clean_out, color, kX, kY, kReach), 0.5f);
+    for (int c : color) {  // and the excess is gone from the pixel too
         const float base = clean_out.getchannel(kX, kY, 0, c);
         EXPECT_NEAR(drop.getchannel(kX, kY, 0, c), base, 0.1f * (base + 0.05f));
     }

@@ -124,7 +124,7 @@ TEST(NforFallback, TopTrimmedSumDropsTheLargestShare)
 TEST(NforFallback, OverCleanRenderFallsBackEverywhere)
 {
     const ImageBuf clean = with_variance_over(box16(), 100.0f);
-    const std::vector<int> colour = channels_of(clean, Role::Color);
+    const std::vector<int> color = channels_of(clean, Role::Color);
     const ImageBuf net = nfor(clean, options(true));
     const ImageBuf off = nfor(clean, options(false));
     ASSERT_FALSE(net.has_error()) << net.geterror();
@@ -135,7 +135,7 @@ TEST(NforFallback, OverCleanRenderFallsBackEverywhere)
     for (int y = 0; y < clean.spec().height; ++y)
         for (int x = 0; x < clean.spec().width; ++x) {
             EXPECT_EQ(net.getchannel(x, y, 0, flag), 1.0f);
-            for (int c : colour) {
+            for (int c : color) {
                 ASSERT_EQ(net.getchannel(x, y, 0, c), clean.getchannel(x, y, 0, c)) << x << "," << y;
                 changed_off += std::abs(off.getchannel(x, y, 0, c) - clean.getchannel(x, y, 0, c));
             }

@@ -41,7 +41,7 @@ TEST(NforOutliers, AFireflyStaysAtItsPixelAndItsNeighboursAsWithout)
     spec.preset = "cycles";
     float excess[3];
     const ImageBuf fire = with_firefly(clean, spec, kX, kY, 500.0f, excess);
-    const std::vector<int> colour = colour_channels(clean, spec).mean;
+    const std::vector<int> color = color_channels(clean, spec).mean;
 
     const ImageBuf clean_out = nfor(clean, options(NforOptions::Outliers::Keep));
     const ImageBuf keep = nfor(fire, options(NforOptions::Outliers::Keep));
@@ -52,14 +52,14 @@ TEST(NforOutliers, AFireflyStaysAtItsPixelAndItsNeighboursAsWithout)
     // Kept out: the neighbours are within a few percent of the render without the firefly
     // (its median stands in for the pixel's own value); left in, the regression spreads it
     // over them many times over.
-    EXPECT_LT(largest_change_around(keep, clean_out, colour, kX, kY, kNforReach), 0.1f);
-    EXPECT_LT(largest_change_around(drop, clean_out, colour, kX, kY, kNforReach), 0.1f);
-    EXPECT_GT(largest_change_around(off, clean_out, colour, kX, kY, kNforReach), 1.0f);
+    EXPECT_LT(largest_change_around(keep, clean_out, color, kX, kY, kNforReach), 0.1f);
+    EXPECT_LT(largest_change_around(drop, clean_out, color, kX, kY, kNforReach), 0.1f);
+    EXPECT_GT(largest_change_around(off, clean_out, color, kX, kY, kNforReach), 1.0f);
     for (int c = 0; c < 3; ++c) {
-        const float base = clean_out.getchannel(kX, kY, 0, colour[c]);
+        const float base = clean_out.getchannel(kX, kY, 0, color[c]);
         // keep: the whole excess is back at the pixel; drop: none of it.
-        EXPECT_NEAR(keep.getchannel(kX, kY, 0, colour[c]) - base, excess[c], 0.01f * excess[c]);
-        EXPECT_NEAR(drop.getchannel(kX, kY, 0, colour[c]), base, 0.1f * (base + 0.05f));
+        EXPECT_NEAR(keep.getchannel(kX, kY, 0, color[c]) - base, excess[c], 0.01f * excess[c]);
+        EXPECT_NEAR(drop.getchannel(kX, kY, 0, color[c]), base, 0.1f * (base + 0.05f));
     }
 }
 
@@ -88,7 +88,7 @@ TEST(NforOutliers, ASparselySampledDimLightIsNotAnOutlier)
         src.copy(box16());
         AovSpec spec;
         spec.preset = "cycles";
-        const ColourChannels ch = colour_channels(src, spec);
+        const ColorChannels ch = color_channels(src, spec);
         std::vector<float> px(size_t(src.nchannels()));
         for (int y = 8; y < 40; ++y)
             for (int x = 8; x < 40; ++x) {

@@ -256,12 +256,12 @@ TEST(Oidn, ErrorsNameTheFileAndWhereWeightsComeFrom)
     // A model reading an albedo on an input without one.
     const std::string path = temp_path("albedo.tza");
     write_tiny_tza(path, 6, 4, 7);
-    OidnOptions colour_only;
-    colour_only.aovs.preset = "generic";
-    colour_only.weights = path;
+    OidnOptions color_only;
+    color_only.aovs.preset = "generic";
+    color_only.weights = path;
     ImageBuf rgb = OIIO::ImageBufAlgo::channels(src, 3, {}, {}, { "R", "G", "B" });
     ImageBuf out;
-    EXPECT_FALSE(oidn(out, rgb, colour_only));
+    EXPECT_FALSE(oidn(out, rgb, color_only));
     EXPECT_NE(out.geterror().find("an albedo"), std::string::npos) << out.geterror();
     std::remove(path.c_str());
 }

@@ -284,8 +284,8 @@ TEST(RealFiles, HugeValuesAndLongNormalsAreRefused)
         EXPECT_TRUE(box.write(path));
         return path;
     };
-    const std::string colour = edited("colour.exr", "ViewLayer.Combined.G", 1e16f);
-    mcdn_test::Run run = run_mcdntool("-i " + quote(colour) + " --cnn -o " + quote(dir + "/o.exr"));
+    const std::string color = edited("colour.exr", "ViewLayer.Combined.G", 1e16f);
+    mcdn_test::Run run = run_mcdntool("-i " + quote(color) + " --cnn -o " + quote(dir + "/o.exr"));
     EXPECT_EQ(run.exit_code, 1) << run.output;
     EXPECT_NE(run.output.find("channel 'ViewLayer.Combined.G' (role color) has a huge value"),
               std::string::npos) << run.output;

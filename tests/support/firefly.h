@@ -16,10 +16,10 @@
 namespace mcdn_test {
 
 /// The colour role's channels of `image` under `spec`: mean, variance, half A, half B.
-struct ColourChannels {
+struct ColorChannels {
     std::vector<int> mean, variance, half_a, half_b;
 };
-inline ColourChannels colour_channels(const OIIO::ImageBuf& image, const mcdn::AovSpec& spec)
+inline ColorChannels color_channels(const OIIO::ImageBuf& image, const mcdn::AovSpec& spec)
 {
     mcdn::AovSet aovs;
     std::string error;
@@ -36,7 +36,7 @@ inline OIIO::ImageBuf with_firefly(const OIIO::ImageBuf& src, const mcdn::AovSpe
 {
     OIIO::ImageBuf out;
     out.copy(src);
-    const ColourChannels ch = colour_channels(src, spec);
+    const ColorChannels ch = color_channels(src, spec);
     std::vector<float> px(size_t(out.nchannels()));
     out.getpixel(x, y, 0, px.data(), out.nchannels());
     for (int c = 0; c < 3; ++c) {
@@ -54,13 +54,13 @@ inline OIIO::ImageBuf with_firefly(const OIIO::ImageBuf& src, const mcdn::AovSpe
 /// Largest |a − b| of the colour over the pixels within `reach` of (x, y), without (x, y)
 /// itself, relative to b + 0.05.
 inline float largest_change_around(const OIIO::ImageBuf& a, const OIIO::ImageBuf& b,
-                                   const std::vector<int>& colour, int x, int y, int reach)
+                                   const std::vector<int>& color, int x, int y, int reach)
 {
     float largest = 0.0f;
     for (int v = std::max(0, y - reach); v <= std::min(a.spec().height - 1, y + reach); ++v)
         for (int u = std::max(0, x - reach); u <= std::min(a.spec().width - 1, x + reach); ++u)
             if (u != x || v != y)
-                for (int c : colour) {
+                for (int c : color) {
                     const float reference = b.getchannel(u, v, 0, c);
                     largest = std::max(largest, std::fabs(a.getchannel(u, v, 0, c) - reference)
                                                     / (std::fabs(reference) + 0.05f));

@@ -12,6 +12,7 @@
 
 #include "mcdn/aov.h"
 #include "mcdn/progress.h"
+#include "mcdn/threads.h"
 
 namespace mcdn {
 
@@ -31,7 +32,7 @@ struct ChainOptions {
     /// are fixed by a light pass over it first, so the result is the whole frame's (the
     /// mixing network's to float round-off: its tiles fall differently), and memory follows
     /// the band, not the frame. 0: the whole frame at once.
-    int64_t band_pixels = int64_t(1) << 21;
+    int64_t band_pixels = kChainBandPixels;
     /// The caller keeps only the input's output channels of the result ("mcdn:output_channels",
     /// what -o writes: mcdntool's chain into one -o). After a prefilter only the features'
     /// output channels are then put back (and kept apart for it), the others (their

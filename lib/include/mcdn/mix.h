@@ -15,6 +15,7 @@
 #include "mcdn/aov.h"
 #include "mcdn/progress.h"
 #include "mcdn/skip.h"
+#include "mcdn/threads.h"
 
 namespace mcdn {
 
@@ -76,7 +77,7 @@ struct MixOptions {
     /// with alpha's reach of extra rows above and below (the model's neighbourhood plus the
     /// t-test's, rounded up to 32): the same output (the network's within float round-off:
     /// its tiles fall differently), memory that follows the band. 0: the whole frame.
-    int64_t band_pixels = int64_t(1) << 22;
+    int64_t band_pixels = kOpBandPixels;
     /// Called as the stage advances (mcdn/progress.h); empty: nothing is reported.
     ProgressCallback progress;
 };

@@ -18,6 +18,7 @@
 #include "mcdn/progress.h"
 #include "mcdn/prefilter.h"
 #include "mcdn/skip.h"
+#include "mcdn/threads.h"
 
 namespace mcdn {
 
@@ -114,7 +115,7 @@ struct NforOptions {
     /// (77 rows at the default settings): the same output, memory that follows the band
     /// rather than the frame, more time (the halos are computed twice). 0: always the
     /// whole frame.
-    int64_t band_pixels = int64_t(1) << 22;
+    int64_t band_pixels = kOpBandPixels;
     /// Converged tiles are the render, untouched, and cost nothing in any pass (their
     /// first-pass values for the neighbours' windows are the half buffers); features
     /// constant over the frame are left out of the prefilter and the regressions

@@ -16,6 +16,7 @@
 #include "mcdn/aov.h"
 #include "mcdn/progress.h"
 #include "mcdn/skip.h"
+#include "mcdn/threads.h"
 
 namespace mcdn {
 
@@ -40,7 +41,7 @@ struct PrefilterOptions {
     /// Frames with more pixels run in horizontal bands of at most this many pixels (with
     /// the filter's radius of extra rows each side), so memory follows the band: same
     /// output, a little more time. 0: always the whole frame.
-    int64_t band_pixels = int64_t(1) << 22;
+    int64_t band_pixels = kOpBandPixels;
     /// Converged tiles of the colour (needs its variance role) are not filtered, and
     /// features constant over the frame are left as they are (mcdn/skip.h). nfor's own
     /// prefilter follows NforOptions::skip instead.

@@ -17,6 +17,7 @@
 #include "mcdn/aov.h"
 #include "mcdn/progress.h"
 #include "mcdn/skip.h"
+#include "mcdn/threads.h"
 
 namespace mcdn {
 
@@ -67,7 +68,7 @@ struct SureOptions {
     /// that a band with its halos (up to 136 rows each side at 7680 wide) stays within theirs
     /// and they run it whole instead of cutting it again: at any frame size the peak is the
     /// render, sure's output and one band.
-    int64_t band_pixels = int64_t(1) << 21;
+    int64_t band_pixels = kChainBandPixels;
     /// Called as the stage advances (mcdn/progress.h); empty: nothing is reported.
     ProgressCallback progress;
     /// The safety net, for any denoiser (the CNN's, which has no error estimate of its own):

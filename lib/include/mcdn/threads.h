@@ -1,6 +1,8 @@
-// Worker threads: the one rule every op and front end applies to a thread count.
+// Worker threads and bands: the one rule every op and front end applies to a thread count,
+// and the sizes of the bands of rows ops and chains run large frames in.
 #pragma once
 
+#include <cstdint>
 #include <string>
 
 namespace mcdn {
@@ -21,5 +23,13 @@ bool parse_threads(const std::string& text, int& nthreads, std::string& error);
 /// never has to create a thread, which TBB and OpenMP cannot fail without aborting.
 /// mcdntool calls it before its first frame.
 void start_threads(int nthreads);
+
+/// Pixels of one band of rows (halos not counted) of an op run alone on a large frame
+/// (NforOptions::band_pixels, PrefilterOptions', MixOptions'): its per-pixel buffers for a
+/// band, not the frame.
+constexpr int64_t kOpBandPixels = int64_t(1) << 22;
+/// The same for a chain of stages (ChainOptions::band_pixels) and for SURE, which holds its
+/// denoiser's buffers besides its own: half an op's band.
+constexpr int64_t kChainBandPixels = int64_t(1) << 21;
 
 }  // namespace mcdn

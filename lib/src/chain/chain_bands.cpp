@@ -62,18 +62,18 @@ public:
         StageFacts facts;
         for (const std::string& name : stages)
             if (const StageInfo* stage = find_stage(name)) {
-                facts.colour_sums |= stage->facts.colour_sums;
+                facts.color_sums |= stage->facts.color_sums;
                 facts.depth_range |= stage->facts.depth_range;
                 facts.constant_features |= stage->facts.constant_features;
                 facts.exposure |= stage->facts.exposure;
             }
-        m_needs_colour = facts.colour_sums && aovs.channels(Role::Color).size() == 3;
+        m_needs_color = facts.color_sums && aovs.channels(Role::Color).size() == 3;
         m_needs_depth = facts.depth_range;
         m_needs_constants = facts.constant_features;
         if (facts.exposure && aovs.channels(Role::Color).size() == 3)
             m_exposure = std::make_unique<Autoexposure>(spec.width, spec.height);
         m_reads.assign(size_t(spec.nchannels), false);
-        if (m_needs_colour || m_exposure)
+        if (m_needs_color || m_exposure)
             for (Role r : { Role::Color, Role::ColorVariance })
                 for (int c : aovs.channels(r))
                     m_reads[size_t(c)] = true;
@@ -112,8 +112,8 @@ public:
     void add(const ImageBuf& rows)
     {
         const std::vector<int>& variance = m_aovs.channels(Role::ColorVariance);
-        if (m_needs_colour)
-            add_colour_sums(m_colour, rows, m_aovs.channels(Role::Color).data(),
+        if (m_needs_color)
+            add_color_sums(m_color, rows, m_aovs.channels(Role::Color).data(),
                             variance.size() == 3 ? variance.data() : nullptr);
         if (m_needs_depth && m_aovs.has(Role::Depth)) {
             const kpcn::DepthRange depth = kpcn::depth_range(rows, m_aovs);
@@ -133,8 +133,8 @@ public:
         FrameFacts facts;
         facts.ybegin = m_ybegin;
         facts.yend = m_yend;
-        if (m_needs_colour)
-            facts.colour = combined(m_colour);
+        if (m_needs_color)
+            facts.color = combined(m_color);
         facts.has_depth = m_needs_depth;
         if (m_needs_depth && m_aovs.has(Role::Depth)) {
             facts.depth_lo = m_depth_lo;
@@ -190,9 +190,9 @@ private:
     std::vector<float> m_first;
     std::vector<char> m_constant;
     std::vector<bool> m_reads;
-    ColourSums m_colour[3];
+    ColorSums m_color[3];
     float m_depth_lo = INFINITY, m_depth_hi = -INFINITY;
-    bool m_needs_colour = false, m_needs_depth = false, m_needs_constants = false;
+    bool m_needs_color = false, m_needs_depth = false, m_needs_constants = false;
     std::unique_ptr<Autoexposure> m_exposure;  // only when a stage reads it
     bool m_started = false;
 };

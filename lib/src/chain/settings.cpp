@@ -186,7 +186,7 @@ Denoiser composed(std::vector<std::pair<std::string, Denoiser>> stages, bool in_
         // the frame per call would be SURE's largest cost after the denoiser's own).
         const ImageBuf* input = &src;
         ImageBuf current;
-        const bool colour_only = src.spec().get_int_attribute(kColourOnlyAttribute, 0) == 1;
+        const bool color_only = src.spec().get_int_attribute(kColorOnlyAttribute, 0) == 1;
         if (in_place && &dst == &src && !stages.empty()) {  // the first stage in it too
             current = std::move(dst);
             input = &current;
@@ -210,7 +210,7 @@ Denoiser composed(std::vector<std::pair<std::string, Denoiser>> stages, bool in_
                 // A colour-only result (kColourOnlyAttribute) where the next stage needs the
                 // frame: run again without the mark.
                 ImageBuf unmarked = *input;
-                unmarked.specmod().erase_attribute(kColourOnlyAttribute);
+                unmarked.specmod().erase_attribute(kColorOnlyAttribute);
                 next = ImageBuf();
                 ok = stage(next, unmarked);
             }
@@ -219,10 +219,10 @@ Denoiser composed(std::vector<std::pair<std::string, Denoiser>> stages, bool in_
                 return false;
             }
             current = std::move(next);
-            if (colour_only && i + 2 == stages.size())
-                current.specmod().attribute(kColourOnlyAttribute, 1);
+            if (color_only && i + 2 == stages.size())
+                current.specmod().attribute(kColorOnlyAttribute, 1);
             else
-                current.specmod().erase_attribute(kColourOnlyAttribute);
+                current.specmod().erase_attribute(kColorOnlyAttribute);
             input = &current;
         }
         if (stages.empty())

@@ -157,7 +157,7 @@ StageInfo nfor_stage()
                   "converged" };
     s.cross_frame = true;
     s.reads_halves = true;
-    s.facts.colour_sums = true;
+    s.facts.color_sums = true;
     s.facts.constant_features = true;
     s.frame_buffers = 2.0;  // the result and the per-buffer regression outputs
     s.help
@@ -377,7 +377,7 @@ StageInfo sure_stage()
     s.name = "sure";
     s.kind = StageKind::Estimator;
     s.keys = { "probes", "eps", "seed", "fallback", "fallback-aov", "skip", "converged" };
-    s.facts.colour_sums = true;
+    s.facts.color_sums = true;
     s.frame_buffers = 1.5;  // the noisy copy and the denoiser's responses
     s.help
         = "Monte-Carlo SURE of the denoisers before it (PD §3.2): adds sure.*, "
@@ -431,7 +431,7 @@ StageInfo mix_stage()
     s.kind = StageKind::Mixer;
     s.keys = { "model", "weights", "ttest", "alpha", "afloor", "outlier", "drop", "skip",
                  "converged" };
-    s.facts.colour_sums = true;
+    s.facts.color_sums = true;
     s.frame_buffers = 0.8;  // the result
     s.help
         = "Progressive mix of the render and the denoised image (PD §4), after --sure: "

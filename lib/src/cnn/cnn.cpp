@@ -35,7 +35,7 @@ namespace {
 /// on converged tiles (a tile the network ran on for its neighbours keeps the render); with
 /// extras, their shares of the two components too, into `frame` (pass_through_extras
 /// restores converged tiles).
-void recombine(kpcn::OutputFrame& colour_frame, kpcn::OutputFrame& frame, Rect rect,
+void recombine(kpcn::OutputFrame& color_frame, kpcn::OutputFrame& frame, Rect rect,
                const Rect& window, const kpcn::Worker& worker, bool split, const ImageBuf& src,
                const AovSet& aovs, const std::vector<int>& color,
                const std::vector<ExtraPlanes>& extras, const ConvergedTiles& converged)
@@ -56,7 +56,7 @@ void recombine(kpcn::OutputFrame& colour_frame, kpcn::OutputFrame& frame, Rect r
         for (int x = rect.x0; x < rect.x1; ++x) {
             const float* ls = log_spec.pixel(y - window.y0, x - window.x0);
             const float* irr = split ? irradiance->pixel(y - window.y0, x - window.x0) : nullptr;
-            float* out = colour_frame.pixel(x, y);
+            float* out = color_frame.pixel(x, y);
             const size_t i = size_t(y - rect.y0) * rect.width() + (x - rect.x0);
             const bool render_stays = converged.pixel(x, y);
             for (int c = 0; c < 3; ++c) {
@@ -120,7 +120,7 @@ kpcn::DroppedOutliers find_outliers(const ImageBuf& src, const AovSet& aovs,
     read_color_planes(color, src, aovs, halves);
     // The level floor from the frame's colour (a band's frame's: core/frame_facts.h).
     FrameFacts facts;
-    const ColourSums frame = frame_facts(facts, src.spec()) ? facts.colour : colour_sums(color);
+    const ColorSums frame = frame_facts(facts, src.spec()) ? facts.color : color_sums(color);
     const NforOptions nfor_options;  // the same thresholds as NFOR's
     const OutlierRule rule = outlier_rule(nfor_options.outlier_sigma,
                                           nfor_options.outlier_variance_ratio,
@@ -168,13 +168,33 @@ bool network_tiles(std::vector<nn::Tile>& tiles, const nn::Net& net,
 
 // In place, the colour made in a frame of its own (colour channels 0-2) into the output's
 // colour channels, inside `where`.
-void copy_colour(kpcn::OutputFrame& frame, const std::vector<int>& out_color,
-                 kpcn::OutputFrame& colour_frame, const ImageBuf& dst, const ROI& where)
+void copy_color(kpcn::OutputFrame& frame, const std::vector<int>& out_color,
+                 kpcn::OutputFrame& color_frame, const ImageBuf& dst, const ROI& where)
 {
     for (int y = where.ybegin - dst.spec().y; y < where.yend - dst.spec().y; ++y)
         for (int x = where.xbegin - dst.spec().x; x < where.xend - dst.spec().x; ++x)
             for (int c = 0; c < 3; ++c)
-                frame.pixel(x, y)[out_color[c]] = colour_frame.pixel(x, y)[c];
+                frame.pixel(x, y)[out_color[c]] = color_frame.pixel(x, y)[c];
+}
+
+// §4.2 on one tile's window: its inputs (§5.1), then the diffuse and specular networks (the
+// specular alone without a split), into the worker's outputs.
+bool run_branches(kpcn::Worker& k, const ImageBuf& src, const AovSet& aovs,
+                  const kpcn::DepthRange& depth, const std::vector<ExtraPlanes>& extras,
+                  const Rect& window, bool split, const kpcn::DroppedOutliers& outliers,
+                  std::string& error)
+{
+    bool ok = kpcn::tile_inputs(src, aovs, depth, extras, window,
+                                split ? &k.diffuse_inputs : nullptr, k.specular_inputs, error,
+                                outliers.empty() ? nullptr : &outliers);
+    if (ok && split) {
+        ok = k.model.diffuse.run(k.diffuse_inputs.tensors, k.irradiance, error);
+        k.model.diffuse.give_buffers(k.model.specular);  // same shapes: no new memory
+    }
+    ok = ok && k.model.specular.run(k.specular_inputs.tensors, k.log_specular, error);
+    if (split)  // back for the next tile (without a split they stay: the one net)
+        k.model.specular.give_buffers(k.model.diffuse);
+    return ok;
 }
 
 bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& options,
@@ -182,25 +202,25 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
 {
     // A SURE probe's result is read for its colour alone (core/attributes.h): then dst is
     // the colour channels, not a copy of every channel of the frame.
-    const bool colour_only = src.spec().get_int_attribute(kColourOnlyAttribute, 0) == 1;
+    const bool color_only = src.spec().get_int_attribute(kColorOnlyAttribute, 0) == 1;
     // In place, the tiles read the render's colour around them while others write theirs:
     // the colour is made in a frame of its own and then written into dst (the extras' inputs
     // are planes of their own already, read_extras). Else on a copy of the render.
     const bool in_place = &dst == &src;
-    if (in_place && (colour_only || !float_frame_pixels(src))) {
+    if (in_place && (color_only || !float_frame_pixels(src))) {
         const ImageBuf render = src.copy(OIIO::TypeDesc::FLOAT);
         return cnn_in_working_space(dst, render, options, roi, nthreads);
     }
     StageTrace trace("cnn");
     AovSet aovs;
     std::string error;
-    if (!prepare_denoiser_output(dst, src, options.aovs, aovs, "cnn", colour_only, nthreads))
+    if (!prepare_denoiser_output(dst, src, options.aovs, aovs, "cnn", color_only, nthreads))
         return false;
     trace.mark("copy src to dst");
-    const std::vector<int> out_color = colour_only ? std::vector<int> { 0, 1, 2 }
+    const std::vector<int> out_color = color_only ? std::vector<int> { 0, 1, 2 }
                                                    : aovs.channels(Role::Color);
     std::vector<ExtraPlanes> extras;
-    if (!colour_only && denoises_extras(options.denoise_extras, src)
+    if (!color_only && denoises_extras(options.denoise_extras, src)
         && !read_extras(extras, dst, aovs, false, error)) {
         dst.errorfmt("cnn: {}", error);
         return false;
@@ -219,12 +239,12 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
         dst.errorfmt("cnn: the output frame is not in memory");
         return false;
     }
-    ImageBuf made_colour;  // in place: the colour frame, the render's until a tile writes
+    ImageBuf made_color;  // in place: the colour frame, the render's until a tile writes
     if (in_place)
-        made_colour = OIIO::ImageBufAlgo::channels(src, 3, out_color);
-    kpcn::OutputFrame colour_frame(in_place ? made_colour : dst);
-    const std::vector<int> colour_channels = in_place ? std::vector<int> { 0, 1, 2 } : out_color;
-    if (!colour_frame.valid()) {
+        made_color = OIIO::ImageBufAlgo::channels(src, 3, out_color);
+    kpcn::OutputFrame color_frame(in_place ? made_color : dst);
+    const std::vector<int> color_channels = in_place ? std::vector<int> { 0, 1, 2 } : out_color;
+    if (!color_frame.valid()) {
         dst.errorfmt("cnn: could not make the colour frame");
         return false;
     }
@@ -277,24 +297,15 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
             kpcn::Worker& k = *worker[w];
             const nn::Tile& tile = tiles[index];
             std::string tile_error;
-            bool ok = kpcn::tile_inputs(src, aovs, depth, extras, tile.window,
-                                        split ? &k.diffuse_inputs : nullptr, k.specular_inputs,
-                                        tile_error, outliers.empty() ? nullptr : &outliers);
-            if (ok && split) {
-                ok = k.model.diffuse.run(k.diffuse_inputs.tensors, k.irradiance, tile_error);
-                k.model.diffuse.give_buffers(k.model.specular);  // same shapes: no new memory
-            }
-            ok = ok && k.model.specular.run(k.specular_inputs.tensors, k.log_specular, tile_error);
-            if (split)  // back for the next tile (without a split they stay: the one net)
-                k.model.specular.give_buffers(k.model.diffuse);
-            if (!ok) {
+            if (!run_branches(k, src, aovs, depth, extras, tile.window, split, outliers,
+                              tile_error)) {
                 std::lock_guard<std::mutex> lock(failed);
                 if (error.empty())
                     error = "cnn: '" + path + "': " + tile_error;
                 return false;
             }
-            recombine(colour_frame, frame, output_rect(tile.core, dst, where), tile.window, k,
-                      split, src, aovs, colour_channels, extras, converged);
+            recombine(color_frame, frame, output_rect(tile.core, dst, where), tile.window, k,
+                      split, src, aovs, color_channels, extras, converged);
             progress.advance();
             return true;
         };
@@ -306,7 +317,7 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
     }
     trace.mark("network tiles (4.2, eq. 4)");
     if (in_place)
-        copy_colour(frame, out_color, colour_frame, dst, where);
+        copy_color(frame, out_color, color_frame, dst, where);
     // Converged tiles keep the render (sanitized), the extras' too.
     pass_through_color(frame, dst, out_color, where, converged);
     pass_through_extras(dst, where, extras, converged);

@@ -16,7 +16,7 @@ constexpr const char* kProbeAttribute = "mcdn:sure_probe";
 /// Set by sure, with kProbeAttribute, on the input of a probe: of the result it reads the
 /// colour alone (by name), so an op may return just the colour channels (the cnn op does;
 /// a frame-sized copy less per probe). compose keeps it for a chain's last stage only.
-constexpr const char* kColourOnlyAttribute = "mcdn:colour_only";
+constexpr const char* kColorOnlyAttribute = "mcdn:color_only";
 
 /// Channel names, one a line, that an op copying its input (prepare_op) appends, zero, to
 /// its output, and then drops from the output's attributes. sure sets it on the input of

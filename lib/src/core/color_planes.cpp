@@ -29,9 +29,9 @@ void read_color_planes(ColorPlanes& color, const OIIO::ImageBuf& src, const AovS
     }
 }
 
-ColourSums colour_sums(const ColorPlanes& color)
+ColorSums color_sums(const ColorPlanes& color)
 {
-    ColourSums part[3];
+    ColorSums part[3];
     for (int c = 0; c < 3; ++c)
         for (size_t i = 0; i < color.mean[c].size(); ++i, ++part[c].n) {
             part[c].sum_abs += std::fabs(color.mean[c].px[i]);

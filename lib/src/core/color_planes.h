@@ -22,6 +22,6 @@ void read_color_planes(ColorPlanes& color, const OIIO::ImageBuf& src, const AovS
 
 /// The sums core/frame_facts.h takes of the colour (a channel at a time, then added), from
 /// the planes read already: sum_abs, sum_sd and n; sum and sum2 stay 0.
-ColourSums colour_sums(const ColorPlanes& color);
+ColorSums color_sums(const ColorPlanes& color);
 
 }  // namespace mcdn

@@ -13,7 +13,7 @@ namespace mcdn {
 
 namespace Strutil = OIIO::Strutil;
 
-void add_colour_sums(ColourSums part[3], const OIIO::ImageBuf& src, const int colour[3],
+void add_color_sums(ColorSums part[3], const OIIO::ImageBuf& src, const int color[3],
                      const int variance[3])
 {
     const OIIO::ROI whole = src.roi();
@@ -23,8 +23,8 @@ void add_colour_sums(ColourSums part[3], const OIIO::ImageBuf& src, const int co
             OIIO::ROI rows = whole;
             rows.ybegin = y;
             rows.yend = std::min(y + rows_per_read, whole.yend);
-            ColourSums& s = part[c];
-            const Plane x = read_rows(src, colour[c], rows);
+            ColorSums& s = part[c];
+            const Plane x = read_rows(src, color[c], rows);
             for (float v : x.px) {
                 s.sum_abs += std::fabs(v);
                 s.sum += v;
@@ -37,9 +37,9 @@ void add_colour_sums(ColourSums part[3], const OIIO::ImageBuf& src, const int co
         }
 }
 
-ColourSums combined(const ColourSums part[3])
+ColorSums combined(const ColorSums part[3])
 {
-    ColourSums s;
+    ColorSums s;
     for (int c = 0; c < 3; ++c) {
         s.sum_abs += part[c].sum_abs;
         s.sum_sd += part[c].sum_sd;
@@ -50,21 +50,21 @@ ColourSums combined(const ColourSums part[3])
     return s;
 }
 
-ColourSums colour_sums(const OIIO::ImageBuf& src, const int colour[3], const int variance[3])
+ColorSums color_sums(const OIIO::ImageBuf& src, const int color[3], const int variance[3])
 {
-    ColourSums part[3];
-    add_colour_sums(part, src, colour, variance);
+    ColorSums part[3];
+    add_color_sums(part, src, color, variance);
     return combined(part);
 }
 
-double relative_probe_step(const ColourSums& s, double relative)
+double relative_probe_step(const ColorSums& s, double relative)
 {
     if (s.n == 0 || s.sum_sd <= 0 || s.sum_abs <= 0)
         return 0;  // no noise, or a black image: nothing to probe
     return relative * s.sum_abs / s.sum_sd;
 }
 
-float t_test_sigma(const ColourSums& s, float scale)
+float t_test_sigma(const ColorSums& s, float scale)
 {
     // "Var[x-bar], x-bar the image mean": the spatial variance of the render's values over
     // all pixels and channels (capped at 1 before the square root, as in the paper).
@@ -119,24 +119,24 @@ float Autoexposure::scale() const
     return m_count > 0 ? float(0.18 / std::exp2(m_log_sum / double(m_count))) : 1.0f;
 }
 
-void Autoexposure::add_rows(const OIIO::ImageBuf& rows, const int colour[3], int first_row)
+void Autoexposure::add_rows(const OIIO::ImageBuf& rows, const int color[3], int first_row)
 {
     const OIIO::ImageSpec& spec = rows.spec();
     std::vector<float> row(size_t(spec.width) * 3);
     for (int y = 0; y < spec.height; ++y) {
         for (int c = 0; c < 3; ++c)
             rows.get_pixels(OIIO::ROI(spec.x, spec.x + spec.width, spec.y + y, spec.y + y + 1,
-                                      0, 1, colour[c], colour[c] + 1),
+                                      0, 1, color[c], color[c] + 1),
                             OIIO::TypeDesc::FLOAT, row.data() + c, 3 * sizeof(float));
         add_rows(first_row + y, first_row + y + 1,
                  [&](int x, int, int c) { return row[size_t(x) * 3 + size_t(c)]; });
     }
 }
 
-float autoexposure(const OIIO::ImageBuf& src, const int colour[3])
+float autoexposure(const OIIO::ImageBuf& src, const int color[3])
 {
     Autoexposure exposure(src.spec().width, src.spec().height);
-    exposure.add_rows(src, colour, 0);
+    exposure.add_rows(src, color, 0);
     return exposure.scale();
 }
 
@@ -144,8 +144,8 @@ void set_frame_facts(OIIO::ImageSpec& spec, const FrameFacts& f)
 {
     // One line per value; channel names (which may hold spaces) last on their line.
     std::string text = Strutil::fmt::format("rows {} {}\ncolour {} {} {} {} {}\n", f.ybegin,
-                                            f.yend, hex(f.colour.sum_abs), hex(f.colour.sum_sd),
-                                            hex(f.colour.sum), hex(f.colour.sum2), f.colour.n);
+                                            f.yend, hex(f.color.sum_abs), hex(f.color.sum_sd),
+                                            hex(f.color.sum), hex(f.color.sum2), f.color.n);
     if (f.has_depth)
         text += Strutil::fmt::format("depth {} {}\n", hex(f.depth_lo), hex(f.depth_span));
     if (f.has_exposure)
@@ -173,7 +173,7 @@ bool frame_facts(FrameFacts& f, const OIIO::ImageSpec& spec)
             f.ybegin = int(number(1));
             f.yend = int(number(2));
         } else if (w[0] == "colour") {
-            f.colour = { number(1), number(2), number(3), number(4),
+            f.color = { number(1), number(2), number(3), number(4),
                          w.size() > 5 ? std::strtoull(w[5].c_str(), nullptr, 10) : 0 };
         } else if (w[0] == "depth") {
             f.has_depth = true;

@@ -21,7 +21,7 @@ constexpr const char* kFrameFactsAttribute = "mcdn:frame";
 /// Sums over the colour's three channels and every pixel: each channel's summed in row
 /// order, then the three added (combined()), whatever reads the rows — the whole frame, or
 /// a chain's light pass a band at a time — so the doubles are the same.
-struct ColourSums {
+struct ColorSums {
     double sum_abs = 0;  // |x|
     double sum_sd = 0;   // sqrt of the variance of the mean (sanitized): the probe's scale
     double sum = 0, sum2 = 0;  // x and x² (the t-test's image variance)
@@ -30,12 +30,12 @@ struct ColourSums {
 
 /// The sums of src's colour channels (and, when given, their variance channels), read a few
 /// rows at a time: the same doubles for any band size.
-ColourSums colour_sums(const OIIO::ImageBuf& src, const int colour[3], const int variance[3]);
+ColorSums color_sums(const OIIO::ImageBuf& src, const int color[3], const int variance[3]);
 /// Adds src's rows to each channel's sums (part[c]: colour channel c), for a frame read in
 /// bands of rows top to bottom; combined() then gives colour_sums of the whole.
-void add_colour_sums(ColourSums part[3], const OIIO::ImageBuf& src, const int colour[3],
+void add_color_sums(ColorSums part[3], const OIIO::ImageBuf& src, const int color[3],
                      const int variance[3]);
-ColourSums combined(const ColourSums part[3]);
+ColorSums combined(const ColorSums part[3]);
 
 /// eps such that eps * mean(sqrt(Var)) = relative * mean|x| (b = sqrt(Var) n): SURE's probe
 /// step (PD §3.2) and one-buffer NFOR's; 0 when there is nothing to probe. The mean of the
@@ -43,9 +43,9 @@ ColourSums combined(const ColourSums part[3]);
 /// a few pixels' variance is a million times the others', the RMS is theirs, and a step
 /// scaled by it moves the typical pixel by less than the denoiser's float rounding, so that
 /// the finite difference of eq. 2 measures the rounding (|f'| in the hundreds).
-double relative_probe_step(const ColourSums& sums, double relative);
+double relative_probe_step(const ColorSums& sums, double relative);
 /// The t-test's sigma_s (PD §4.3): min(sqrt(Var[x]), 1) * scale, Var[x] over the frame.
-float t_test_sigma(const ColourSums& sums, float scale);
+float t_test_sigma(const ColorSums& sums, float scale);
 
 /// Running sums of the autoexposure (Open Image Denoise's, which its networks were trained
 /// with): the frame cut into a grid of about 16×16
@@ -61,7 +61,7 @@ public:
     template <class Rgb> void add_rows(int y0, int y1, Rgb rgb);
     /// The same for all rows of `rows` (the frame's rows from `first_row` on), its colour
     /// channels `colour`.
-    void add_rows(const OIIO::ImageBuf& rows, const int colour[3], int first_row);
+    void add_rows(const OIIO::ImageBuf& rows, const int color[3], int first_row);
     /// The exposure scale of the frame once every row is added.
     float scale() const;
 
@@ -87,11 +87,11 @@ template <class Rgb> void Autoexposure::add_rows(int y0, int y1, Rgb rgb)
 }
 
 /// The autoexposure scale of src's colour channels `colour` (whole frame).
-float autoexposure(const OIIO::ImageBuf& src, const int colour[3]);
+float autoexposure(const OIIO::ImageBuf& src, const int color[3]);
 
 struct FrameFacts {
     int ybegin = 0, yend = 0;  // the frame's rows (a band's own are its spec's)
-    ColourSums colour;
+    ColorSums color;
     /// The CNN's depth range (0, 0: no depth), when known.
     bool has_depth = false;
     float depth_lo = 0, depth_span = 0;

@@ -115,10 +115,10 @@ ROI output_roi(const ImageBuf& src, ROI roi)
 }
 
 bool prepare_denoiser_output(ImageBuf& dst, const ImageBuf& src, const AovSpec& spec,
-                             AovSet& aovs, const char* op, bool colour_only, int nthreads)
+                             AovSet& aovs, const char* op, bool color_only, int nthreads)
 {
     std::string error;
-    if (colour_only) {
+    if (color_only) {
         if (!check_op_input(src, spec, aovs, op, error)
             || !aovs.require({ Role::Color }, src.spec(), error)) {
             dst.errorfmt("{}", error);

@@ -27,7 +27,7 @@ bool prepare_op(ImageBuf& dst, const ImageBuf& src, const AovSpec& spec, AovSet&
 /// colour: a copy of src (prepare_op), or for a SURE probe's colour-only result
 /// (core/attributes.h kColourOnlyAttribute) its colour channels alone. Errors on dst.
 bool prepare_denoiser_output(ImageBuf& dst, const ImageBuf& src, const AovSpec& spec,
-                             AovSet& aovs, const char* op, bool colour_only, int nthreads);
+                             AovSet& aovs, const char* op, bool color_only, int nthreads);
 
 /// mcdn::check_threads for an op: on failure an error on dst naming `op`.
 bool check_op_threads(ImageBuf& dst, int nthreads, const char* op);

@@ -16,8 +16,6 @@
 #endif
 #define MCDN_INLINE inline __attribute__((always_inline))
 
-#pragma GCC diagnostic ignored "-Wpsabi"  // vfloat16 only crosses always-inline calls
-
 namespace mcdn {
 
 enum class Isa { Baseline, Avx2, Avx512 };

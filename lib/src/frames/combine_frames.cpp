@@ -18,7 +18,7 @@ namespace mcdn {
 namespace {
 
 /// The colour and the variance of its mean of one frame (the role's, else from the halves).
-bool read_colour(ColorPlanes& out, const ImageBuf& frame, const AovSet& aovs, std::string& error)
+bool read_color(ColorPlanes& out, const ImageBuf& frame, const AovSet& aovs, std::string& error)
 {
     const bool halves = aovs.has(Role::ColorA) && aovs.has(Role::ColorB);
     if (!aovs.has(Role::ColorVariance) && !halves) {
@@ -138,7 +138,7 @@ bool combine_in_working_space(ImageBuf& dst, const ImageBuf& src,
     ColorPlanes own;
     if (!resolve_aovs(aovs, o.aovs, src.spec(), error)
         || !aovs.require({ Role::Color, Role::Motion }, src.spec(), error)
-        || !read_colour(own, src, aovs, error)) {
+        || !read_color(own, src, aovs, error)) {
         dst.errorfmt("{}: {}", op, error);
         return false;
     }
@@ -151,7 +151,7 @@ bool combine_in_working_space(ImageBuf& dst, const ImageBuf& src,
     std::vector<Plane> weights;
     for (const AlignedFrame& a : aligned) {
         ColorPlanes other;
-        if (!read_colour(other, *a.frame, a.aovs, error)) {
+        if (!read_color(other, *a.frame, a.aovs, error)) {
             dst.errorfmt("{}: {}", op, a.error(error));
             return false;
         }

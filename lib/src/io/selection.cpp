@@ -60,7 +60,7 @@ std::set<std::string> selected_faces(const ImageSpec& spec, const InputSelection
     // Without halves none is read (the half files are not even decoded): that each half file
     // supplies the colour's half is checked here, from the headers, not by validate_inputs.
     if (!selection.halves) {
-        if (!check_colour_faces(spec, aovs, true, error))
+        if (!check_color_faces(spec, aovs, true, error))
             return {};
         for (auto it = wanted.begin(); it != wanted.end();)
             it = Strutil::starts_with(*it, input_kind_prefix(InputKind::HalfA))

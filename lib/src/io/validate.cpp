@@ -17,7 +17,7 @@ static_assert(kHugeValue == kMaxMagnitude,
 using OIIO::TypeDesc;
 using OIIO::Strutil::fmt::format;
 
-bool check_colour_faces(const ImageSpec& spec, const AovSet& aovs, bool halves,
+bool check_color_faces(const ImageSpec& spec, const AovSet& aovs, bool halves,
                         std::string& error)
 {
     for (const InputFile& file : merged_input_files(spec)) {
@@ -47,7 +47,7 @@ bool validate_inputs(const ImageBuf& merged, const AovSet& aovs, std::string& er
         return false;
     }
     // Half files whose channels read_inputs did not read it checked from their headers.
-    if (!check_colour_faces(spec, aovs, spec.get_int_attribute(kHalvesUnread) != 1, error))
+    if (!check_color_faces(spec, aovs, spec.get_int_attribute(kHalvesUnread) != 1, error))
         return false;
     auto is_variance = [](Role r) {
         return r == Role::ColorVariance || r == Role::AlbedoVariance

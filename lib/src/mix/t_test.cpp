@@ -67,8 +67,8 @@ std::vector<size_t> highest_variance_neighbour(const Plane& variance, int radius
 float t_test_sigma(const OIIO::ImageBuf& src, const int x_channels[3], float scale)
 {
     FrameFacts facts;  // a band of a larger frame: the frame's sigma_s
-    return t_test_sigma(frame_facts(facts, src.spec()) ? facts.colour
-                                                       : colour_sums(src, x_channels, nullptr),
+    return t_test_sigma(frame_facts(facts, src.spec()) ? facts.color
+                                                       : color_sums(src, x_channels, nullptr),
                         scale);
 }
 

@@ -31,14 +31,13 @@
 #include "skip/worse_tiles.h"
 #include "nfor/mse_estimate.h"
 #include "nfor/neighbour_frames.h"
+#include "nfor/passes.h"
 #include "outliers/outliers.h"
 #include "nfor/regression.h"
 #include "prefilter/feature_prefilter.h"
 
 namespace mcdn {
 namespace {
-
-constexpr uint64_t kNforProbeSeed = 0x6e666f72;  // "nfor": the one-buffer SURE probe
 
 bool check_options(ImageBuf& dst, const NforOptions& o)
 {
@@ -54,7 +53,7 @@ bool check_options(ImageBuf& dst, const NforOptions& o)
 }
 
 /// The options' outlier rule (outliers/outliers.h).
-OutlierRule outlier_rule(const NforOptions& o, const ColourSums& frame)
+OutlierRule outlier_rule(const NforOptions& o, const ColorSums& frame)
 {
     return outlier_rule(o.outlier_sigma, o.outlier_variance_ratio, o.outlier_level_ratio, frame);
 }
@@ -153,266 +152,6 @@ void prefilter_features(std::vector<FeaturePlanes>& features, const NforOptions&
         f.variance = Plane();
 }
 
-/// §5.2's cross-filtered fits of each half for both candidate bandwidths.
-struct FirstPass {
-    std::vector<Plane> fit_a[2], fit_b[2];
-};
-
-/// The first pass's regression settings (§5.2, both candidate bandwidths); the caller says
-/// what is fitted and guided by what.
-RegressionInputs first_pass_settings(const NforOptions& options, const ConvergedTiles& converged)
-{
-    RegressionInputs in;
-    in.window_radius = options.window_radius;
-    in.patch_radius = options.patch_radius;
-    in.bandwidths = { options.candidate_k[0], options.candidate_k[1] };
-    in.variance_scale = options.variance_scale;
-    in.skip_tiles = &converged;
-    return in;
-}
-
-/// The candidates of one regression into `fits` (one per bandwidth).
-void take_candidates(std::vector<Plane> fits[2], std::vector<std::vector<Plane>> result)
-{
-    fits[0] = std::move(result[0]);
-    fits[1] = std::move(result[1]);
-}
-
-/// The features' halves after §5.2, their last use.
-void free_feature_halves(std::vector<FeaturePlanes>& features)
-{
-    for (FeaturePlanes& f : features) {
-        f.half_a = Plane();
-        f.half_b = Plane();
-    }
-}
-
-/// §5.2: half A fitted with the features and colour weights of half B, and vice versa, for
-/// each candidate bandwidth. The features' halves are not needed after it.
-FirstPass first_pass(const ColorPlanes& color, std::vector<FeaturePlanes>& features,
-                     const std::vector<NeighbourFrame>& neighbours, ExtraAovs& extras,
-                     const NforOptions& options, const ConvergedTiles& converged, int nthreads)
-{
-    RegressionInputs first_a = first_pass_settings(options, converged), first_b = first_a;
-    for (int c = 0; c < 3; ++c) {
-        first_a.image[c] = &color.half_a[c];
-        first_a.guide[c] = &color.half_b[c];
-        first_b.image[c] = &color.half_b[c];
-        first_b.guide[c] = &color.half_a[c];
-        first_a.variance[c] = first_b.variance[c] = &color.variance[c];
-    }
-    for (const FeaturePlanes& f : features) {
-        first_a.features.push_back(&f.half_b);
-        first_b.features.push_back(&f.half_a);
-    }
-    // §8: the neighbouring frames' windows join every fit.
-    const Plane zero_offset = neighbours.empty() ? Plane()
-                                                 : Plane(color.mean[0].width, color.mean[0].height);
-    add_neighbour_frames(first_a, neighbours, Face::HalfA, Face::HalfB,
-                         Face::HalfB, zero_offset);
-    add_neighbour_frames(first_b, neighbours, Face::HalfB, Face::HalfA,
-                         Face::HalfA, zero_offset);
-    FirstPass pass;
-    take_candidates(pass.fit_a, collaborative_regression(first_a, nthreads));
-    take_candidates(pass.fit_b, collaborative_regression(first_b, nthreads));
-    extras.first_pass(first_a, first_b, nthreads);
-    free_feature_halves(features);
-    return pass;
-}
-
-/// §5.3 by the two-buffer estimate: each candidate's MSE from the other half. The colour's
-/// halves are not needed after it.
-void two_buffer_mse(std::vector<Plane> mse[2], ColorPlanes& color, const FirstPass& pass)
-{
-    for (int j = 0; j < 2; ++j) {
-        const Plane* half_a[3] = { &color.half_a[0], &color.half_a[1], &color.half_a[2] };
-        const Plane* half_b[3] = { &color.half_b[0], &color.half_b[1], &color.half_b[2] };
-        const Plane* variance[3] = { &color.variance[0], &color.variance[1], &color.variance[2] };
-        mse[j] = estimate_mse(half_a, half_b, variance, pass.fit_a[j], pass.fit_b[j]);
-    }
-    for (int c = 0; c < 3; ++c) {
-        color.half_a[c] = Plane();
-        color.half_b[c] = Plane();
-    }
-}
-
-/// The probe step of the one-buffer SURE, relative to the render's scale as in the sure op
-/// (SureOptions::epsilon_relative): eps sqrt(Var) moves a pixel of
-/// mean standard deviation by 1e-3 of the mean |x|.
-/// Where the probes' index space starts: one-buffer NFOR draws b of a pixel by its index in
-/// the frame (of a band's frame, core/frame_facts.h), and takes the frame's probe step.
-struct ProbeIndex {
-    const FrameFacts* facts = nullptr;
-    uint64_t first = 0;
-    ColourSums colour;  // the frame's (facts->colour), else the planes' as read
-};
-
-/// Without half buffers (a renderer's colour and its variance, as Arnold and RenderMan
-/// write them), §5.2 fits the render itself with its own weights and the mean features for
-/// both candidates, and once more probed by eps b, b = sqrt(Var) n (n standard normal, from
-/// the pixel's index: the same for any thread count), so that §5.3 can pick by SURE
-/// (PD §2.3) instead of the two-buffer estimate. fit_b stays empty.
-FirstPass first_pass_one_buffer(const ColorPlanes& color, std::vector<FeaturePlanes>& features,
-                                const std::vector<NeighbourFrame>& neighbours,
-                                ExtraAovs& extras, const NforOptions& options,
-                                const ConvergedTiles& converged, int nthreads,
-                                std::vector<Plane> mse[2], const ProbeIndex& probe_index)
-{
-    RegressionInputs first = first_pass_settings(options, converged);
-    for (const FeaturePlanes& f : features)
-        first.features.push_back(&f.mean);
-    // §8: the neighbouring frames' windows join every fit, unprobed (SURE's divergence is
-    // this frame's).
-    const Plane zero_offset = neighbours.empty() ? Plane()
-                                                 : Plane(color.mean[0].width, color.mean[0].height);
-    add_neighbour_frames(first, neighbours, Face::Mean, Face::Mean,
-                         Face::Mean, zero_offset);
-    const double eps = relative_probe_step(probe_index.colour, 1e-3);
-    Plane probe[3], probed[3];
-    for (int c = 0; c < 3; ++c) {
-        first.image[c] = first.guide[c] = &color.mean[c];
-        first.variance[c] = &color.variance[c];
-        probe[c] = Plane(color.mean[c].width, color.mean[c].height);
-        probed[c] = probe[c];
-        for (size_t i = 0; i < probe[c].size(); ++i) {
-            probe[c].px[i] = std::sqrt(color.variance[c].px[i])
-                             * standard_normal(kNforProbeSeed, uint64_t(c), probe_index.first + i);
-            probed[c].px[i] = float(color.mean[c].px[i] + eps * probe[c].px[i]);
-        }
-    }
-    RegressionInputs probed_inputs = first;
-    for (int c = 0; c < 3; ++c)
-        probed_inputs.image[c] = probed_inputs.guide[c] = &probed[c];
-    FirstPass pass;
-    take_candidates(pass.fit_a, collaborative_regression(first, nthreads));
-    const std::vector<std::vector<Plane>> fits = collaborative_regression(probed_inputs, nthreads);
-    const Plane* render[3] = { &color.mean[0], &color.mean[1], &color.mean[2] };
-    const Plane* variance[3] = { &color.variance[0], &color.variance[1], &color.variance[2] };
-    for (int j = 0; j < 2; ++j)
-        mse[j] = sure_mse(render, variance, probe, eps, pass.fit_a[j], fits[j]);
-    extras.first_pass_one_buffer(first, nthreads);
-    free_feature_halves(features);
-    return pass;
-}
-
-/// §5.3's result: the candidates blended per pixel, which is what §5.4 filters, and the
-/// blended MSE estimate and selection map when asked for.
-struct Selected {
-    Plane combined[3], combined_variance[3];
-    std::vector<Plane> mse, selection;
-    ConvergedTiles fallback;  // the safety net's tiles (skip/worse_tiles.h)
-};
-
-/// §5.3: each candidate's MSE estimate NL-means filtered on the mean colour; the lower one
-/// picked per pixel; that selection map filtered the same way and the candidates blended
-/// with it (both halves' fits, or the render's alone on the one-buffer path). Consumes the
-/// MSE estimates, the fits and the colour's variance.
-Selected select_bandwidths(const ImageBuf& src, ColorPlanes& color, std::vector<Plane> mse[2],
-                           FirstPass& pass, ExtraAovs& extras, const NforOptions& options,
-                           const ConvergedTiles& converged, int nthreads)
-{
-    const NlMeansParams map_params { options.map_patch_radius, options.map_window_radius,
-                                     options.map_k, 1.0f };
-    std::vector<const Plane*> map_guide, map_variance, noisy;
-    for (int c = 0; c < 3; ++c) {
-        map_guide.push_back(&color.mean[c]);
-        map_variance.push_back(&color.variance[c]);
-    }
-    for (int j = 0; j < 2; ++j)
-        for (int c = 0; c < 3; ++c)
-            noisy.push_back(&mse[j][c]);
-    std::vector<Plane> filtered_mse = nl_means(noisy, map_guide, map_variance, map_params,
-                                               nthreads, &converged);
-    // The safety net's map (skip/worse_tiles.h): the one attached to src (a probe of sure's)
-    // when it has one of the frame's size; else decided on the estimates as they were,
-    // before the map filter spread a garbage pixel's estimate over its window, so those
-    // are kept until the blend.
-    Selected out;
-    const int w = color.mean[0].width, h = color.mean[0].height;
-    const bool decide = options.fallback
-                        && !attached_tiles(out.fallback, src, kDenoiserTilesAttribute, w, h);
-    if (!decide)
-        for (int j = 0; j < 2; ++j)
-            mse[j].clear();
-    std::vector<Plane> mse0(std::make_move_iterator(filtered_mse.begin()),
-                            std::make_move_iterator(filtered_mse.begin() + 3));
-    std::vector<Plane> mse1(std::make_move_iterator(filtered_mse.begin() + 3),
-                            std::make_move_iterator(filtered_mse.end()));
-    filtered_mse.clear();
-    std::vector<Plane> selection_noisy = select_candidate(mse0, mse1);
-    noisy.clear();
-    for (int c = 0; c < 3; ++c)
-        noisy.push_back(&selection_noisy[c]);
-    out.selection = nl_means(noisy, map_guide, map_variance, map_params, nthreads, &converged);
-    selection_noisy.clear();
-
-    const std::vector<Plane>& selection = out.selection;
-    for (int c = 0; c < 3; ++c) {
-        out.combined[c] = Plane(color.mean[c].width, color.mean[c].height);
-        out.combined_variance[c] = out.combined[c];
-        for (size_t i = 0; i < out.combined[c].size(); ++i) {
-            float s = selection[c].px[i];
-            float a = blend_candidates(pass.fit_a, c, i, s);
-            float b = pass.fit_b[0].empty() ? a : blend_candidates(pass.fit_b, c, i, s);
-            // §5.4 filters the average of the halves, whose variance the halves' squared
-            // difference estimates.
-            out.combined[c].px[i] = 0.5f * (a + b);
-            out.combined_variance[c].px[i] = sanitize_variance(0.25f * (b - a) * (b - a));
-            mse0[c].px[i] = mse0[c].px[i] + s * (mse1[c].px[i] - mse0[c].px[i]);
-            if (decide)
-                mse[0][c].px[i] += s * (mse[1][c].px[i] - mse[0][c].px[i]);
-        }
-    }
-    if (decide) {
-        out.fallback = tiles_worse_than_render(mse[0].data(), color.variance, out.combined,
-                                               converged);
-        for (int j = 0; j < 2; ++j)
-            mse[j].clear();
-    }
-    for (int c = 0; c < 3; ++c)
-        color.variance[c] = Plane();
-    extras.blend(selection);
-    for (int j = 0; j < 2; ++j) {
-        pass.fit_a[j].clear();
-        pass.fit_b[j].clear();
-    }
-    mse1.clear();
-    if (options.output_mse)
-        out.mse = std::move(mse0);
-    if (!options.output_selection)
-        out.selection.clear();
-    return out;
-}
-
-/// §5.4: the combined halves filtered once more, guided by themselves, with the mean
-/// features. Consumes the combined planes and the features.
-std::vector<Plane> second_pass(Selected& selected, std::vector<FeaturePlanes>& features,
-                               ExtraAovs& extras, const NforOptions& options,
-                               const ConvergedTiles& converged, int nthreads)
-{
-    RegressionInputs second;
-    second.window_radius = options.second_window_radius;
-    second.patch_radius = options.second_patch_radius;
-    second.bandwidths = { options.second_k };
-    second.variance_scale = options.variance_scale;
-    second.skip_tiles = &converged;
-    for (int c = 0; c < 3; ++c) {
-        second.image[c] = &selected.combined[c];
-        second.guide[c] = &selected.combined[c];
-        second.variance[c] = &selected.combined_variance[c];
-    }
-    for (const FeaturePlanes& f : features)
-        second.features.push_back(&f.mean);
-    std::vector<Plane> denoised = std::move(collaborative_regression(second, nthreads)[0]);
-    extras.second_pass(second, nthreads);
-    for (int c = 0; c < 3; ++c) {
-        selected.combined[c] = Plane();
-        selected.combined_variance[c] = Plane();
-    }
-    if (!options.features_out)
-        features.clear();
-    return denoised;
-}
 
 /// The nfor.mse.*, nfor.selection.* and nfor.fallback channels, when asked for.
 bool write_maps(ImageBuf& dst, Selected& selected, const NforOptions& options,
@@ -448,6 +187,84 @@ bool write_maps(ImageBuf& dst, Selected& selected, const NforOptions& options,
     return true;
 }
 
+/// §8's neighbouring frames, read as this one (its roles, features and halves) and aligned
+/// to it; an error on dst.
+bool read_neighbours(std::vector<NeighbourFrame>& neighbours, ImageBuf& dst, const ImageBuf& src,
+                     const NforInputs& in, const NforOptions& options, const ColorSums& frame,
+                     int nthreads)
+{
+    NeighbourReading reading;
+    reading.spec = &options.aovs;
+    reading.aovs = &in.aovs;
+    reading.features = &in.feature_channels;
+    reading.halves = in.halves;
+    reading.prefilter = options.prefilter_features;
+    reading.prefilter_options = options.prefilter;
+    reading.outliers = options.outliers != NforOptions::Outliers::Off;
+    reading.outlier_rule = outlier_rule(options, frame);
+    std::string error;
+    if (!read_neighbour_frames(neighbours, src, options.previous_frames, options.next_frames,
+                               reading, nthreads, error)) {
+        dst.errorfmt("nfor: {}", error);
+        return false;
+    }
+    return true;
+}
+
+/// The render where the result is not NFOR's: a non-finite value (the regression already
+/// falls back per pixel), converged tiles and the safety net's; the extras' sum stays the
+/// denoised beauty, before and after the outliers' excess (put back when `keep_outliers`).
+void render_where_not_denoised(std::vector<Plane>& denoised, ExtraAovs& extras,
+                               const ColorPlanes& color, const ConvergedTiles& converged,
+                               const ConvergedTiles& fallback, const OutlierPixels& outliers,
+                               bool keep_outliers)
+{
+    for (int c = 0; c < 3; ++c)
+        for (size_t i = 0; i < denoised[c].size(); ++i)
+            if (!std::isfinite(denoised[c].px[i]))
+                denoised[c].px[i] = color.mean[c].px[i];
+    for (int c = 0; c < 3; ++c) {
+        pass_through_converged(denoised[c], color.mean[c], converged);
+        pass_through_converged(denoised[c], color.mean[c], fallback);
+    }
+    if (!extras.empty()) {
+        extras.share_rounding(color.mean, denoised);
+        if (keep_outliers)
+            extras.put_back_outliers(outliers);
+        extras.pass_through(converged);
+        extras.pass_through(fallback);
+    }
+    if (keep_outliers)
+        put_back_outliers(outliers, denoised.data());
+}
+
+/// The result into dst (a copy of src) inside roi: the colour, the extras, the maps asked
+/// for, the safety net's tiles and count, and with features-out the prefiltered features.
+bool write_result(ImageBuf& dst, const NforInputs& in, const std::vector<Plane>& denoised,
+                  ExtraAovs& extras, Selected& selected, const NforOptions& options,
+                  bool prefiltered, ROI roi)
+{
+    for (int c = 0; c < 3; ++c)
+        write_plane(dst, in.aovs.channels(Role::Color)[c], denoised[c], roi);
+    if (!extras.empty())
+        extras.write(dst, roi);
+    if (!write_maps(dst, selected, options, in.color.mean[0], roi))
+        return false;
+    if (selected.fallback.any()) {
+        dst.specmod().attribute(kDenoiserTilesAttribute,
+                                encode_converged_tiles(selected.fallback));
+        dst.specmod().attribute(kNforFallbackCountAttribute, selected.fallback.count());
+    } else {
+        dst.specmod().erase_attribute(kDenoiserTilesAttribute);
+        dst.specmod().erase_attribute(kNforFallbackCountAttribute);
+    }
+    // features-out: the means it prefiltered (§5.1) over their channels.
+    if (options.features_out && !prefiltered && options.prefilter_features)
+        for (size_t i = 0; i < in.features.size(); ++i)
+            write_plane(dst, in.feature_channels[i].mean, in.features[i].mean, roi);
+    return true;
+}
+
 bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions& options,
                            ROI roi, int nthreads, ProgressCounter& progress)
 {
@@ -468,7 +285,7 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
         probe_index.facts = &facts;
         probe_index.first = uint64_t(src.spec().y - facts.ybegin) * uint64_t(src.spec().width);
     }
-    probe_index.colour = probe_index.facts ? facts.colour : colour_sums(color);
+    probe_index.color = probe_index.facts ? facts.color : color_sums(color);
     // Heavy-tailed samples are kept out of the regressions and put back after them
     // (outliers/outliers.h).
     OutlierPixels outliers;
@@ -476,7 +293,7 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
         outliers = take_out_outliers(color.mean, color.variance,
                                      in.halves ? color.half_a : nullptr,
                                      in.halves ? color.half_b : nullptr, in.extras, converged,
-                                     outlier_rule(options, probe_index.colour), nthreads);
+                                     outlier_rule(options, probe_index.color), nthreads);
     // Extra AOVs go through the beauty's filters stage by stage (nfor/extras_regression.h).
     ExtraAovs extras(std::move(in.extras));
     if (options.skip.enabled)
@@ -489,21 +306,8 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     // §8: the neighbouring frames, read as this one and aligned to it.
     std::vector<NeighbourFrame> neighbours;
     if (options.cross_frame()) {
-        NeighbourReading reading;
-        reading.spec = &options.aovs;
-        reading.aovs = &in.aovs;
-        reading.features = &in.feature_channels;
-        reading.halves = in.halves;
-        reading.prefilter = options.prefilter_features;
-        reading.prefilter_options = options.prefilter;
-        reading.outliers = options.outliers != NforOptions::Outliers::Off;
-        reading.outlier_rule = outlier_rule(options, probe_index.colour);
-        std::string error;
-        if (!read_neighbour_frames(neighbours, src, options.previous_frames,
-                                   options.next_frames, reading, nthreads, error)) {
-            dst.errorfmt("nfor: {}", error);
+        if (!read_neighbours(neighbours, dst, src, in, options, probe_index.color, nthreads))
             return false;
-        }
         trace.mark("neighbouring frames (8)");
     }
     progress.advance();
@@ -537,51 +341,17 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     trace.mark("second pass (5.4)");
     progress.advance();
 
-    // Nothing non-finite leaves the op (the regression already falls back per pixel).
-    for (int c = 0; c < 3; ++c)
-        for (size_t i = 0; i < denoised[c].size(); ++i)
-            if (!std::isfinite(denoised[c].px[i]))
-                denoised[c].px[i] = color.mean[c].px[i];
-    for (int c = 0; c < 3; ++c) {
-        pass_through_converged(denoised[c], color.mean[c], converged);
-        pass_through_converged(denoised[c], color.mean[c], selected.fallback);
-    }
-    // The extras' sum stays the denoised beauty, before and after the outliers' excess.
-    const bool keep_outliers = options.outliers == NforOptions::Outliers::Keep;
-    if (!extras.empty()) {
-        extras.share_rounding(color.mean, denoised);
-        if (keep_outliers)
-            extras.put_back_outliers(outliers);
-        extras.pass_through(converged);
-        extras.pass_through(selected.fallback);
-    }
-    if (keep_outliers)
-        put_back_outliers(outliers, denoised.data());
+    render_where_not_denoised(denoised, extras, color, converged, selected.fallback, outliers,
+                              options.outliers == NforOptions::Outliers::Keep);
 
     // dst (a copy of src) is made only now, when the working planes are gone; everything was
     // read from src before (dst may be src).
     if (!prepare_op(dst, src, options.aovs, in.aovs, "nfor", nthreads))
         return false;
     trace.mark("copy src to dst");
-    roi = output_roi(dst, roi);
-    for (int c = 0; c < 3; ++c)
-        write_plane(dst, in.aovs.channels(Role::Color)[c], denoised[c], roi);
-    if (!extras.empty())
-        extras.write(dst, roi);
-    if (!write_maps(dst, selected, options, color.mean[0], roi))
+    if (!write_result(dst, in, denoised, extras, selected, options, prefiltered,
+                      output_roi(dst, roi)))
         return false;
-    if (selected.fallback.any()) {
-        dst.specmod().attribute(kDenoiserTilesAttribute,
-                                encode_converged_tiles(selected.fallback));
-        dst.specmod().attribute(kNforFallbackCountAttribute, selected.fallback.count());
-    } else {
-        dst.specmod().erase_attribute(kDenoiserTilesAttribute);
-        dst.specmod().erase_attribute(kNforFallbackCountAttribute);
-    }
-    // features-out: the means it prefiltered (§5.1) over their channels.
-    if (options.features_out && !prefiltered && options.prefilter_features)
-        for (size_t i = 0; i < in.features.size(); ++i)
-            write_plane(dst, in.feature_channels[i].mean, in.features[i].mean, roi);
     trace.mark("write");
     return true;
 }

@@ -82,7 +82,7 @@ bool network_inputs(const nn::Weights& weights, bool& albedo, bool& normal, std:
 
 /// The frame's channels a network reads, and how.
 struct Inputs {
-    int colour[3], albedo[3], normal[3];
+    int color[3], albedo[3], normal[3];
     bool has_albedo = false, has_normal = false;
     float exposure = 1;
 };
@@ -114,7 +114,7 @@ void tile_input(nn::Tensor& input, const ImageBuf& src, const Inputs& in, const 
             }
     };
     for (int c = 0; c < 3; ++c)
-        read(in.colour[c], c, [&](float v) {
+        read(in.color[c], c, [&](float v) {
             return oidn_net::pu_forward(std::clamp(v * in.exposure, 0.0f, FLT_MAX));
         });
     for (int c = 0; c < 3 && in.has_albedo; ++c)
@@ -152,11 +152,11 @@ bool oidn_in_working_space(ImageBuf& dst, const ImageBuf& src, const OidnOptions
         const ImageBuf render = src.copy(OIIO::TypeDesc::FLOAT);
         return oidn_in_working_space(dst, render, options, roi, nthreads);
     }
-    const bool colour_only = src.spec().get_int_attribute(kColourOnlyAttribute, 0) == 1;
+    const bool color_only = src.spec().get_int_attribute(kColorOnlyAttribute, 0) == 1;
     StageTrace trace("oidn");
     AovSet aovs;
     std::string error;
-    if (!prepare_denoiser_output(dst, src, options.aovs, aovs, "oidn", colour_only, nthreads))
+    if (!prepare_denoiser_output(dst, src, options.aovs, aovs, "oidn", color_only, nthreads))
         return false;
     if (!float_frame_pixels(dst)) {
         dst.errorfmt("oidn: the output frame is not in memory");
@@ -182,12 +182,12 @@ bool oidn_in_working_space(ImageBuf& dst, const ImageBuf& src, const OidnOptions
         return false;
     }
     for (int c = 0; c < 3; ++c) {
-        in.colour[c] = aovs.channels(Role::Color)[size_t(c)];
+        in.color[c] = aovs.channels(Role::Color)[size_t(c)];
         in.albedo[c] = in.has_albedo ? aovs.channels(Role::Albedo)[size_t(c)] : -1;
         in.normal[c] = in.has_normal ? aovs.channels(Role::Normal)[size_t(c)] : -1;
     }
-    const int out[3] = { colour_only ? 0 : in.colour[0], colour_only ? 1 : in.colour[1],
-                         colour_only ? 2 : in.colour[2] };
+    const int out[3] = { color_only ? 0 : in.color[0], color_only ? 1 : in.color[1],
+                         color_only ? 2 : in.color[2] };
     const ConvergedTiles converged = converged_tiles_of(src, aovs, options.skip);
     if (converged.all())
         return true;
@@ -195,7 +195,7 @@ bool oidn_in_working_space(ImageBuf& dst, const ImageBuf& src, const OidnOptions
     FrameFacts facts;
     in.exposure = frame_facts(facts, src.spec()) && facts.has_exposure
                       ? facts.exposure
-                      : autoexposure(src, in.colour);
+                      : autoexposure(src, in.color);
 
     trace.mark("weights, converged tiles, exposure");
     std::vector<std::unique_ptr<nn::Net>> nets;

@@ -51,7 +51,7 @@ float mean_without_largest(std::vector<float>& values, size_t drop)
 }  // namespace
 
 OutlierRule outlier_rule(float sigma, float variance_ratio, float level_ratio,
-                         const ColourSums& frame)
+                         const ColorSums& frame)
 {
     OutlierRule rule;
     rule.sigma = sigma;

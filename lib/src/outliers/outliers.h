@@ -61,7 +61,7 @@ struct OutlierRule {
 /// The rule of these thresholds, its level floor from the frame's colour (kFloorOfMean × the
 /// mean |colour|, three channels summed, as the rule compares them).
 OutlierRule outlier_rule(float sigma, float variance_ratio, float level_ratio,
-                         const ColourSums& frame);
+                         const ColorSums& frame);
 
 /// The pixels taken out and what to add back at each, per channel: the beauty's excess and
 /// each extra AOV's share of it.

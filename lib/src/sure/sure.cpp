@@ -64,14 +64,14 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
     if (!band_of_frame) {
         facts.ybegin = frame.whole.ybegin;
         facts.yend = frame.whole.yend;
-        facts.colour = colour_sums(src, frame.color.data(), frame.variance.data());
+        facts.color = color_sums(src, frame.color.data(), frame.variance.data());
         // The unprobed exposure too (OIDN's networks read it): every probe the same.
         facts.has_exposure = true;
         facts.exposure = autoexposure(src, frame.color.data());
     }
     frame.index_origin = facts.ybegin;
     // eps such that eps * mean(sqrt(Var)) = epsilon_relative * mean|x| over the frame.
-    frame.eps = relative_probe_step(facts.colour, options.epsilon_relative);
+    frame.eps = relative_probe_step(facts.color, options.epsilon_relative);
     frame.fallback_channel = options.output_fallback;
     frame.nthreads = nthreads;
     StageTrace trace("sure");

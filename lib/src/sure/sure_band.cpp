@@ -354,7 +354,7 @@ bool probe_divergence(BandState& st, ImageBuf& noisy, const Denoiser& denoiser,
         // Probed in place and restored after (a copy of every channel per probe would cost
         // as much as the denoiser's own work on half-converged frames).
         noisy.specmod().attribute(kProbeAttribute, 1);
-        noisy.specmod().attribute(kColourOnlyAttribute, 1);
+        noisy.specmod().attribute(kColorOnlyAttribute, 1);
         if (!st.denoiser_tiles.empty())
             noisy.specmod().attribute(kDenoiserTilesAttribute, st.denoiser_tiles);
         for (size_t g = 0; g < frame.moved.size(); g += 3)
@@ -365,7 +365,7 @@ bool probe_divergence(BandState& st, ImageBuf& noisy, const Denoiser& denoiser,
         trace.mark("F(x + eps b)");
         put_back_bits(noisy, frame.moved, st.unprobed);
         noisy.specmod().erase_attribute(kProbeAttribute);
-        noisy.specmod().erase_attribute(kColourOnlyAttribute);
+        noisy.specmod().erase_attribute(kColorOnlyAttribute);
         noisy.specmod().erase_attribute(kDenoiserTilesAttribute);
         if (!probe_ok) {
             error = format("sure: the denoiser failed on probe {}: {}", k, response.geterror());
