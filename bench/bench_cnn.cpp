@@ -39,7 +39,6 @@ double seconds_since(Clock::time_point t0)
     return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
-
 /// Random raw planes of a frame: smooth-ish radiance with noise, features in range.
 kpcn::RawPlanes random_frame(int w, int h)
 {
@@ -78,15 +77,15 @@ void speed(kpcn::Model& model, int w, int h, int tile)
     kpcn::RawPlanes raw = random_frame(w, h);
     nn::TileOptions tiles;
     tiles.tile_size = tile;
-    const double gflop = (flops_per_pixel(model.diffuse) + flops_per_pixel(model.specular))
-                         * double(w) * h / 1e9;
+    const double gflop =
+        (flops_per_pixel(model.diffuse) + flops_per_pixel(model.specular)) * double(w) * h / 1e9;
     std::string error;
     const mcdn_bench::Timing t = mcdn_bench::timed([&] {
-        for (auto [net, branch] : { std::pair{ &model.diffuse, kpcn::Branch::diffuse },
-                                    std::pair{ &model.specular, kpcn::Branch::specular } }) {
+        for (auto [net, branch] : { std::pair { &model.diffuse, kpcn::Branch::diffuse },
+                                    std::pair { &model.specular, kpcn::Branch::specular } }) {
             // Inputs per tile, as the op makes them (without reading the AOVs).
-            auto make_inputs = [&, branch = branch](const Rect& window,
-                                                    std::vector<nn::Tensor>& in, std::string&) {
+            auto make_inputs = [&, branch = branch](const Rect& window, std::vector<nn::Tensor>& in,
+                                                    std::string&) {
                 in.resize(2);
                 kpcn::branch_inputs(raw, branch, window, in[0], in[1]);
                 return true;
@@ -98,11 +97,15 @@ void speed(kpcn::Model& model, int w, int h, int tile)
         }
     });
     std::printf("%dx%d, tile %d (halo %d): %.2f s wall, %.2f CPU-s for both branches, %.1f GFLOP "
-                "(nominal): %.1f GFLOP/s, %.1f GFLOP per CPU-s\n", w, h, tile,
-                model.diffuse.receptive_radius(), t.wall, t.cpu, gflop, gflop / t.wall, gflop / t.cpu);
+                "(nominal): %.1f GFLOP/s, %.1f GFLOP per CPU-s\n",
+                w, h, tile, model.diffuse.receptive_radius(), t.wall, t.cpu, gflop, gflop / t.wall,
+                gflop / t.cpu);
 }
 
-std::string shared(const std::string& rel) { return std::string(MCDN_SHARED_DATA) + "/" + rel; }
+std::string shared(const std::string& rel)
+{
+    return std::string(MCDN_SHARED_DATA) + "/" + rel;
+}
 
 /// The box 16 spp render (mean and variance: every pass KPCN reads, with the split) tiled
 /// to w x h; an empty buffer without ../shared/data.
@@ -159,7 +162,6 @@ void plain_conv(int w, int h, double frame_gflop)
                 w, h, t.wall, t.cpu, flops / 1e9, flops / 1e9 / t.cpu, frame_gflop * 1e9 / flops);
 }
 
-
 struct Input {
     std::string name;
     int spp;
@@ -204,7 +206,7 @@ double relmse(const ImageBuf& image, const ImageBuf& ref, bool trim = false)
 {
     auto color = [](const ImageBuf& b) {
         const int r = b.spec().channelindex("ViewLayer.Combined.R");
-        return std::vector<int>{ r, r + 1, r + 2 };
+        return std::vector<int> { r, r + 1, r + 2 };
     };
     MetricsOptions mo;
     mo.image_channels = color(image);
@@ -221,7 +223,8 @@ double relmse(const ImageBuf& image, const ImageBuf& ref, bool trim = false)
 
 void quality(const std::string& weights)
 {
-    std::printf("\nrelMSE, and in brackets trimmed as KPCN reports it (0.01%% best/worst dropped)\n");
+    std::printf(
+        "\nrelMSE, and in brackets trimmed as KPCN reports it (0.01%% best/worst dropped)\n");
     std::printf("%-22s %5s %20s %20s %20s %7s %7s\n", "input", "spp", "noisy", "NFOR", "CNN",
                 "NFOR s", "CNN s");
     double log_sum[6] = {}, count = 0;
@@ -232,7 +235,8 @@ void quality(const std::string& weights)
                                 { in.stem + "_A.exr", InputKind::HalfA },
                                 { in.stem + "_B.exr", InputKind::HalfB } })
             || !read_image(ref, in.reference)) {
-            std::fprintf(stderr, "%s: %s %s\n", in.stem.c_str(), src.geterror().c_str(), ref.geterror().c_str());
+            std::fprintf(stderr, "%s: %s %s\n", in.stem.c_str(), src.geterror().c_str(),
+                         ref.geterror().c_str());
             continue;
         }
         CnnOptions co;
@@ -244,11 +248,14 @@ void quality(const std::string& weights)
         ImageBuf cn = cnn(src, co);
         const double cnn_s = seconds_since(t0);
         if (cn.has_error() || nf.has_error()) {
-            std::fprintf(stderr, "%s: %s %s\n", in.name.c_str(), cn.geterror().c_str(), nf.geterror().c_str());
+            std::fprintf(stderr, "%s: %s %s\n", in.name.c_str(), cn.geterror().c_str(),
+                         nf.geterror().c_str());
             continue;
         }
-        const double e[6] = { relmse(src, ref), relmse(src, ref, true), relmse(nf, ref),
-                              relmse(nf, ref, true), relmse(cn, ref), relmse(cn, ref, true) };
+        const double e[6] = {
+            relmse(src, ref),      relmse(src, ref, true), relmse(nf, ref),
+            relmse(nf, ref, true), relmse(cn, ref),        relmse(cn, ref, true)
+        };
         std::printf("%-22s %5d %9.5f (%8.5f) %9.5f (%8.5f) %9.5f (%8.5f) %7.2f %7.2f\n",
                     in.name.c_str(), in.spp, e[0], e[1], e[2], e[3], e[4], e[5], nfor_s, cnn_s);
         for (int k = 0; k < 6; ++k)
@@ -292,7 +299,8 @@ int main(int argc, char** argv)
     }
     const double per_pixel = flops_per_pixel(model.diffuse) + flops_per_pixel(model.specular);
     std::printf("model %s\n%.1f kFLOP per pixel (both branches): %.1f GFLOP per 1920x1080 frame; "
-                "receptive radius %d px\n", weights.c_str(), per_pixel / 1e3, per_pixel * 1920 * 1080 / 1e9,
+                "receptive radius %d px\n",
+                weights.c_str(), per_pixel / 1e3, per_pixel * 1920 * 1080 / 1e9,
                 model.diffuse.receptive_radius());
     if (do_speed) {
         plain_conv(w, h, per_pixel * w * h / 1e9);

@@ -13,7 +13,8 @@ inline std::filesystem::path generated_dataset(bool& is_eval)
     namespace fs = std::filesystem;
     const char* cache_env = std::getenv("MCDN_CACHE");
     const char* home = std::getenv("HOME");
-    const fs::path cache = cache_env ? fs::path(cache_env) : fs::path(home ? home : "/") / ".cache/mcdenoise";
+    const fs::path cache =
+        cache_env ? fs::path(cache_env) : fs::path(home ? home : "/") / ".cache/mcdenoise";
     fs::path root = cache / "datasets/eval";
     is_eval = fs::exists(root);
     return is_eval ? root : cache / "datasets/full";

@@ -63,8 +63,8 @@ int main(int argc, char** argv)
     double conv_flops = 0;
     const mcdn_bench::Timing t = mcdn_bench::plain_onednn_conv(h, w, 48, 48, 3, 2, &conv_flops);
     const double rate = conv_flops / t.wall;  // FLOP per wall second
-    const double layers_cnn = plain_layers_seconds(kpcn.diffuse, h, w)
-                              + plain_layers_seconds(kpcn.specular, h, w);
+    const double layers_cnn =
+        plain_layers_seconds(kpcn.diffuse, h, w) + plain_layers_seconds(kpcn.specular, h, w);
     const double layers_mix = plain_layers_seconds(mix, h, w);
     std::string oidn_fields;
     if (argc == 4) {

@@ -67,12 +67,17 @@ struct Input {
     std::string preset, reference;
 };
 
-std::string shared(const std::string& rel) { return std::string(MCDN_SHARED_DATA) + "/" + rel; }
+std::string shared(const std::string& rel)
+{
+    return std::string(MCDN_SHARED_DATA) + "/" + rel;
+}
 
 std::vector<InputFile> level_files(const std::string& stem)
 {
-    return { { stem + ".exr", InputKind::Mean }, { stem + "_var.exr", InputKind::Variance },
-             { stem + "_A.exr", InputKind::HalfA }, { stem + "_B.exr", InputKind::HalfB } };
+    return { { stem + ".exr", InputKind::Mean },
+             { stem + "_var.exr", InputKind::Variance },
+             { stem + "_A.exr", InputKind::HalfA },
+             { stem + "_B.exr", InputKind::HalfB } };
 }
 
 void add_crop_levels(std::vector<Input>& list, const fs::path& dir, const std::string& label)
@@ -96,14 +101,19 @@ std::vector<Input> inputs(bool generated, const std::vector<std::string>& extra_
     for (int spp : { 16, 64, 256 }) {
         char stem[64];
         std::snprintf(stem, sizeof stem, "box/box_%04dspp", spp);
-        list.push_back({ "box", spp, level_files(shared(stem)), "cycles", shared("box/box_ref.exr") });
+        list.push_back(
+            { "box", spp, level_files(shared(stem)), "cycles", shared("box/box_ref.exr") });
     }
     for (const char* scene : { "cornell20", "materialtest" })
-        list.push_back({ scene, 16, { { shared(std::string("tungsten/") + scene), InputKind::Mean } },
-                         "tungsten", shared(std::string("tungsten/") + scene + "/ref.pfm") });
+        list.push_back({ scene,
+                         16,
+                         { { shared(std::string("tungsten/") + scene), InputKind::Mean } },
+                         "tungsten",
+                         shared(std::string("tungsten/") + scene + "/ref.pfm") });
     for (const std::string& dir : extra_crops) {
         const fs::path path = fs::path(dir).lexically_normal();
-        add_crop_levels(list, path, path.parent_path().filename().string() + "/" + path.filename().string());
+        add_crop_levels(list, path,
+                        path.parent_path().filename().string() + "/" + path.filename().string());
     }
     if (!generated)
         return list;
@@ -201,8 +211,10 @@ double alpha_where_biased(const ImageBuf& z, const ImageBuf& with_sure, const Im
     for (int py = 0; py < z.spec().height; ++py)
         for (int px = 0; px < z.spec().width; ++px)
             for (int c = 0; c < 3; ++c, ++total) {
-                const float off = with_sure.getchannel(px, py, 0, y[c]) - ref.getchannel(px, py, 0, r[c]);
-                const float sigma = std::sqrt(std::max(0.0f, with_sure.getchannel(px, py, 0, var[c])));
+                const float off =
+                    with_sure.getchannel(px, py, 0, y[c]) - ref.getchannel(px, py, 0, r[c]);
+                const float sigma =
+                    std::sqrt(std::max(0.0f, with_sure.getchannel(px, py, 0, var[c])));
                 if (std::fabs(off) > 3 * sigma) {
                     sum += z.getchannel(px, py, 0, z.spec().channelindex(alpha_names[c]));
                     ++n;
@@ -278,7 +290,9 @@ int main(int argc, char** argv)
     }
     if (weights.empty())  // the network of the denoiser (the blur: NFOR's, as for any other)
         weights = default_mix_weights(use_cnn && blur_width <= 0 ? "cnn" : "nfor");
-    const std::string den = blur_width > 0 ? "blur" + std::to_string(int(blur_width)) : use_cnn ? "CNN" : "NFOR";
+    const std::string den = blur_width > 0 ? "blur" + std::to_string(int(blur_width))
+                            : use_cnn      ? "CNN"
+                                           : "NFOR";
     std::printf("mcdenoise progressive mix benchmark (PD §4, Table 4); network %s; denoiser %s\n\n",
                 weights.c_str(), den.c_str());
 
@@ -299,7 +313,9 @@ int main(int argc, char** argv)
         SureOptions so;
         so.aovs = aovs;
         Denoiser denoiser = [&](ImageBuf& dst, const ImageBuf& s) {
-            return blur_width > 0 ? blur_color(dst, s, blur_width) : use_cnn ? cnn(dst, s, co) : nfor(dst, s, no);
+            return blur_width > 0 ? blur_color(dst, s, blur_width)
+                   : use_cnn      ? cnn(dst, s, co)
+                                  : nfor(dst, s, no);
         };
         ImageBuf with_sure;
         std::string cached;
@@ -353,12 +369,16 @@ int main(int argc, char** argv)
     }
 
     if (accuracy) {
-        std::printf("| input | spp | RMSE render | RMSE %s | RMSE net+t | net | analytic+t | analytic "
-                    "| net+t nofloor | relMSE render | %s | net+t | net | analytic+t | analytic "
-                    "| net+t nofloor | mean alpha' net+t | analytic+t |\n", den.c_str(), den.c_str());
-        std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+        std::printf(
+            "| input | spp | RMSE render | RMSE %s | RMSE net+t | net | analytic+t | analytic "
+            "| net+t nofloor | relMSE render | %s | net+t | net | analytic+t | analytic "
+            "| net+t nofloor | mean alpha' net+t | analytic+t |\n",
+            den.c_str(), den.c_str());
+        std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---"
+                    ":|---:|---:|\n");
         for (const Row& r : rows) {
-            std::printf("| %s | %d | %.4f | %.4f", r.in.scene.c_str(), r.in.spp, r.render.rmse, r.nfor.rmse);
+            std::printf("| %s | %d | %.4f | %.4f", r.in.scene.c_str(), r.in.spp, r.render.rmse,
+                        r.nfor.rmse);
             for (const Metrics& m : r.mix)
                 std::printf(" | %.4f", m.rmse);
             std::printf(" | %.5f | %.5f", r.render.relmse, r.nfor.relmse);
@@ -384,10 +404,14 @@ int main(int argc, char** argv)
                 s += which == -2 ? r->render.rmse : which == -1 ? r->nfor.rmse : r->mix[which].rmse;
             return s / list.size();
         };
-        const std::pair<const char*, int> models[] = { { "mc-render", -2 }, { den.c_str(), -1 },
-                                                      { "mix net + t-test", 0 }, { "mix net, no t-test", 1 },
-                                                      { "mix analytic + t-test", 2 }, { "mix analytic, no t-test", 3 },
-                                                      { "mix net + t-test, no outlier floor", 4 } };
+        const std::pair<const char*, int> models[] = { { "mc-render", -2 },
+                                                       { den.c_str(), -1 },
+                                                       { "mix net + t-test", 0 },
+                                                       { "mix net, no t-test", 1 },
+                                                       { "mix analytic + t-test", 2 },
+                                                       { "mix analytic, no t-test", 3 },
+                                                       { "mix net + t-test, no outlier floor",
+                                                         4 } };
         for (auto [name, which] : models) {
             std::printf("| %s |", name);
             for (const auto& [spp, list] : by_spp)
@@ -406,10 +430,12 @@ int main(int argc, char** argv)
                     ++within;
                 else
                     misses += " " + r.in.scene + "@" + std::to_string(r.in.spp) + "("
-                              + std::to_string(int(std::round(100 * (r.mix[m].rmse / better - 1)))) + "%)";
+                              + std::to_string(int(std::round(100 * (r.mix[m].rmse / better - 1))))
+                              + "%)";
             }
             std::printf("  %-13s mix <= min(render, %s) + 2%%: %d of %zu inputs;%s\n", kMixNames[m],
-                        den.c_str(), within, rows.size(), misses.empty() ? " all" : (" over:" + misses).c_str());
+                        den.c_str(), within, rows.size(),
+                        misses.empty() ? " all" : (" over:" + misses).c_str());
         }
         // Scenes with several levels: alpha' trend and the averaged-over-spp gain where NFOR is
         // worse than the render at the highest level.
@@ -426,7 +452,8 @@ int main(int argc, char** argv)
             std::printf("; where %s is biased (|y - r| > 3 sqrt(Var[x]), share of pixel-channels):",
                         den.c_str());
             for (const Row* r : list)
-                std::printf(" %d:%.3f (%.1f%%)", r->in.spp, r->biased_alpha[0], 100 * r->biased_share);
+                std::printf(" %d:%.3f (%.1f%%)", r->in.spp, r->biased_alpha[0],
+                            100 * r->biased_share);
             double nfor_mean = 0, mix_mean[kMixes] = {};
             for (const Row* r : list) {
                 nfor_mean += r->nfor.rmse / list.size();
@@ -434,8 +461,8 @@ int main(int argc, char** argv)
                     mix_mean[m] += r->mix[m].rmse / list.size();
             }
             if (top->nfor.rmse > top->render.rmse) {
-                std::printf("; %s worse than render at %d spp: mean-over-spp RMSE gain vs it", den.c_str(),
-                            top->in.spp);
+                std::printf("; %s worse than render at %d spp: mean-over-spp RMSE gain vs it",
+                            den.c_str(), top->in.spp);
                 for (int m = 0; m < kMixes; ++m)
                     std::printf(" %s %.0f%%%s", kMixNames[m], 100 * (1 - mix_mean[m] / nfor_mean),
                                 mix_mean[m] <= 0.8 * nfor_mean ? "" : " (<20%)");
@@ -460,17 +487,20 @@ int main(int argc, char** argv)
         mo.t_test = false;
         const mcdn_bench::Timing net_t = mcdn_bench::fastest_of(2, [&] { mix(z, frame, mo); });
         double conv_flops = 0;
-        const mcdn_bench::Timing conv_t = mcdn_bench::plain_onednn_conv(height, width, 48, 48, 3, 3, &conv_flops);
+        const mcdn_bench::Timing conv_t =
+            mcdn_bench::plain_onednn_conv(height, width, 48, 48, 3, 3, &conv_flops);
         // The mixing network's FLOPs: 5x5 18->48, four 3x3 48->48, 3x3 48->9.
-        const double net_flops = 2.0 * width * height * (25 * 18 * 48 + 4 * 9 * 48 * 48 + 9 * 48 * 9);
-        std::printf("\n1920x1080 mix pass (net + t-test, without denoiser runs): %.3f s wall, %.2f CPU-s "
-                    "(%.3f s, %.2f CPU-s without the t-test); one plain oneDNN 3x3 48->48 conv + ReLU of "
-                    "the same size: %.3f s, %.2f CPU-s; ratio %.1fx wall, %.1fx CPU (the network is %.1f "
-                    "such convs in FLOPs); network %.1f GFLOP: %.1f GFLOP per CPU-s with t-test, conv "
-                    "%.1f GFLOP per CPU-s\n",
-                    mix_t.wall, mix_t.cpu, net_t.wall, net_t.cpu, conv_t.wall, conv_t.cpu,
-                    mix_t.wall / conv_t.wall, mix_t.cpu / conv_t.cpu, net_flops / conv_flops,
-                    net_flops / 1e9, net_flops / 1e9 / mix_t.cpu, conv_flops / 1e9 / conv_t.cpu);
+        const double net_flops =
+            2.0 * width * height * (25 * 18 * 48 + 4 * 9 * 48 * 48 + 9 * 48 * 9);
+        std::printf(
+            "\n1920x1080 mix pass (net + t-test, without denoiser runs): %.3f s wall, %.2f CPU-s "
+            "(%.3f s, %.2f CPU-s without the t-test); one plain oneDNN 3x3 48->48 conv + ReLU of "
+            "the same size: %.3f s, %.2f CPU-s; ratio %.1fx wall, %.1fx CPU (the network is %.1f "
+            "such convs in FLOPs); network %.1f GFLOP: %.1f GFLOP per CPU-s with t-test, conv "
+            "%.1f GFLOP per CPU-s\n",
+            mix_t.wall, mix_t.cpu, net_t.wall, net_t.cpu, conv_t.wall, conv_t.cpu,
+            mix_t.wall / conv_t.wall, mix_t.cpu / conv_t.cpu, net_flops / conv_flops,
+            net_flops / 1e9, net_flops / 1e9 / mix_t.cpu, conv_flops / 1e9 / conv_t.cpu);
     }
     return 0;
 }

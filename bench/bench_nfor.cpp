@@ -40,7 +40,10 @@ struct Input {
     double table_relmse;  // the README's yardstick for the reference implementation
 };
 
-std::string data(const std::string& rel) { return std::string(MCDN_SHARED_DATA) + "/" + rel; }
+std::string data(const std::string& rel)
+{
+    return std::string(MCDN_SHARED_DATA) + "/" + rel;
+}
 
 std::vector<Input> inputs()
 {
@@ -49,21 +52,30 @@ std::vector<Input> inputs()
     const double table[] = { 0.00968, 0.00271, 0.00158 };
     for (int i = 0; i < 3; ++i) {
         std::string base = data(std::string("box/box_") + spp[i] + "spp");
-        list.push_back({ spp[i] == std::string("0016") ? "box 16" : spp[i] == std::string("0064") ? "box 64" : "box 256",
+        list.push_back({ spp[i] == std::string("0016")   ? "box 16"
+                         : spp[i] == std::string("0064") ? "box 64"
+                                                         : "box 256",
                          { { base + ".exr", InputKind::Mean },
                            { base + "_var.exr", InputKind::Variance },
                            { base + "_A.exr", InputKind::HalfA },
                            { base + "_B.exr", InputKind::HalfB } },
-                         "cycles", data("box/box_ref.exr"),
+                         "cycles",
+                         data("box/box_ref.exr"),
                          data(std::string("box/nfor-reference/box_") + spp[i] + "spp_nfor.exr"),
                          table[i] });
     }
-    list.push_back({ "cornell20", { { data("tungsten/cornell20"), InputKind::Mean } }, "tungsten",
+    list.push_back({ "cornell20",
+                     { { data("tungsten/cornell20"), InputKind::Mean } },
+                     "tungsten",
                      data("tungsten/cornell20/ref.pfm"),
-                     data("tungsten/cornell20/nfor-reference/nfor.pfm"), 0.00075 });
-    list.push_back({ "materialtest", { { data("tungsten/materialtest"), InputKind::Mean } },
-                     "tungsten", data("tungsten/materialtest/ref.pfm"),
-                     data("tungsten/materialtest/nfor-reference/nfor.pfm"), 0.00433 });
+                     data("tungsten/cornell20/nfor-reference/nfor.pfm"),
+                     0.00075 });
+    list.push_back({ "materialtest",
+                     { { data("tungsten/materialtest"), InputKind::Mean } },
+                     "tungsten",
+                     data("tungsten/materialtest/ref.pfm"),
+                     data("tungsten/materialtest/nfor-reference/nfor.pfm"),
+                     0.00433 });
     return list;
 }
 
@@ -111,8 +123,10 @@ double flops_per_pixel(int nf, const NforOptions& o, const PrefilterOptions& p)
     };
     double f = 4 * regression_flops_per_pixel(nf, o.window_radius, o.patch_radius)
                + regression_flops_per_pixel(nf, o.second_window_radius, o.second_patch_radius);
-    f += nlm(2 * nf, p.window_radius, p.patch_radius) + nlm(nf, p.second_window_radius, p.second_patch_radius);
-    f += nlm(3, o.map_window_radius, o.map_patch_radius) * 2;  // MSE (6 images, 3 weights) + selection
+    f += nlm(2 * nf, p.window_radius, p.patch_radius)
+         + nlm(nf, p.second_window_radius, p.second_patch_radius);
+    f += nlm(3, o.map_window_radius, o.map_patch_radius)
+         * 2;  // MSE (6 images, 3 weights) + selection
     return f;
 }
 
@@ -203,7 +217,8 @@ int main(int argc, char** argv)
                 nthreads, repeat, isa_name(detect_isa()));
     std::printf("| input | relMSE noisy | relMSE ours | relMSE ref-impl | ours/ref | SMAPE ours | "
                 "SMAPE ref | wall s | CPU s | speed-up (wall) | speed-up (CPU/%d) | /base | "
-                "GFLOP/s |\n", nthreads);
+                "GFLOP/s |\n",
+                nthreads);
     std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
     for (const Input& in : inputs()) {
         if (!only.empty() && only != in.name)
@@ -254,16 +269,18 @@ int main(int argc, char** argv)
         const double idle = best_cpu / nthreads;
         std::printf("| %s | %.5f | %.5f | %.5f | %.3f | %.4f | %.4f | %.3f | %.3f | %.1f-%.1fx | "
                     "%.1f-%.1fx | %.2f | %.1f |\n",
-                    in.name, noisy.relmse, ours.relmse, refimpl.relmse, ours.relmse / refimpl.relmse,
-                    ours.smape, refimpl.smape, best, best_cpu, 6.3 * scale / best,
-                    7.5 * scale / best, 6.3 * scale / idle, 7.5 * scale / idle, best / base, gflops);
+                    in.name, noisy.relmse, ours.relmse, refimpl.relmse,
+                    ours.relmse / refimpl.relmse, ours.smape, refimpl.smape, best, best_cpu,
+                    6.3 * scale / best, 7.5 * scale / best, 6.3 * scale / idle, 7.5 * scale / idle,
+                    best / base, gflops);
         std::fflush(stdout);
     }
-    std::printf("\nrelMSE against the reference image: noisy input, ours (prefilter + nfor), the "
-                "reference implementation's output (nfor-reference/). Speed-up: the reference's "
-                "6.3-7.5 s (2 threads, idle machine) over our wall time, and over our CPU time / "
-                "threads. /base: our wall time over the in-run 19x19 IBA box convolution of the "
-                "colour (same run, same threads). GFLOP/s by the op's FLOP model. Peak RSS %ld MB.\n",
-                peak_rss_mb());
+    std::printf(
+        "\nrelMSE against the reference image: noisy input, ours (prefilter + nfor), the "
+        "reference implementation's output (nfor-reference/). Speed-up: the reference's "
+        "6.3-7.5 s (2 threads, idle machine) over our wall time, and over our CPU time / "
+        "threads. /base: our wall time over the in-run 19x19 IBA box convolution of the "
+        "colour (same run, same threads). GFLOP/s by the op's FLOP model. Peak RSS %ld MB.\n",
+        peak_rss_mb());
     return 0;
 }

@@ -43,7 +43,10 @@ using Clock = std::chrono::steady_clock;
 
 namespace {
 
-std::string data(const std::string& rel) { return std::string(MCDN_SHARED_DATA) + "/" + rel; }
+std::string data(const std::string& rel)
+{
+    return std::string(MCDN_SHARED_DATA) + "/" + rel;
+}
 
 double cpu_seconds()
 {
@@ -63,7 +66,8 @@ ImageBuf converge_left(const ImageBuf& render, const ImageBuf& ref, const ImageB
         const std::string& name = ref.spec().channelnames[rc];
         const int vc = ref_var.spec().channelindex(name);
         const int targets[4] = { spec.channelindex(name), spec.channelindex("A." + name),
-                                 spec.channelindex("B." + name), spec.channelindex("variance." + name) };
+                                 spec.channelindex("B." + name),
+                                 spec.channelindex("variance." + name) };
         for (int y = 0; y < spec.height; ++y)
             for (int x = 0; x < columns; ++x) {
                 float* px = static_cast<float*>(out.pixeladdr(x, y));
@@ -91,7 +95,8 @@ ImageBuf tiled(const ImageBuf& image, int n)
     ImageBuf out(spec);
     for (int j = 0; j < n; ++j)
         for (int i = 0; i < n; ++i)
-            OIIO::ImageBufAlgo::paste(out, i * image.spec().width, j * image.spec().height, 0, 0, image);
+            OIIO::ImageBufAlgo::paste(out, i * image.spec().width, j * image.spec().height, 0, 0,
+                                      image);
     return out;
 }
 
@@ -99,7 +104,10 @@ struct Timing {
     double wall = 1e30, cpu = 1e30;
 };
 
-Timing best(Timing a, Timing b) { return { std::min(a.wall, b.wall), std::min(a.cpu, b.cpu) }; }
+Timing best(Timing a, Timing b)
+{
+    return { std::min(a.wall, b.wall), std::min(a.cpu, b.cpu) };
+}
 
 using Chain = std::function<bool(ImageBuf&, const ImageBuf&)>;
 
@@ -158,14 +166,17 @@ int main(int argc, char** argv)
             spp = argv[++i];
             spp = std::string(4 - std::min<size_t>(4, spp.size()), '0') + spp;
         } else {
-            std::fprintf(stderr, "usage: bench_skip [--spp 16|64|256] [--threads N] [--repeat N] [--only CHAIN] [--tile N] "
+            std::fprintf(stderr, "usage: bench_skip [--spp 16|64|256] [--threads N] [--repeat N] "
+                                 "[--only CHAIN] [--tile N] "
                                  "[--converged-spp N]\n");
             return 2;
         }
     }
     const std::string base = data("box/box_" + spp + "spp");
-    if (!OIIO::Filesystem::exists(base + ".exr") || !OIIO::Filesystem::exists(data("box/box_ref_var.exr"))) {
-        std::printf("bench_skip: %s.exr or the reference absent (no ../shared/data): skipped\n", base.c_str());
+    if (!OIIO::Filesystem::exists(base + ".exr")
+        || !OIIO::Filesystem::exists(data("box/box_ref_var.exr"))) {
+        std::printf("bench_skip: %s.exr or the reference absent (no ../shared/data): skipped\n",
+                    base.c_str());
         return 0;
     }
     ImageBuf noisy, ref, ref_var;
@@ -173,8 +184,10 @@ int main(int argc, char** argv)
                               { base + "_var.exr", InputKind::Variance },
                               { base + "_A.exr", InputKind::HalfA },
                               { base + "_B.exr", InputKind::HalfB } })
-        || !read_image(ref, data("box/box_ref.exr")) || !read_image(ref_var, data("box/box_ref_var.exr"))) {
-        std::fprintf(stderr, "bench_skip: %s %s\n", noisy.geterror().c_str(), ref.geterror().c_str());
+        || !read_image(ref, data("box/box_ref.exr"))
+        || !read_image(ref_var, data("box/box_ref_var.exr"))) {
+        std::fprintf(stderr, "bench_skip: %s %s\n", noisy.geterror().c_str(),
+                     ref.geterror().c_str());
         return 1;
     }
     noisy = tiled(noisy, tile);
@@ -190,22 +203,27 @@ int main(int argc, char** argv)
     resolve_aovs(set, aovs, half.spec(), error);
     const ConvergedTiles map = converged_tiles_of(half, set, SkipOptions());
     const ConvergedTiles noisy_map = converged_tiles_of(noisy, set, SkipOptions());
-    std::printf("box %s spp, %dx%d, %d threads, best of %d; left half as from %d spp; converged tiles: "
-                "half-converged frame %d of %d (left half: %d), all-noisy frame %d\n",
-                spp.c_str(), width, noisy.spec().height, nthreads, repeat, converged_spp, map.count(),
-                map.tiles_x * map.tiles_y, map.tiles_x * map.tiles_y / 2, noisy_map.count());
+    std::printf(
+        "box %s spp, %dx%d, %d threads, best of %d; left half as from %d spp; converged tiles: "
+        "half-converged frame %d of %d (left half: %d), all-noisy frame %d\n",
+        spp.c_str(), width, noisy.spec().height, nthreads, repeat, converged_spp, map.count(),
+        map.tiles_x * map.tiles_y, map.tiles_x * map.tiles_y / 2, noisy_map.count());
 
     auto nfor_chain = [&](bool skip) -> Chain {
         NforOptions o;
         o.aovs = o.prefilter.aovs = aovs;
         o.skip.enabled = skip;
-        return [o, nthreads](ImageBuf& dst, const ImageBuf& src) { return nfor(dst, src, o, {}, nthreads); };
+        return [o, nthreads](ImageBuf& dst, const ImageBuf& src) {
+            return nfor(dst, src, o, {}, nthreads);
+        };
     };
     auto cnn_chain = [&](bool skip) -> Chain {
         CnnOptions o;
         o.aovs = aovs;
         o.skip.enabled = skip;
-        return [o, nthreads](ImageBuf& dst, const ImageBuf& src) { return cnn(dst, src, o, {}, nthreads); };
+        return [o, nthreads](ImageBuf& dst, const ImageBuf& src) {
+            return cnn(dst, src, o, {}, nthreads);
+        };
     };
     auto mixed_chain = [&](bool skip, MixOptions::Model model) -> Chain {
         Chain denoiser = nfor_chain(skip);
@@ -232,7 +250,8 @@ int main(int argc, char** argv)
     const Row rows[] = {
         { "nfor", nfor_chain },
         { "cnn", cnn_chain },
-        { "nfor+sure+mix:analytic", [&](bool s) { return mixed_chain(s, MixOptions::Model::Analytic); } },
+        { "nfor+sure+mix:analytic",
+          [&](bool s) { return mixed_chain(s, MixOptions::Model::Analytic); } },
         { "nfor+sure+mix:net", [&](bool s) { return mixed_chain(s, MixOptions::Model::Net); } },
     };
     const std::vector<int> ref_rgb = { ref.spec().channelindex("ViewLayer.Combined.R"),
@@ -240,9 +259,11 @@ int main(int argc, char** argv)
                                        ref.spec().channelindex("ViewLayer.Combined.B") };
     const std::vector<int> rgb = set.channels(Role::Color);
 
-    std::printf("\n| chain | all noisy, skip on: CPU s (wall s) | half converged, skip on | half, skip off "
-                "| ratio half/noisy, skip on: CPU (wall) | relMSE half, skip on / off: whole frame "
-                "| noisy half | all noisy, skip on / off: whole frame |\n|---|---|---|---|---|---|---|---|\n");
+    std::printf(
+        "\n| chain | all noisy, skip on: CPU s (wall s) | half converged, skip on | half, skip off "
+        "| ratio half/noisy, skip on: CPU (wall) | relMSE half, skip on / off: whole frame "
+        "| noisy half | all noisy, skip on / off: whole frame "
+        "|\n|---|---|---|---|---|---|---|---|\n");
     for (const Row& row : rows) {
         if (!only.empty() && only != row.name)
             continue;
@@ -255,15 +276,17 @@ int main(int argc, char** argv)
             t_off = best(t_off, time_chain(row.make(false), half, out_off, 1));
         }
         time_chain(row.make(false), noisy, out_noisy_off, 1);
-        std::printf("| %s | %.2f (%.2f) | %.2f (%.2f) | %.2f (%.2f) | **%.2f** (%.2f) | %.5f / %.5f "
-                    "| %.5f / %.5f | %.5f / %.5f |\n",
-                    row.name, t_noisy.cpu, t_noisy.wall, t_on.cpu, t_on.wall, t_off.cpu, t_off.wall,
-                    t_on.cpu / t_noisy.cpu, t_on.wall / t_noisy.wall,
-                    relmse(out_on, rgb, ref, ref_rgb, 0, width), relmse(out_off, rgb, ref, ref_rgb, 0, width),
-                    relmse(out_on, rgb, ref, ref_rgb, width / 2, width),
-                    relmse(out_off, rgb, ref, ref_rgb, width / 2, width),
-                    relmse(out_noisy, rgb, ref, ref_rgb, 0, width),
-                    relmse(out_noisy_off, rgb, ref, ref_rgb, 0, width));
+        std::printf(
+            "| %s | %.2f (%.2f) | %.2f (%.2f) | %.2f (%.2f) | **%.2f** (%.2f) | %.5f / %.5f "
+            "| %.5f / %.5f | %.5f / %.5f |\n",
+            row.name, t_noisy.cpu, t_noisy.wall, t_on.cpu, t_on.wall, t_off.cpu, t_off.wall,
+            t_on.cpu / t_noisy.cpu, t_on.wall / t_noisy.wall,
+            relmse(out_on, rgb, ref, ref_rgb, 0, width),
+            relmse(out_off, rgb, ref, ref_rgb, 0, width),
+            relmse(out_on, rgb, ref, ref_rgb, width / 2, width),
+            relmse(out_off, rgb, ref, ref_rgb, width / 2, width),
+            relmse(out_noisy, rgb, ref, ref_rgb, 0, width),
+            relmse(out_noisy_off, rgb, ref, ref_rgb, 0, width));
         std::fflush(stdout);
     }
     return 0;

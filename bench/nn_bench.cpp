@@ -41,10 +41,13 @@ Weights random_weights(const Net& net)
     for (const Net::Node& node : net.nodes())
         if (node.op == Net::Op::conv) {
             const int in_c = net.nodes()[node.inputs[0]].channels;
-            weights.tensors.push_back({ node.name + ".weight", { node.channels, in_c, node.kernel, node.kernel },
-                                        random_values(size_t(node.channels) * in_c * node.kernel * node.kernel, seed++) });
-            weights.tensors.push_back({ node.name + ".bias", { node.channels },
-                                        random_values(node.channels, seed++) });
+            weights.tensors.push_back(
+                { node.name + ".weight",
+                  { node.channels, in_c, node.kernel, node.kernel },
+                  random_values(size_t(node.channels) * in_c * node.kernel * node.kernel,
+                                seed++) });
+            weights.tensors.push_back(
+                { node.name + ".bias", { node.channels }, random_values(node.channels, seed++) });
         }
     return weights;
 }
@@ -56,7 +59,8 @@ double conv_flops(const Net& net, int height, int width)
     for (const Net::Node& node : net.nodes())
         if (node.op == Net::Op::conv)
             flops += 2.0 * height / node.scale * width / node.scale
-                     * net.nodes()[node.inputs[0]].channels * node.channels * node.kernel * node.kernel;
+                     * net.nodes()[node.inputs[0]].channels * node.channels * node.kernel
+                     * node.kernel;
     return flops;
 }
 
@@ -99,7 +103,9 @@ int main(int argc, char** argv)
     std::printf("single convolutions (+ReLU) on %dx%d, fastest of %d\n", size, size, repeats);
     std::printf("%-22s %10s %10s %10s %8s\n", "shape in->out kxk", "plain ms", "engine ms",
                 "GFLOP/s", "ratio");
-    struct Shape { int in_c, out_c, k; };
+    struct Shape {
+        int in_c, out_c, k;
+    };
     for (Shape s : { Shape { 14, 48, 5 }, Shape { 48, 48, 3 }, Shape { 48, 9, 3 },
                      Shape { 27, 32, 3 }, Shape { 32, 32, 3 }, Shape { 112, 48, 3 },
                      Shape { 32, 25, 3 }, Shape { 100, 100, 5 } }) {
@@ -128,13 +134,16 @@ int main(int argc, char** argv)
             std::fprintf(stderr, "%s\n", error.c_str());
             return 1;
         }
-        std::vector<Tensor> inputs { Tensor(size * 2, size * 2, net.channels(Value { 0 }), 0.5f) }, outputs;
-        const double seconds
-            = fastest_of(std::max(repeats / 2, 1), [&] { run_tiled(net, inputs, outputs, error); }).wall;
+        std::vector<Tensor> inputs { Tensor(size * 2, size * 2, net.channels(Value { 0 }), 0.5f) },
+            outputs;
+        const double seconds = fastest_of(std::max(repeats / 2, 1), [&] {
+                                   run_tiled(net, inputs, outputs, error);
+                               }).wall;
         const double flops = conv_flops(net, size * 2, size * 2);
-        std::printf("%-6s halo %3d: %8.1f ms, %6.1f GFLOP/s (untiled FLOPs), %6.1f GFLOP per 1920x1080\n",
-                    net.name().c_str(), net.receptive_radius(), seconds * 1e3, flops / seconds * 1e-9,
-                    conv_flops(net, 1080, 1920) * 1e-9);
+        std::printf(
+            "%-6s halo %3d: %8.1f ms, %6.1f GFLOP/s (untiled FLOPs), %6.1f GFLOP per 1920x1080\n",
+            net.name().c_str(), net.receptive_radius(), seconds * 1e3, flops / seconds * 1e-9,
+            conv_flops(net, 1080, 1920) * 1e-9);
     }
     return 0;
 }

@@ -83,8 +83,10 @@ inline Timing plain_onednn_conv(int height, int width, int in_c, int out_c, int 
     if (flops)
         *flops = 2.0 * height * width * in_c * out_c * k * k;
     return fastest_of(repeats, [&] {
-        conv.execute(stream, { { DNNL_ARG_SRC, src }, { DNNL_ARG_WEIGHTS, weights },
-                               { DNNL_ARG_BIAS, bias }, { DNNL_ARG_DST, dst } });
+        conv.execute(stream, { { DNNL_ARG_SRC, src },
+                               { DNNL_ARG_WEIGHTS, weights },
+                               { DNNL_ARG_BIAS, bias },
+                               { DNNL_ARG_DST, dst } });
         stream.wait();
     });
 }

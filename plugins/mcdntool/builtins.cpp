@@ -76,8 +76,11 @@ struct HeatmapSettings {
 bool heatmap_settings_of(const Command& c, HeatmapSettings& settings, std::string& error)
 {
     static const std::map<std::string, mcdn::ErrorKind> kinds = {
-        { "relmse", mcdn::ErrorKind::RelMSE }, { "se", mcdn::ErrorKind::SquaredError },
-        { "ae", mcdn::ErrorKind::AbsoluteError }, { "smape", mcdn::ErrorKind::SMAPE } };
+        { "relmse", mcdn::ErrorKind::RelMSE },
+        { "se", mcdn::ErrorKind::SquaredError },
+        { "ae", mcdn::ErrorKind::AbsoluteError },
+        { "smape", mcdn::ErrorKind::SMAPE }
+    };
     auto kind = kinds.find(c.modifier("metric", "relmse"));
     if (kind == kinds.end()) {
         error = format("--heatmap:metric={} is not relmse, se, ae or smape", c.modifier("metric"));
@@ -178,8 +181,8 @@ bool run_info(Session& s, const Command& c, std::string& error)
         return false;
     const auto& spec = s.image().spec();
     std::cout << format("{}: {} x {}, {} channels from {} input(s), AOV preset '{}'\n",
-                        s.inputs[0].path, spec.width, spec.height, spec.nchannels,
-                        s.inputs.size(), s.aovs().preset());
+                        s.inputs[0].path, spec.width, spec.height, spec.nchannels, s.inputs.size(),
+                        s.aovs().preset());
     for (int r = 0; r < mcdn::kRoleCount; ++r) {
         Role role = Role(r);
         if (s.aovs().has(role))
@@ -191,9 +194,8 @@ bool run_info(Session& s, const Command& c, std::string& error)
     if (!s.aovs().detected_because().empty())
         std::cout << "  preset detected from " << s.aovs().detected_because() << "\n";
     std::cout << "  stages:\n";
-    for (const std::string& stage : mcdn::stage_names({ mcdn::StageKind::Denoiser,
-                                                        mcdn::StageKind::Estimator,
-                                                        mcdn::StageKind::Mixer })) {
+    for (const std::string& stage : mcdn::stage_names(
+             { mcdn::StageKind::Denoiser, mcdn::StageKind::Estimator, mcdn::StageKind::Mixer })) {
         std::string how;
         const bool can = mcdn::stage_can_run(stage, s.aovs(), how);
         std::cout << format("    --{:<10} {}: {}\n", stage, can ? "yes" : "no ", how);
@@ -203,7 +205,8 @@ bool run_info(Session& s, const Command& c, std::string& error)
         std::cout << "    --denoise    runs " << plan.describe() << "\n";
     if (s.aovs().has(Role::ColorVariance)) {
         const mcdn::SkipOptions skip;
-        const mcdn::ConvergedCount converged = mcdn::count_converged_tiles(s.image(), s.aovs(), skip);
+        const mcdn::ConvergedCount converged =
+            mcdn::count_converged_tiles(s.image(), s.aovs(), skip);
         std::cout << format("  converged tiles: {} of {} ({:.0f}%) at :converged={:g}, passed "
                             "through by every stage\n",
                             converged.converged, converged.tiles,
@@ -251,8 +254,9 @@ bool prepare_comparison(Session& s, const std::string& ref_path, const std::stri
         for (const auto& name : Strutil::splits(channels, ",")) {
             int ic = spec.channelindex(name), rc = reference.spec().channelindex(name);
             if (ic < 0 || rc < 0) {
-                error = format("{}: channel '{}' is not in {}", ic < 0 ? s.inputs[0].path : ref_path,
-                               name, ic < 0 ? "the image" : "the reference");
+                error =
+                    format("{}: channel '{}' is not in {}", ic < 0 ? s.inputs[0].path : ref_path,
+                           name, ic < 0 ? "the image" : "the reference");
                 return false;
             }
             options.image_channels.push_back(ic);
@@ -284,8 +288,7 @@ bool run_metrics(Session& s, const Command& c, std::string& error)
         error = format("{}: {}", c.args[0], error);
         return false;
     }
-    std::cout << mcdn::format_metrics(m, json) << (json ? "\n" : "")
-              << std::flush;
+    std::cout << mcdn::format_metrics(m, json) << (json ? "\n" : "") << std::flush;
     s.last_reference = c.args[0];
     return true;
 }
@@ -307,7 +310,8 @@ bool run_heatmap(Session& s, const Command& c, std::string& error)
     if (!mcdn::error_map(errors, s.image(), reference, options, settings.kind, {}, s.nthreads)
         || !mcdn::heatmap(picture, errors, settings.log10_min, settings.log10_max, {},
                           s.nthreads)) {
-        error = format("{}: {}", c.args[0], errors.has_error() ? errors.geterror() : picture.geterror());
+        error = format("{}: {}", c.args[0],
+                       errors.has_error() ? errors.geterror() : picture.geterror());
         return false;
     }
     mcdn::WriteOptions wo;
@@ -352,8 +356,7 @@ bool run_output(Session& s, const Command& c, std::string& error)
 namespace {
 
 // --fixnan's strategies, oiiotool's names for OIIO's modes.
-bool fixnan_mode(const Command& c, OIIO::ImageBufAlgo::NonFiniteFixMode& mode,
-                 std::string& error)
+bool fixnan_mode(const Command& c, OIIO::ImageBufAlgo::NonFiniteFixMode& mode, std::string& error)
 {
     using OIIO::ImageBufAlgo::NonFiniteFixMode;
     static const std::pair<const char*, NonFiniteFixMode> modes[] = {
@@ -397,10 +400,10 @@ bool run_fixnan(Session& s, const Command& c, std::string& error)
             while (c < spec.nchannels && std::isfinite(it[c]))
                 ++c;
             if (c < spec.nchannels) {
-                where = format("{}: channel '{}' has {} at pixel ({}, {})",
-                               mcdn::channel_source(spec, spec.channelnames[c]),
-                               spec.channelnames[c], std::isnan(it[c]) ? "NaN" : "Inf", it.x(),
-                               it.y());
+                where =
+                    format("{}: channel '{}' has {} at pixel ({}, {})",
+                           mcdn::channel_source(spec, spec.channelnames[c]), spec.channelnames[c],
+                           std::isnan(it[c]) ? "NaN" : "Inf", it.x(), it.y());
                 break;
             }
         }

@@ -60,68 +60,142 @@ const std::vector<CommandInfo>& command_table()
 {
     static const std::vector<CommandInfo> table = [] {
         std::vector<CommandInfo> t = {
-            { "-i", "FILE", { "as", "part" },
+            { "-i",
+              "FILE",
+              { "as", "part" },
               "Add an input: the render (as=mean, the default), the per-pixel variance of its "
               "mean (as=variance), or a half buffer (as=halfA, as=halfB). A directory is read "
               "as a Tungsten buffer set (color.pfm, colorA.pfm, colorVariance.pfm, ...). "
               "A multi-part EXR is read as one set of channels (the first part's as they "
               "are, the others' behind their part's name) and written back with the same "
               "parts; part=NAME reads one part alone. A bare FILE is the same as -i FILE.",
-              run_input, false, check_input, {} },
-            { "--aov", "", { "preset", "layer", "colorspace" },
+              run_input,
+              false,
+              check_input,
+              {} },
+            { "--aov",
+              "",
+              { "preset", "layer", "colorspace" },
               "Say which channels are what: preset=cycles|arnold|renderman|tungsten|oidn|"
               "generic (default: detected from the channel names, printed with -v), "
               "colorspace=NAME (OCIO space of the colour channels; default the file's "
               "oiio:ColorSpace, else scene_linear); "
               "role=ch1,ch2,ch3 words after it override one role (color, color_variance, "
               "color_a, albedo, normal, depth, ..., extra.NAME=...).",
-              run_aov, false, check_aov, {} },
-            { "--info", "", { "verbose" },
-              "Print the image size, channels and the resolved AOV roles.", run_info, false, {}, {} },
-            { "--metrics", "REF", { "format", "trim", "channels" },
+              run_aov,
+              false,
+              check_aov,
+              {} },
+            { "--info",
+              "",
+              { "verbose" },
+              "Print the image size, channels and the resolved AOV roles.",
+              run_info,
+              false,
+              {},
+              {} },
+            { "--metrics",
+              "REF",
+              { "format", "trim", "channels" },
               "Print MSE, RMSE, relMSE, SMAPE, PSNR and SSIM of the colour against a reference "
               "image (format=text|json, trim=1 drops the 0.01% best and worst pixels, "
               "channels=a,b,c compares other channels).",
-              run_metrics, false, check_metrics, {} },
-            { "--heatmap", "FILE", { "ref", "metric", "min", "max" },
+              run_metrics,
+              false,
+              check_metrics,
+              {} },
+            { "--heatmap",
+              "FILE",
+              { "ref", "metric", "min", "max" },
               "Write a false-colour per-pixel error PNG against the last --metrics reference "
               "(or ref=FILE): metric=relmse|se|ae|smape, log10 range min=-4 max=0.",
-              run_heatmap, false, check_heatmap, {} },
-            { "--ch", "CHANNELS", {},
+              run_heatmap,
+              false,
+              check_heatmap,
+              {} },
+            { "--ch",
+              "CHANNELS",
+              {},
               "Channels -o writes, comma-separated, each a name or a wildcard (mix.alpha.*, "
               "*.R); default: the render's own channels and those a stage was asked to add "
               "(nfor's mse=1 and selection=1, mix's alpha=1).",
-              run_channels, false, {}, {} },
-            { "-o", "FILE", { "datatype", "compression" },
+              run_channels,
+              false,
+              {},
+              {} },
+            { "-o",
+              "FILE",
+              { "datatype", "compression" },
               "Write the current image (datatype=half|float, default float; compression=zip, "
               "or with a level as oiiotool takes it: zip:5, dwaa:45). "
               "Written to a temporary name and renamed: never a partial file.",
-              run_output, false, check_output, {} },
-            { "--fixnan", "STRATEGY", {},
+              run_output,
+              false,
+              check_output,
+              {} },
+            { "--fixnan",
+              "STRATEGY",
+              {},
               "Repair NaN and Inf in the current image, as oiiotool does: none, black (0), "
               "box3 (the 3x3 neighbours' mean) or error (fail if there are any). No stage "
               "makes them; they come with channels no stage reads, which -o warns about.",
-              run_fixnan, false, check_fixnan, {} },
-            { "--threads", "N", {}, "Worker threads (0 = all cores, the default).", nullptr,
-              true, check_thread_count, {} },
-            { "-v", "", {}, "Print a line per stage with its run time (the default when "
-              "stderr is a terminal).", nullptr, true, {}, {} },
-            { "--frames", "SPEC", {},
+              run_fixnan,
+              false,
+              check_fixnan,
+              {} },
+            { "--threads",
+              "N",
+              {},
+              "Worker threads (0 = all cores, the default).",
+              nullptr,
+              true,
+              check_thread_count,
+              {} },
+            { "-v",
+              "",
+              {},
+              "Print a line per stage with its run time (the default when "
+              "stderr is a terminal).",
+              nullptr,
+              true,
+              {},
+              {} },
+            { "--frames",
+              "SPEC",
+              {},
               "Frames for # / @ / %04d patterns, e.g. 1-10 or 1-100x5 (default: every frame "
               "of the first input pattern that exists on disk).",
-              nullptr, true, check_frames, {} },
-            { "--parallel-frames", "N", {},
+              nullptr,
+              true,
+              check_frames,
+              {} },
+            { "--parallel-frames",
+              "N",
+              {},
               "Denoise N frames of a sequence at once, sharing the threads (default 1).",
-              nullptr, true, whole_number_at_least(1), {} },
-            { "--skip-existing", "", {},
+              nullptr,
+              true,
+              whole_number_at_least(1),
+              {} },
+            { "--skip-existing",
+              "",
+              {},
               "Frames whose every output (-o, --heatmap) exists already are skipped, with a "
               "line each: a farm job that died half-way is run again as it was.",
-              nullptr, true, {}, {} },
-            { "--skip-bad-frames", "", {},
+              nullptr,
+              true,
+              {},
+              {} },
+            { "--skip-bad-frames",
+              "",
+              {},
               "A frame that fails does not stop the sequence: the others are denoised, the "
               "failed ones listed at the end, and the exit status is 1 (as oiiotool's "
               "--skip-bad-frames; alias --continue).",
-              nullptr, true, {}, {} },
+              nullptr,
+              true,
+              {},
+              {} },
             { "--continue", "", {}, "Alias of --skip-bad-frames.", nullptr, true, {}, {} },
         };
         for (auto& stage : stage_commands())
@@ -173,8 +247,8 @@ std::string closest(const std::string& word, const std::vector<std::string>& can
             row[0] = i;
             for (size_t j = 1; j <= b.size(); ++j) {
                 size_t up = row[j];
-                row[j] = std::min({ row[j] + 1, row[j - 1] + 1,
-                                    diagonal + (a[i - 1] == b[j - 1] ? 0 : 1) });
+                row[j] = std::min(
+                    { row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1) });
                 diagonal = up;
             }
         }
@@ -205,8 +279,7 @@ bool check_command(const Command& command, std::string& error)
         return false;
     }
     for (const auto& [key, value] : command.modifiers) {
-        if (std::find(info->modifiers.begin(), info->modifiers.end(), key)
-            != info->modifiers.end())
+        if (std::find(info->modifiers.begin(), info->modifiers.end(), key) != info->modifiers.end())
             continue;
         std::string guess = closest(key, info->modifiers);
         error = format("{}: unknown modifier ':{}'{} (it takes: {})", command.name, key,

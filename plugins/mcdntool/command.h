@@ -35,10 +35,10 @@ struct CommandInfo {
     std::string metavar;                 // "REF" (space-separated, one per argument)
     std::vector<std::string> modifiers;  // accepted modifier keys
     std::string help;
-    CommandAction run;                   // null for commands handled before the frame loop
-    bool global = false;                 // --threads, --frames: set once, not per frame
-    CommandCheck check;                  // null when any value is accepted
-    std::string needs;                   // what it reads, for --help COMMAND (stages)
+    CommandAction run;    // null for commands handled before the frame loop
+    bool global = false;  // --threads, --frames: set once, not per frame
+    CommandCheck check;   // null when any value is accepted
+    std::string needs;    // what it reads, for --help COMMAND (stages)
 };
 
 /// Every command mcdntool knows, in --help order (built-ins, then the stages).

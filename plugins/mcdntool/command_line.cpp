@@ -17,11 +17,14 @@ namespace mcdntool {
 
 using OIIO::Strutil::fmt::format;
 namespace Filesystem = OIIO::Filesystem;
-namespace Strutil    = OIIO::Strutil;
+namespace Strutil = OIIO::Strutil;
 
 namespace {
 
-int nargs(const CommandInfo& info) { return int(Strutil::splits(info.metavar, " ").size()); }
+int nargs(const CommandInfo& info)
+{
+    return int(Strutil::splits(info.metavar, " ").size());
+}
 
 // Checks every command word before ArgParse sees it: ArgParse's own messages have no
 // suggestions, and a typo at the end must fail before minutes of denoising.
@@ -56,55 +59,57 @@ void declare(OIIO::ArgParse& ap, CommandLine& line)
         .description("Commands run left to right, oiiotool style; every command accepts "
                      ":modifier=value, and mcdntool --help COMMAND says what it reads. File "
                      "names with #, @ or %04d run the whole command line once per frame.")
-        .epilog(format("Examples:\n"
-                "  mcdntool -v -i beauty.exr --denoise -o out.exr\n"
-                "      the best chain the file allows (the renderer is detected: -v says "
-                "which, and why)\n"
-                "  mcdntool -i box.exr -i:as=variance box_var.exr --denoise --metrics ref.exr "
-                "-o out.exr\n"
-                "      a Cycles render with the variance of its mean beside it\n"
-                "  mcdntool -i box.exr -i:as=halfA box_A.exr -i:as=halfB box_B.exr --prefilter "
-                "--nfor -o out.exr\n"
-                "      NFOR on a render with two half buffers\n\n"
-                "Installed data: models {}, colour config {} ($MCDN_MODELS and $OCIO "
-                "override them).\nPlain oiiotool reads .mcdn recipes with this plugin "
-                "folder:\n  export OIIO_LIBRARY_PATH={}", paths.models_dir,
-                paths.ocio_config, paths.plugin_dir))
+        .epilog(
+            format("Examples:\n"
+                   "  mcdntool -v -i beauty.exr --denoise -o out.exr\n"
+                   "      the best chain the file allows (the renderer is detected: -v says "
+                   "which, and why)\n"
+                   "  mcdntool -i box.exr -i:as=variance box_var.exr --denoise --metrics ref.exr "
+                   "-o out.exr\n"
+                   "      a Cycles render with the variance of its mean beside it\n"
+                   "  mcdntool -i box.exr -i:as=halfA box_A.exr -i:as=halfB box_B.exr --prefilter "
+                   "--nfor -o out.exr\n"
+                   "      NFOR on a render with two half buffers\n\n"
+                   "Installed data: models {}, colour config {} ($MCDN_MODELS and $OCIO "
+                   "override them).\nPlain oiiotool reads .mcdn recipes with this plugin "
+                   "folder:\n  export OIIO_LIBRARY_PATH={}",
+                   paths.models_dir, paths.ocio_config, paths.plugin_dir))
         .exit_on_error(false);
     for (const auto& info : command_table()) {
         std::string decl = info.name + (info.metavar.empty() ? "" : " " + info.metavar);
         std::string help = info.help;
         if (!info.modifiers.empty())
             help += " [modifiers: " + Strutil::join(info.modifiers, ", ") + "]";
-        ap.arg(decl.c_str()).help(help).action([&line, name = info.name](OIIO::cspan<const char*> a) {
-            Command c = split_command(a[0]);
-            for (int k = 1; k < int(a.size()); ++k)
-                c.args.push_back(a[k]);
-            if (name == "--threads")
-                line.nthreads = Strutil::stoi(c.args[0]);
-            else if (name == "-v")
-                line.verbose = true;
-            else if (name == "--parallel-frames")
-                line.parallel_frames = Strutil::stoi(c.args[0]);
-            else if (name == "--frames")
-                line.frames = c.args[0];
-            else if (name == "--skip-existing")
-                line.skip_existing = true;
-            else if (name == "--skip-bad-frames" || name == "--continue")
-                line.skip_bad_frames = true;
-            line.commands.push_back(c);
-        });
+        ap.arg(decl.c_str())
+            .help(help)
+            .action([&line, name = info.name](OIIO::cspan<const char*> a) {
+                Command c = split_command(a[0]);
+                for (int k = 1; k < int(a.size()); ++k)
+                    c.args.push_back(a[k]);
+                if (name == "--threads")
+                    line.nthreads = Strutil::stoi(c.args[0]);
+                else if (name == "-v")
+                    line.verbose = true;
+                else if (name == "--parallel-frames")
+                    line.parallel_frames = Strutil::stoi(c.args[0]);
+                else if (name == "--frames")
+                    line.frames = c.args[0];
+                else if (name == "--skip-existing")
+                    line.skip_existing = true;
+                else if (name == "--skip-bad-frames" || name == "--continue")
+                    line.skip_bad_frames = true;
+                line.commands.push_back(c);
+            });
     }
     ap.arg("filename").hidden().action([&line](OIIO::cspan<const char*> a) {
         // `role=chans` words belong to the --aov before them (global commands such as
         // --threads may come between); anything else is an input.
         std::string word = a[0];
         auto& commands = line.commands;
-        auto last = std::find_if(commands.rbegin(), commands.rend(), [](const Command& c) {
-            return !find_command(c.name)->global;
-        });
-        if (last != commands.rend() && last->name == "--aov"
-            && word.find('=') != std::string::npos && !Filesystem::exists(word))
+        auto last = std::find_if(commands.rbegin(), commands.rend(),
+                                 [](const Command& c) { return !find_command(c.name)->global; });
+        if (last != commands.rend() && last->name == "--aov" && word.find('=') != std::string::npos
+            && !Filesystem::exists(word))
             last->args.push_back(word);
         else
             commands.push_back(Command { "-i", {}, { word } });

@@ -31,7 +31,7 @@
 using namespace mcdntool;
 using OIIO::Strutil::fmt::format;
 namespace Filesystem = OIIO::Filesystem;
-namespace Strutil    = OIIO::Strutil;
+namespace Strutil = OIIO::Strutil;
 
 namespace {
 
@@ -47,7 +47,8 @@ bool find_frames(const std::vector<Command>& commands, const std::string& frames
             std::string normalized, framespec;
             if (frame_patterns(arg) > 1) {
                 error = format("{} {}: {} frame patterns in one name; a name takes one (#, @ "
-                               "or %04d), e.g. out.####.exr", c.name, arg, frame_patterns(arg));
+                               "or %04d), e.g. out.####.exr",
+                               c.name, arg, frame_patterns(arg));
                 return false;
             }
             if (!is_sequence(arg, normalized, framespec))
@@ -66,7 +67,8 @@ bool find_frames(const std::vector<Command>& commands, const std::string& frames
             && !is_sequence(c.args[0], normalized, framespec)) {
             error = format("{} {}: the inputs are a frame sequence but this name has no frame "
                            "pattern, so every frame would overwrite it (write e.g. "
-                           "out.####.exr)", c.name, c.args[0]);
+                           "out.####.exr)",
+                           c.name, c.args[0]);
             return false;
         }
     }
@@ -162,8 +164,8 @@ bool outputs_exist(const std::vector<Command>& commands)
 }
 
 // What the command line's stages read of the variance and half-buffer files: the faces of
-// the roles, and the halves only for NFOR and its prefilter (or where no variance is given, from which the
-// stages then take the halves' difference), the light split's only for the CNN.
+// the roles, and the halves only for NFOR and its prefilter (or where no variance is given, from
+// which the stages then take the halves' difference), the light split's only for the CNN.
 // Everything when a command names channels. --info without a stage reads what any stage
 // could, so that it says what each can do with the files given.
 mcdn::InputSelection input_selection(const std::vector<Command>& commands)
@@ -269,7 +271,8 @@ bool run_frames(const std::vector<Command>& commands, const std::vector<int>& fr
             if (line.skip_existing && outputs_exist(frame)) {
                 std::lock_guard<std::mutex> lock(print);
                 std::cerr << format("mcdntool: frame {} ({}/{}) skipped: its outputs exist "
-                                    "(--skip-existing)\n", frames[f], ++done, frames.size());
+                                    "(--skip-existing)\n",
+                                    frames[f], ++done, frames.size());
                 continue;
             }
             try {
@@ -343,7 +346,7 @@ extern "C" void remove_outputs_and_die(int sig)
 void install_signal_handlers()
 {
     for (int sig : { SIGINT, SIGTERM, SIGHUP }) {
-        struct sigaction action {};
+        struct sigaction action { };
         action.sa_handler = remove_outputs_and_die;
         sigemptyset(&action.sa_mask);
         ::sigaction(sig, &action, nullptr);

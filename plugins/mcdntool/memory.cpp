@@ -72,13 +72,22 @@ bool available_bytes(double& bytes, std::string& error)
         std::string text = limit;
         double scale = 1;
         switch (text.back()) {
-        case 'G': case 'g': scale = 1e9; text.pop_back(); break;
-        case 'M': case 'm': scale = 1e6; text.pop_back(); break;
+        case 'G':
+        case 'g':
+            scale = 1e9;
+            text.pop_back();
+            break;
+        case 'M':
+        case 'm':
+            scale = 1e6;
+            text.pop_back();
+            break;
         default: break;
         }
         if (!OIIO::Strutil::string_is_float(text) || OIIO::Strutil::stod(text) < 0) {
             error = format("MCDN_MEMORY_LIMIT={}: needs a number of bytes, or one with a G or "
-                           "M suffix (16G)", limit);
+                           "M suffix (16G)",
+                           limit);
             return false;
         }
         bytes = OIIO::Strutil::stod(text) * scale;
@@ -97,7 +106,8 @@ bool available_bytes(double& bytes, std::string& error)
     }
     bytes = kb * 1024.0;
     // A container's (cgroup v2) limit, where one is set.
-    std::ifstream max_file("/sys/fs/cgroup/memory.max"), current_file("/sys/fs/cgroup/memory.current");
+    std::ifstream max_file("/sys/fs/cgroup/memory.max"),
+        current_file("/sys/fs/cgroup/memory.current");
     std::string max_text;
     double current = 0;
     if (max_file >> max_text && max_text != "max" && current_file >> current
@@ -147,24 +157,24 @@ bool check_memory(const std::vector<Command>& commands, int threads, int paralle
     const int per_frame_threads = std::max(1, threads / frames_at_once);
     // A streamed chain's band: band_pixels and a halo of up to 128 rows each side.
     const double band = streamed_chain_start(commands) ? double(band_pixels()) + 256 * width : 0;
-    const double need = frames_at_once
-                        * estimated_peak_bytes(commands, pixels, channels, per_frame_threads, band);
+    const double need =
+        frames_at_once * estimated_peak_bytes(commands, pixels, channels, per_frame_threads, band);
     if (need <= available)
         return true;
     const double gb = 1e9;
-    const double one_thread
-        = frames_at_once * estimated_peak_bytes(commands, pixels, channels, 1, band);
-    std::string advice = one_thread <= available
-                             ? format("--threads {} needs about {:.1f} GB", frames_at_once,
-                                      one_thread / gb)
-                             : "fewer input channels (only the files and AOVs the chain "
-                               "reads), a shorter chain or a smaller frame would need less";
+    const double one_thread =
+        frames_at_once * estimated_peak_bytes(commands, pixels, channels, 1, band);
+    std::string advice =
+        one_thread <= available
+            ? format("--threads {} needs about {:.1f} GB", frames_at_once, one_thread / gb)
+            : "fewer input channels (only the files and AOVs the chain "
+              "reads), a shorter chain or a smaller frame would need less";
     if (frames_at_once > 1)
         advice += "; --parallel-frames 1 runs one frame at a time";
     error = format("a {:.0f} Mpixel frame with {} channels ({} read at least) needs about "
                    "{:.1f} GB for this chain and {} thread(s), {:.1f} GB are available: {}",
-                   pixels / 1e6, in_files, channels, need / gb, per_frame_threads,
-                   available / gb, advice);
+                   pixels / 1e6, in_files, channels, need / gb, per_frame_threads, available / gb,
+                   advice);
     return false;
 }
 

@@ -77,8 +77,8 @@ void Session::capture_input_features(const std::vector<Queued>& stages)
     for (const std::string& name : m_feature_names)
         order.push_back(m_image.spec().channelindex(name));
     if (!order.empty())
-        m_input_features = OIIO::ImageBufAlgo::channels(m_image, int(order.size()), order, {},
-                                                        m_feature_names);
+        m_input_features =
+            OIIO::ImageBufAlgo::channels(m_image, int(order.size()), order, {}, m_feature_names);
 }
 
 bool Session::restore_input_features(std::string& error)
@@ -92,8 +92,8 @@ bool Session::restore_input_features(std::string& error)
     return true;
 }
 
-bool Session::take_denoiser_chain(mcdn::Denoiser& chain, int& chain_radius,
-                                  ImageBuf& chain_input, std::string& error)
+bool Session::take_denoiser_chain(mcdn::Denoiser& chain, int& chain_radius, ImageBuf& chain_input,
+                                  std::string& error)
 {
     if (!load_inputs(error))
         return false;
@@ -116,10 +116,10 @@ bool Session::take_denoiser_chain(mcdn::Denoiser& chain, int& chain_radius,
         reach.push_back(stage.reach);
     chain_radius = mcdn::chain_radius(reach);
     for (const auto& stage : stages)
-        denoisers.emplace_back(stage.name, [op = stage.op, threads = nthreads](
-                                               ImageBuf& dst, const ImageBuf& src) {
-            return op(dst, src, threads);
-        });
+        denoisers.emplace_back(
+            stage.name, [op = stage.op, threads = nthreads](ImageBuf& dst, const ImageBuf& src) {
+                return op(dst, src, threads);
+            });
     chain = mcdn::compose(std::move(denoisers));
     return true;
 }
@@ -157,8 +157,8 @@ void report_fallback(const OIIO::ImageSpec& result)
             std::cerr << format("mcdntool: {}: {} tile(s) of {}x{} pixels are the render: {} "
                                 "says the denoiser made them worse (safety net; --{}:fallback=0 "
                                 "turns it off, fallback-aov=1 shows where)\n",
-                                stage, tiles, mcdn::kConvergedTileSize,
-                                mcdn::kConvergedTileSize, estimate, stage);
+                                stage, tiles, mcdn::kConvergedTileSize, mcdn::kConvergedTileSize,
+                                estimate, stage);
     if (const int tiles = result.get_int_attribute(mcdn::kSureWorseCountAttribute, 0); tiles > 0)
         std::cerr << format("mcdntool: sure: SURE says the denoiser made {} tile(s) of {}x{} "
                             "pixels worse than the render (kept; --sure:fallback=1 makes them "
@@ -182,8 +182,7 @@ bool Session::apply_to(const std::string& name, const ImageBuf& input, const Sta
         error = result.geterror();
         return false;
     }
-    if (verbose)
-    {
+    if (verbose) {
         std::cerr << format("mcdntool: {} {}x{} done in {:.2f} s\n", name, result.spec().width,
                             result.spec().height, timer());
         report_fallback(result.spec());
@@ -205,8 +204,8 @@ bool Session::read_neighbours(int radius, std::vector<std::shared_ptr<ImageBuf>>
             if (!neighbour_inputs || !neighbour_inputs(side * k, files)) {
                 if (verbose)
                     std::cerr << format("mcdntool: cross-frame: no frame {:+d} (its files do "
-                                        "not exist): {} {} of {}\n", side * k,
-                                        k - 1, side < 0 ? "previous" : "next", radius);
+                                        "not exist): {} {} of {}\n",
+                                        side * k, k - 1, side < 0 ? "previous" : "next", radius);
                 break;
             }
             auto frame = std::make_shared<ImageBuf>();
@@ -277,14 +276,15 @@ bool Session::open_rows(mcdn::InputRows& rows, std::string& error)
     if (verbose) {
         // What the stages will have to work with: a missing pass changes what runs.
         std::vector<std::string> found, missing;
-        for (Role r : { Role::Albedo, Role::Normal, Role::Depth, Role::DiffuseColor,
-                        Role::GlossyColor })
+        for (Role r :
+             { Role::Albedo, Role::Normal, Role::Depth, Role::DiffuseColor, Role::GlossyColor })
             (m_aovs.has(r) ? found : missing).push_back(mcdn::role_name(r));
         std::cerr << format("mcdntool: features found: {}; missing: {}{}\n",
                             found.empty() ? "none" : Strutil::join(found, ", "),
                             missing.empty() ? "none" : Strutil::join(missing, ", "),
-                            missing.empty() ? "" : " (nfor and prefilter leave them out, the "
-                                                   "cnn reads them as zeros)");
+                            missing.empty() ? ""
+                                            : " (nfor and prefilter leave them out, the "
+                                              "cnn reads them as zeros)");
     }
     return true;
 }

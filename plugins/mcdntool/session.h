@@ -67,8 +67,8 @@ public:
     /// from, moved out of the session: the caller replaces the current image (apply_to); an
     /// error if there is none. Denoisers that already ran (an --info or --metrics came
     /// between) run again inside SURE.
-    bool take_denoiser_chain(mcdn::Denoiser& chain, int& chain_radius,
-                             OIIO::ImageBuf& chain_input, std::string& error);
+    bool take_denoiser_chain(mcdn::Denoiser& chain, int& chain_radius, OIIO::ImageBuf& chain_input,
+                             std::string& error);
     /// Loads, then replaces the current image by op(current image).
     bool apply(const std::string& name, const StageOp& op, std::string& error);
     /// Loads, then replaces the current image by op(input), timing it like apply().

@@ -15,7 +15,10 @@ using OIIO::ImageBuf;
 
 namespace {
 
-const mcdn::StageInfo& stage_of(const Command& c) { return *mcdn::find_stage(c.name.substr(2)); }
+const mcdn::StageInfo& stage_of(const Command& c)
+{
+    return *mcdn::find_stage(c.name.substr(2));
+}
 
 // `frames=N` of a cross-frame stage (mcdn::StageInfo::cross_frame): the front end's
 // modifier, as mcdntool reads the frames; the rest are the stage's settings, checked by its
@@ -90,9 +93,12 @@ bool queue_denoiser(Session& s, const Command& c, std::string& error)
         return false;
     s.prefilters |= stage.changes_features;
     s.features_out |= settings.count("features-out") && settings.at("features-out") != "0";
-    s.queue(stage.name, [run = made.run, neighbours](ImageBuf& dst, const ImageBuf& src, int) {
-        return run(dst, src);
-    }, made.reach);
+    s.queue(
+        stage.name,
+        [run = made.run, neighbours](ImageBuf& dst, const ImageBuf& src, int) {
+            return run(dst, src);
+        },
+        made.reach);
     return true;
 }
 
@@ -110,9 +116,9 @@ bool run_estimator(Session& s, const Command& c, std::string& error)
     if (!s.take_denoiser_chain(context.denoiser, context.denoiser_radius, render, error)
         || !stage.make(made, settings, context, error))
         return false;
-    return s.apply_to(stage.name, render, [&](ImageBuf& dst, const ImageBuf& src, int) {
-        return made.run(dst, src);
-    }, error);
+    return s.apply_to(
+        stage.name, render,
+        [&](ImageBuf& dst, const ImageBuf& src, int) { return made.run(dst, src); }, error);
 }
 
 bool run_mixer(Session& s, const Command& c, std::string& error)
@@ -121,11 +127,12 @@ bool run_mixer(Session& s, const Command& c, std::string& error)
     int frames;
     mcdn::Settings settings;
     mcdn::MadeStage made;
-    if (!settings_of(c, frames, settings, error) || !stage.make(made, settings, context_of(s), error))
+    if (!settings_of(c, frames, settings, error)
+        || !stage.make(made, settings, context_of(s), error))
         return false;
-    return s.apply(stage.name, [&](ImageBuf& dst, const ImageBuf& src, int) {
-        return made.run(dst, src);
-    }, error);
+    return s.apply(
+        stage.name, [&](ImageBuf& dst, const ImageBuf& src, int) { return made.run(dst, src); },
+        error);
 }
 
 bool run_stage(Session& s, const Command& c, std::string& error);
@@ -171,7 +178,10 @@ const mcdn::StageInfo* stage_of_command(const std::string& name)
     return name.compare(0, 2, "--") == 0 ? mcdn::find_stage(name.substr(2)) : nullptr;
 }
 
-bool is_stage(const std::string& name) { return stage_of_command(name) != nullptr; }
+bool is_stage(const std::string& name)
+{
+    return stage_of_command(name) != nullptr;
+}
 
 std::vector<CommandInfo> stage_commands()
 {

@@ -167,8 +167,8 @@ bool run_streamed_chain(Session& s, const std::vector<Command>& commands, size_t
         std::cerr << "mcdntool: warning: " << w << "\n";
     if (s.verbose)
         std::cerr << format("mcdntool: {} {}x{} in {} band(s) of rows, written to {}: {:.2f} s\n",
-                            Strutil::join(chain.stages, " "), input.width, input.height,
-                            bands, output.args[0], timer());
+                            Strutil::join(chain.stages, " "), input.width, input.height, bands,
+                            output.args[0], timer());
     if (s.verbose)
         report_fallback(fell_back);
     return true;

@@ -62,8 +62,8 @@ bool denoise(const Recipe& recipe, ImageBuf& result, std::string& error)
     for (const auto& n : names) {
         int c = chained.spec().channelindex(n);
         if (c < 0) {
-            error = Strutil::fmt::format("channel '{}' is not in the result; channels there: {}",
-                                         n, mcdn::channel_list(chained.spec()));
+            error = Strutil::fmt::format("channel '{}' is not in the result; channels there: {}", n,
+                                         mcdn::channel_list(chained.spec()));
             return false;
         }
         order.push_back(c);
@@ -89,10 +89,7 @@ public:
 
     // Every name.mcdn is ours: a recipe that does not parse opens with its error (open())
     // rather than as OIIO's "File does not exist".
-    bool valid_file(const std::string& filename) const override
-    {
-        return is_recipe_name(filename);
-    }
+    bool valid_file(const std::string& filename) const override { return is_recipe_name(filename); }
 
     // oiiotool (2.4) treats a procedural input whose open() fails as "file not found" and
     // then aborts. So a recipe that fails opens as a 1x1 placeholder and the error surfaces
@@ -232,6 +229,9 @@ OIIO_EXPORT const char* mcdn_imageio_library_version()
     static const std::string name = mcdn::software_name();
     return name.c_str();
 }
-OIIO_EXPORT ImageInput* mcdn_input_imageio_create() { return new McdnInput; }
+OIIO_EXPORT ImageInput* mcdn_input_imageio_create()
+{
+    return new McdnInput;
+}
 OIIO_EXPORT const char* mcdn_input_extensions[] = { "mcdn", nullptr };
 OIIO_PLUGIN_EXPORTS_END

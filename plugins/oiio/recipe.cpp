@@ -17,14 +17,17 @@ namespace mcdn_plugin {
 
 using OIIO::Strutil::fmt::format;
 namespace Filesystem = OIIO::Filesystem;
-namespace Strutil    = OIIO::Strutil;
+namespace Strutil = OIIO::Strutil;
 
 namespace {
 
-const std::vector<std::string> kKeys = { "in", "variance", "halfA", "halfB", "preset", "layer",
-                                         "colorspace", "chain", "channels", "threads" };
+const std::vector<std::string> kKeys = { "in",    "variance",   "halfA", "halfB",    "preset",
+                                         "layer", "colorspace", "chain", "channels", "threads" };
 
-bool is_hex(char c) { return std::isxdigit(static_cast<unsigned char>(c)) != 0; }
+bool is_hex(char c)
+{
+    return std::isxdigit(static_cast<unsigned char>(c)) != 0;
+}
 
 // A comment starts with '#' at the start of a line or after white space, so a path with '#'
 // in it (shot#1.exr, oiiotool's frame pattern) stays whole.
@@ -153,8 +156,8 @@ std::string recipe_key(const std::string& name)
 {
     size_t query = name.find('?');
     std::error_code ec;
-    std::filesystem::path file = std::filesystem::weakly_canonical(
-        std::filesystem::absolute(name.substr(0, query), ec), ec);
+    std::filesystem::path file =
+        std::filesystem::weakly_canonical(std::filesystem::absolute(name.substr(0, query), ec), ec);
     return file.string() + (query == std::string::npos ? "" : name.substr(query));
 }
 

@@ -36,7 +36,7 @@ bool parse_recipe(const std::string& name, Recipe& recipe, std::string& error);
 struct Job {
     std::vector<mcdn::InputFile> inputs;  // the render first, then variance, halves
     mcdn::ChainOptions chain;
-    std::vector<std::string> channels;    // output channels; empty = the render's own
+    std::vector<std::string> channels;  // output channels; empty = the render's own
     int threads = 0;
 };
 

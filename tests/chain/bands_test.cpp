@@ -54,8 +54,8 @@ void expect_bands_match(const Case& k)
               banded.spec().get_string_attribute("mcdn:denoise_plan"));
     EXPECT_FALSE(banded.spec().find_attribute("mcdn:frame")) << name;
     const auto cmp = OIIO::ImageBufAlgo::compare(whole, banded, 0, 0);
-    EXPECT_LE(cmp.maxerror, k.tolerance) << name << " at " << cmp.maxx << "," << cmp.maxy
-                                         << " channel " << cmp.maxc;
+    EXPECT_LE(cmp.maxerror, k.tolerance)
+        << name << " at " << cmp.maxx << "," << cmp.maxy << " channel " << cmp.maxc;
 }
 
 }  // namespace
@@ -71,8 +71,8 @@ TEST(Bands, NforChainsAreTheWholeFrame)
 {
     expect_bands_match({ { "prefilter", "nfor" }, {}, 0.0 });
     expect_bands_match({ { "nfor" }, { { "nfor.halves", "0" } }, 0.0 });
-    expect_bands_match({ { "prefilter", "nfor", "sure", "mix" }, { { "mix.model", "analytic" } },
-                         0.0 });
+    expect_bands_match(
+        { { "prefilter", "nfor", "sure", "mix" }, { { "mix.model", "analytic" } }, 0.0 });
 }
 
 TEST(Bands, ReachIsTheSumOfTheStages)

@@ -26,7 +26,8 @@ std::vector<InputFile> tall_files(const std::string& dir, bool tiled)
     std::vector<InputFile> files;
     for (int f = 0; f < 4; ++f) {
         ImageBuf one;
-        EXPECT_TRUE(read_image(one, mcdn_test::test_data("box16/box_0016spp") + kFaces[f] + ".exr"));
+        EXPECT_TRUE(
+            read_image(one, mcdn_test::test_data("box16/box_0016spp") + kFaces[f] + ".exr"));
         OIIO::ImageSpec spec = one.spec();
         spec.height = spec.full_height = 8 * one.spec().height;
         ImageBuf tall(spec);
@@ -114,8 +115,9 @@ void expect_chain_match(const std::vector<InputFile>& files, const ChainOptions&
         EXPECT_EQ(reads, 1);
     ASSERT_EQ(streamed.spec().channelnames, expected.spec().channelnames);
     const auto cmp = OIIO::ImageBufAlgo::compare(streamed, expected, 0, 0);
-    EXPECT_LE(cmp.maxerror, tolerance) << " at " << cmp.maxx << "," << cmp.maxy << " channel "
-                                       << cmp.maxc << " (" << expected.spec().channel_name(cmp.maxc) << ")";
+    EXPECT_LE(cmp.maxerror, tolerance)
+        << " at " << cmp.maxx << "," << cmp.maxy << " channel " << cmp.maxc << " ("
+        << expected.spec().channel_name(cmp.maxc) << ")";
 }
 
 }  // namespace
@@ -123,8 +125,8 @@ void expect_chain_match(const std::vector<InputFile>& files, const ChainOptions&
 TEST(Streamed, RowsAreTheWholeFramesRows)
 {
     for (bool tiled : { false, true }) {
-        const auto files
-            = tall_files(mcdn_test::temp_dir(tiled ? "streamed_rows_tiled" : "streamed_rows"), tiled);
+        const auto files =
+            tall_files(mcdn_test::temp_dir(tiled ? "streamed_rows_tiled" : "streamed_rows"), tiled);
         expect_rows_match(files, InputSelection());
         InputSelection roles;
         roles.only_roles = true;
@@ -167,13 +169,14 @@ TEST(Streamed, ChainWithoutTheCnnReadsNoFaceOfTheLightSplit)
     ImageBuf all, some;
     ASSERT_TRUE(read_inputs(all, files)) << all.geterror();
     ASSERT_TRUE(read_inputs(some, files, selection)) << some.geterror();
-    for (const char* name : { "variance.ViewLayer.DiffDir.R", "A.ViewLayer.GlossInd.G",
-                              "B.ViewLayer.Emit.B" }) {
+    for (const char* name :
+         { "variance.ViewLayer.DiffDir.R", "A.ViewLayer.GlossInd.G", "B.ViewLayer.Emit.B" }) {
         EXPECT_GE(all.spec().channelindex(name), 0) << name;
         EXPECT_LT(some.spec().channelindex(name), 0) << name;
     }
-    for (const char* name : { "ViewLayer.DiffDir.R", "variance.ViewLayer.Combined.R",
-                              "A.ViewLayer.Denoising Albedo.G", "variance.ViewLayer.Denoising Depth.Z" })
+    for (const char* name :
+         { "ViewLayer.DiffDir.R", "variance.ViewLayer.Combined.R", "A.ViewLayer.Denoising Albedo.G",
+           "variance.ViewLayer.Denoising Depth.Z" })
         EXPECT_GE(some.spec().channelindex(name), 0) << name;
 
     ChainOptions o;
@@ -183,8 +186,8 @@ TEST(Streamed, ChainWithoutTheCnnReadsNoFaceOfTheLightSplit)
     ASSERT_TRUE(run_chain(expected, all, o)) << expected.geterror();
     o.output_channels_only = true;
     ASSERT_TRUE(run_chain(result, some, o)) << result.geterror();
-    const std::vector<std::string> output = OIIO::Strutil::splits(
-        all.spec().get_string_attribute("mcdn:output_channels"), "\n");
+    const std::vector<std::string> output =
+        OIIO::Strutil::splits(all.spec().get_string_attribute("mcdn:output_channels"), "\n");
     ASSERT_FALSE(output.empty());
     for (const std::string& name : output) {
         const int e = expected.spec().channelindex(name), r = result.spec().channelindex(name);

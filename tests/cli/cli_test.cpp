@@ -10,13 +10,16 @@ using mcdn_test::run_mcdntool;
 
 namespace {
 
-std::string box(const std::string& name) { return quote(mcdn_test::test_data("box16/" + name)); }
+std::string box(const std::string& name)
+{
+    return quote(mcdn_test::test_data("box16/" + name));
+}
 
 std::string box_inputs()
 {
     return "-i " + box("box_0016spp.exr") + " -i:as=variance " + box("box_0016spp_var.exr")
-           + " -i:as=halfA " + box("box_0016spp_A.exr") + " -i:as=halfB "
-           + box("box_0016spp_B.exr") + " --aov:preset=cycles";
+           + " -i:as=halfA " + box("box_0016spp_A.exr") + " -i:as=halfB " + box("box_0016spp_B.exr")
+           + " --aov:preset=cycles";
 }
 
 double json_number(const std::string& text, const std::string& key)
@@ -80,8 +83,9 @@ TEST(Cli, OutputKeepsTheRenderChannelsAndInputsStayIntact)
 {
     std::string dir = mcdn_test::temp_dir("cli_out");
     std::string before = file_bytes(mcdn_test::test_data("box16/box_0016spp.exr"));
-    auto run = run_mcdntool(box_inputs() + " --info -o:datatype=half " + quote(dir + "/out.exr")
-                            + " --heatmap:ref=" + box("box_ref.exr") + " " + quote(dir + "/err.png"));
+    auto run =
+        run_mcdntool(box_inputs() + " --info -o:datatype=half " + quote(dir + "/out.exr")
+                     + " --heatmap:ref=" + box("box_ref.exr") + " " + quote(dir + "/err.png"));
     ASSERT_EQ(run.exit_code, 0) << run.output;
     EXPECT_NE(run.output.find("color_variance"), std::string::npos) << run.output;
     EXPECT_EQ(file_bytes(mcdn_test::test_data("box16/box_0016spp.exr")), before);
@@ -98,8 +102,10 @@ TEST(Cli, OutputKeepsTheRenderChannelsAndInputsStayIntact)
 TEST(Cli, ChannelSelectionForOutput)
 {
     std::string dir = mcdn_test::temp_dir("cli_ch");
-    auto run = run_mcdntool(box_inputs() + " --ch ViewLayer.Combined.R,ViewLayer.Combined.G,"
-                            "ViewLayer.Combined.B -o " + quote(dir + "/rgb.exr"));
+    auto run = run_mcdntool(box_inputs()
+                            + " --ch ViewLayer.Combined.R,ViewLayer.Combined.G,"
+                              "ViewLayer.Combined.B -o "
+                            + quote(dir + "/rgb.exr"));
     ASSERT_EQ(run.exit_code, 0) << run.output;
     OIIO::ImageBuf out(dir + "/rgb.exr");
     ASSERT_TRUE(out.init_spec(dir + "/rgb.exr", 0, 0));
@@ -137,14 +143,15 @@ TEST(Cli, BadModifierValuesFailInTheParser)
     };
     std::string error;
     EXPECT_TRUE(parse("x.exr --aov:preset=generic --threads 2 color=R,G,B --nfor:k=0.5,1 "
-                      "--sure:seed=7:eps=1e-3 --mix --frames 1-3 -o:datatype=half o.exr", error))
+                      "--sure:seed=7:eps=1e-3 --mix --frames 1-3 -o:datatype=half o.exr",
+                      error))
         << error;
-    for (const char* bad : { "--sure:seed=abc", "--sure:seed=-1", "--sure:probes=0",
-                             "--sure:eps=nan", "--nfor:k=inf,1", "--nfor:k=", "--cnn:tile=x",
-                             "--prefilter:k=1e39", "--heatmap:min=abc h.png", "-o:datatype=doubel o.exr",
-                             "--threads many", "--parallel-frames 0", "--frames 1-2000000000",
-                             "--frames x", "--aov color=R,G", "--nfor:mse=yes", "--nfor:window=4",
-                             "--mix:model=neural" }) {
+    for (const char* bad :
+         { "--sure:seed=abc", "--sure:seed=-1", "--sure:probes=0", "--sure:eps=nan",
+           "--nfor:k=inf,1", "--nfor:k=", "--cnn:tile=x", "--prefilter:k=1e39",
+           "--heatmap:min=abc h.png", "-o:datatype=doubel o.exr", "--threads many",
+           "--parallel-frames 0", "--frames 1-2000000000", "--frames x", "--aov color=R,G",
+           "--nfor:mse=yes", "--nfor:window=4", "--mix:model=neural" }) {
         error.clear();
         EXPECT_FALSE(parse(std::string("x.exr ") + bad, error)) << bad;
         EXPECT_FALSE(error.empty()) << bad;
@@ -160,12 +167,15 @@ TEST(Cli, BadModifierValuesFailInTheParser)
 
 TEST(Cli, BadModifierValueIsOneLineBeforeAnythingRuns)
 {
-    auto run = run_mcdntool("-i " + box("box_0016spp.exr") + " --prefilter --sure:seed=abc -o never.exr");
+    auto run =
+        run_mcdntool("-i " + box("box_0016spp.exr") + " --prefilter --sure:seed=abc -o never.exr");
     EXPECT_EQ(run.exit_code, 1);
-    EXPECT_NE(run.output.find("--sure:seed=abc is not a whole number"), std::string::npos) << run.output;
+    EXPECT_NE(run.output.find("--sure:seed=abc is not a whole number"), std::string::npos)
+        << run.output;
     EXPECT_TRUE(one_line(run.output)) << run.output;
     // A '%' besides the frame number: the name is taken literally, not as a printf format.
-    run = run_mcdntool("-i " + quote(mcdn_test::temp_dir("cli_percent") + "/x%s.#.exr") + " -o o.exr");
+    run = run_mcdntool("-i " + quote(mcdn_test::temp_dir("cli_percent") + "/x%s.#.exr")
+                       + " -o o.exr");
     EXPECT_EQ(run.exit_code, 1);
     EXPECT_NE(run.output.find("x%s.#.exr"), std::string::npos) << run.output;
     EXPECT_TRUE(one_line(run.output)) << run.output;
@@ -177,8 +187,7 @@ TEST(Cli, BadInputsFailWithOneLineAndNoOutputFile)
     std::string out = quote(dir + "/out.exr");
 
     // missing channel: the variance role is required by nothing yet, so ask for a bad override
-    auto run = run_mcdntool("-i " + box("box_0016spp.exr")
-                            + " --aov albedo=X.R,X.G,X.B -o " + out);
+    auto run = run_mcdntool("-i " + box("box_0016spp.exr") + " --aov albedo=X.R,X.G,X.B -o " + out);
     EXPECT_NE(run.exit_code, 0);
     EXPECT_NE(run.output.find("X.R"), std::string::npos) << run.output;
     EXPECT_TRUE(one_line(run.output)) << run.output;
@@ -209,8 +218,10 @@ TEST(Cli, BadInputsFailWithOneLineAndNoOutputFile)
     ASSERT_TRUE(nan.write(dir + "/nan.exr"));
     run = run_mcdntool("-i " + quote(dir + "/nan.exr") + " -o " + out);
     EXPECT_NE(run.exit_code, 0);
-    EXPECT_NE(run.output.find("nan.exr (-i:as=mean): channel 'ViewLayer.Combined.B' (role color) has NaN at pixel (3, 4)"),
-              std::string::npos) << run.output;
+    EXPECT_NE(run.output.find("nan.exr (-i:as=mean): channel 'ViewLayer.Combined.B' (role color) "
+                              "has NaN at pixel (3, 4)"),
+              std::string::npos)
+        << run.output;
 
     // unreadable path
     run = run_mcdntool("-i " + quote(dir + "/does_not_exist.exr") + " -o " + out);
@@ -231,15 +242,19 @@ TEST(Cli, FrameSequencesRunOncePerFrame)
     std::string dir = mcdn_test::temp_dir("cli_frames");
     for (int f : { 1, 2, 3 })
         for (const char* face : { "", "_var", "_A", "_B" }) {
-            std::string src = mcdn_test::test_data(std::string("box16/box_0016spp") + face + ".exr");
-            OIIO::Filesystem::copy(src, OIIO::Strutil::fmt::format("{}/shot{}.{:04d}.exr", dir, face, f));
+            std::string src =
+                mcdn_test::test_data(std::string("box16/box_0016spp") + face + ".exr");
+            OIIO::Filesystem::copy(
+                src, OIIO::Strutil::fmt::format("{}/shot{}.{:04d}.exr", dir, face, f));
         }
-    auto run = run_mcdntool("-i " + quote(dir + "/shot.#.exr") + " -i:as=variance "
-                            + quote(dir + "/shot_var.%04d.exr") + " -o " + quote(dir + "/out.@@@@.exr"));
+    auto run =
+        run_mcdntool("-i " + quote(dir + "/shot.#.exr") + " -i:as=variance "
+                     + quote(dir + "/shot_var.%04d.exr") + " -o " + quote(dir + "/out.@@@@.exr"));
     ASSERT_EQ(run.exit_code, 0) << run.output;
     EXPECT_NE(run.output.find("frame 3 (3/3)"), std::string::npos) << run.output;
     for (int f : { 1, 2, 3 })
-        EXPECT_TRUE(OIIO::Filesystem::exists(OIIO::Strutil::fmt::format("{}/out.{:04d}.exr", dir, f)));
+        EXPECT_TRUE(
+            OIIO::Filesystem::exists(OIIO::Strutil::fmt::format("{}/out.{:04d}.exr", dir, f)));
 
     run = run_mcdntool("-i " + quote(dir + "/shot.#.exr") + " --frames 2-3 -o "
                        + quote(dir + "/only.#.exr"));
@@ -247,13 +262,15 @@ TEST(Cli, FrameSequencesRunOncePerFrame)
     EXPECT_FALSE(OIIO::Filesystem::exists(dir + "/only.0001.exr"));
     EXPECT_TRUE(OIIO::Filesystem::exists(dir + "/only.0003.exr"));
 
-    run = run_mcdntool("-i " + quote(dir + "/shot.#.exr") + " -i:as=variance " + quote(dir + "/shot_var.#.exr")
-                       + " -i:as=halfA " + quote(dir + "/shot_A.#.exr") + " -i:as=halfB "
-                       + quote(dir + "/shot_B.#.exr") + " --parallel-frames 2 --nfor -o "
-                       + quote(dir + "/par.#.exr"));
+    run =
+        run_mcdntool("-i " + quote(dir + "/shot.#.exr") + " -i:as=variance "
+                     + quote(dir + "/shot_var.#.exr") + " -i:as=halfA "
+                     + quote(dir + "/shot_A.#.exr") + " -i:as=halfB " + quote(dir + "/shot_B.#.exr")
+                     + " --parallel-frames 2 --nfor -o " + quote(dir + "/par.#.exr"));
     ASSERT_EQ(run.exit_code, 0) << run.output;
     for (int f : { 1, 2, 3 })
-        EXPECT_TRUE(OIIO::Filesystem::exists(OIIO::Strutil::fmt::format("{}/par.{:04d}.exr", dir, f)));
+        EXPECT_TRUE(
+            OIIO::Filesystem::exists(OIIO::Strutil::fmt::format("{}/par.{:04d}.exr", dir, f)));
 
     run = run_mcdntool("-i " + quote(dir + "/shot.#.exr") + " --frames 1-4 -o "
                        + quote(dir + "/x.#.exr"));
@@ -265,10 +282,10 @@ TEST(Cli, DoneWhenCommandOnTheSharedBoxPrintsThePublishedRelMse)
 {
     MCDN_REQUIRE_SHARED(dir, "box");
     auto f = [&](const std::string& n) { return quote(dir + "/" + n); };
-    auto run = run_mcdntool("-i " + f("box_0016spp.exr") + " -i:as=variance " + f("box_0016spp_var.exr")
-                            + " -i:as=halfA " + f("box_0016spp_A.exr") + " -i:as=halfB "
-                            + f("box_0016spp_B.exr") + " --aov:preset=cycles --metrics:format=json "
-                            + f("box_ref.exr"));
+    auto run = run_mcdntool("-i " + f("box_0016spp.exr") + " -i:as=variance "
+                            + f("box_0016spp_var.exr") + " -i:as=halfA " + f("box_0016spp_A.exr")
+                            + " -i:as=halfB " + f("box_0016spp_B.exr")
+                            + " --aov:preset=cycles --metrics:format=json " + f("box_ref.exr"));
     ASSERT_EQ(run.exit_code, 0) << run.output;
     EXPECT_NEAR(json_number(run.output, "relmse"), 0.1404, 0.0005);
 
@@ -282,11 +299,13 @@ TEST(Cli, DoneWhenCommandOnTheSharedBoxPrintsThePublishedRelMse)
 TEST(Cli, DenoisingChainsRunEndToEnd)
 {
     std::string dir = mcdn_test::temp_dir("cli_chains");
-    for (const std::string chain : { "--prefilter --nfor", "--nfor --sure --mix", "--cnn", "--cnn --sure --mix:alpha=1" }) {
+    for (const std::string chain :
+         { "--prefilter --nfor", "--nfor --sure --mix", "--cnn", "--cnn --sure --mix:alpha=1" }) {
         auto noisy = run_mcdntool(box_inputs() + " --metrics:format=json " + box("box_ref.exr"));
         auto run = run_mcdntool(box_inputs() + " " + chain + " --metrics:format=json "
                                 + box("box_ref.exr") + " -o " + quote(dir + "/out.exr"));
         ASSERT_EQ(run.exit_code, 0) << chain << ": " << run.output;
-        EXPECT_LT(json_number(run.output, "relmse"), 0.5 * json_number(noisy.output, "relmse")) << chain;
+        EXPECT_LT(json_number(run.output, "relmse"), 0.5 * json_number(noisy.output, "relmse"))
+            << chain;
     }
 }

@@ -13,15 +13,19 @@ using mcdn_test::run_mcdntool;
 
 namespace {
 
-std::string box(const std::string& name) { return quote(mcdn_test::test_data("box16/" + name)); }
+std::string box(const std::string& name)
+{
+    return quote(mcdn_test::test_data("box16/" + name));
+}
 
 /// Three frames of box16 (render and variance) in `dir`: shot.0001.exr ... and shot_var.*.
 void make_shot(const std::string& dir)
 {
     for (int f : { 1, 2, 3 })
         for (const char* face : { "", "_var" })
-            OIIO::Filesystem::copy(mcdn_test::test_data(std::string("box16/box_0016spp") + face + ".exr"),
-                                   OIIO::Strutil::fmt::format("{}/shot{}.{:04d}.exr", dir, face, f));
+            OIIO::Filesystem::copy(
+                mcdn_test::test_data(std::string("box16/box_0016spp") + face + ".exr"),
+                OIIO::Strutil::fmt::format("{}/shot{}.{:04d}.exr", dir, face, f));
 }
 
 bool same_channel(const std::string& a, const std::string& b, const std::string& channel)
@@ -41,7 +45,8 @@ TEST(Pipeline, ASequenceIntoOneFileIsAnError)
 {
     std::string dir = mcdn_test::temp_dir("pipeline_pattern");
     make_shot(dir);
-    auto run = run_mcdntool("-i " + quote(dir + "/shot.#.exr") + " --cnn -o " + quote(dir + "/out.exr"));
+    auto run =
+        run_mcdntool("-i " + quote(dir + "/shot.#.exr") + " --cnn -o " + quote(dir + "/out.exr"));
     EXPECT_EQ(run.exit_code, 1);
     EXPECT_NE(run.output.find("every frame would overwrite it"), std::string::npos) << run.output;
     EXPECT_FALSE(OIIO::Filesystem::exists(dir + "/out.exr"));
@@ -63,9 +68,9 @@ TEST(Pipeline, DenoisingWithoutOutputWarns)
 TEST(Pipeline, OnlyTheChannelsTheChainUsesAreRead)
 {
     std::string dir = mcdn_test::temp_dir("pipeline_selection");
-    const std::string in = "-i " + box("box_0016spp.exr") + " -i:as=variance " + box("box_0016spp_var.exr")
-                           + " -i:as=halfA " + box("box_0016spp_A.exr") + " -i:as=halfB "
-                           + box("box_0016spp_B.exr");
+    const std::string in = "-i " + box("box_0016spp.exr") + " -i:as=variance "
+                           + box("box_0016spp_var.exr") + " -i:as=halfA " + box("box_0016spp_A.exr")
+                           + " -i:as=halfB " + box("box_0016spp_B.exr");
     auto info = run_mcdntool(in + " --cnn --info");
     EXPECT_NE(info.output.find("73 channels from 4 input(s)"), std::string::npos) << info.output;
     info = run_mcdntool(in + " --nfor --info");
@@ -131,16 +136,19 @@ TEST(Pipeline, SkipExistingAndSkipBadFrames)
 TEST(Pipeline, ChannelWildcardsSelectWhatIsWritten)
 {
     std::string dir = mcdn_test::temp_dir("pipeline_ch");
-    auto run = run_mcdntool("-i " + box("box_0016spp.exr") + " -i:as=variance " + box("box_0016spp_var.exr")
-                            + " --cnn --sure --mix:alpha=1 --ch 'ViewLayer.Combined.*,mix.alpha.*' -o "
-                            + quote(dir + "/out.exr"));
+    auto run = run_mcdntool(
+        "-i " + box("box_0016spp.exr") + " -i:as=variance " + box("box_0016spp_var.exr")
+        + " --cnn --sure --mix:alpha=1 --ch 'ViewLayer.Combined.*,mix.alpha.*' -o "
+        + quote(dir + "/out.exr"));
     ASSERT_EQ(run.exit_code, 0) << run.output;
     OIIO::ImageBuf out(dir + "/out.exr");
     EXPECT_EQ(out.spec().nchannels, 7);
     EXPECT_GE(out.spec().channelindex("mix.alpha.G"), 0);
-    run = run_mcdntool("-i " + box("box_0016spp.exr") + " --cnn --ch 'nothing.*' -o " + quote(dir + "/x.exr"));
+    run = run_mcdntool("-i " + box("box_0016spp.exr") + " --cnn --ch 'nothing.*' -o "
+                       + quote(dir + "/x.exr"));
     EXPECT_EQ(run.exit_code, 1);
-    EXPECT_NE(run.output.find("--ch nothing.*: no channel matches"), std::string::npos) << run.output;
+    EXPECT_NE(run.output.find("--ch nothing.*: no channel matches"), std::string::npos)
+        << run.output;
 }
 
 TEST(Pipeline, ChannelsAStageWasAskedToAddAreWritten)
@@ -148,11 +156,10 @@ TEST(Pipeline, ChannelsAStageWasAskedToAddAreWritten)
     // mse=1, selection=1, alpha=1 ask for channels: -o writes them beside the render's own,
     // and nothing else a stage made (sure.*, noisy.*).
     std::string dir = mcdn_test::temp_dir("pipeline_maps");
-    auto run = run_mcdntool("-i " + box("box_0016spp.exr") + " -i:as=variance "
-                            + box("box_0016spp_var.exr") + " -i:as=halfA " + box("box_0016spp_A.exr")
-                            + " -i:as=halfB " + box("box_0016spp_B.exr")
-                            + " --nfor:mse=1:selection=1 --sure --mix:alpha=1 -o "
-                            + quote(dir + "/out.exr"));
+    auto run = run_mcdntool(
+        "-i " + box("box_0016spp.exr") + " -i:as=variance " + box("box_0016spp_var.exr")
+        + " -i:as=halfA " + box("box_0016spp_A.exr") + " -i:as=halfB " + box("box_0016spp_B.exr")
+        + " --nfor:mse=1:selection=1 --sure --mix:alpha=1 -o " + quote(dir + "/out.exr"));
     ASSERT_EQ(run.exit_code, 0) << run.output;
     const std::string render_path = mcdn_test::test_data("box16/box_0016spp.exr");
     OIIO::ImageBuf out(dir + "/out.exr"), render(render_path);
@@ -168,13 +175,14 @@ TEST(Pipeline, ChannelsAStageWasAskedToAddAreWritten)
 TEST(Pipeline, FeaturesAreWrittenBackUnchangedUnlessAsked)
 {
     std::string dir = mcdn_test::temp_dir("pipeline_features");
-    const std::string in = "-i " + box("box_0016spp.exr") + " -i:as=variance " + box("box_0016spp_var.exr")
-                           + " -i:as=halfA " + box("box_0016spp_A.exr") + " -i:as=halfB "
-                           + box("box_0016spp_B.exr");
+    const std::string in = "-i " + box("box_0016spp.exr") + " -i:as=variance "
+                           + box("box_0016spp_var.exr") + " -i:as=halfA " + box("box_0016spp_A.exr")
+                           + " -i:as=halfB " + box("box_0016spp_B.exr");
     const std::string render = mcdn_test::test_data("box16/box_0016spp.exr");
     const std::string albedo = "ViewLayer.Denoising Albedo.R";
     int k = 0;  // a new name each run: OIIO's image cache keeps what it read of a name
-    for (const char* chain : { "--nfor", "--prefilter --nfor", "--prefilter --nfor --sure --mix" }) {
+    for (const char* chain :
+         { "--nfor", "--prefilter --nfor", "--prefilter --nfor --sure --mix" }) {
         const std::string out = dir + "/out" + std::to_string(k++) + ".exr";
         auto run = run_mcdntool(in + " " + chain + " -o " + quote(out));
         ASSERT_EQ(run.exit_code, 0) << run.output;
@@ -193,11 +201,13 @@ TEST(Pipeline, ColorSpaceIsSaidAndNeverGuessed)
 {
     std::string dir = mcdn_test::temp_dir("pipeline_color");
     // The file's own tag is printed with -v.
-    auto run = run_mcdntool("-v -i " + box("box_0016spp.exr") + " --cnn -o " + quote(dir + "/a.exr"));
+    auto run =
+        run_mcdntool("-v -i " + box("box_0016spp.exr") + " --cnn -o " + quote(dir + "/a.exr"));
     ASSERT_EQ(run.exit_code, 0) << run.output;
     EXPECT_NE(run.output.find("colour space 'lin_rec709'"), std::string::npos) << run.output;
     // An unknown name is an error naming it and the config.
-    run = run_mcdntool("-i " + box("box_0016spp.exr") + " --aov:colorspace=nonesuch --cnn -o " + quote(dir + "/b.exr"));
+    run = run_mcdntool("-i " + box("box_0016spp.exr") + " --aov:colorspace=nonesuch --cnn -o "
+                       + quote(dir + "/b.exr"));
     EXPECT_EQ(run.exit_code, 1);
     EXPECT_NE(run.output.find("'nonesuch'"), std::string::npos) << run.output;
     EXPECT_NE(run.output.find("config.ocio"), std::string::npos) << run.output;
@@ -214,10 +224,12 @@ TEST(Pipeline, ColorSpaceIsSaidAndNeverGuessed)
     const float ap1[8] = { 0.713f, 0.293f, 0.165f, 0.830f, 0.128f, 0.044f, 0.32168f, 0.33767f };
     render.specmod().attribute("chromaticities", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 8), ap1);
     ASSERT_TRUE(render.write(dir + "/acescg.exr"));
-    run = run_mcdntool("-v -i " + quote(dir + "/acescg.exr") + " --cnn -o " + quote(dir + "/d.exr"));
+    run =
+        run_mcdntool("-v -i " + quote(dir + "/acescg.exr") + " --cnn -o " + quote(dir + "/d.exr"));
     ASSERT_EQ(run.exit_code, 0) << run.output;
     EXPECT_NE(run.output.find("colour space 'acescg' (the file's chromaticities (ACES AP1"),
-              std::string::npos) << run.output;
+              std::string::npos)
+        << run.output;
     // Other primaries are an error, not Rec.709.
     const float p3[8] = { 0.680f, 0.320f, 0.265f, 0.690f, 0.150f, 0.060f, 0.3127f, 0.3290f };
     render.specmod().attribute("chromaticities", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 8), p3);
@@ -254,8 +266,8 @@ TEST(Pipeline, ErrorsNameTheRealFix)
     EXPECT_NE(run.output.find("render two half buffers"), std::string::npos) << run.output;
     EXPECT_NE(run.output.find("--denoise"), std::string::npos) << run.output;
     // --mix without --sure says so.
-    run = run_mcdntool("-i " + box("box_0016spp.exr") + " -i:as=variance " + box("box_0016spp_var.exr")
-                       + " --cnn --mix -o /tmp/mcdn_never.exr");
+    run = run_mcdntool("-i " + box("box_0016spp.exr") + " -i:as=variance "
+                       + box("box_0016spp_var.exr") + " --cnn --mix -o /tmp/mcdn_never.exr");
     EXPECT_EQ(run.exit_code, 1);
     EXPECT_NE(run.output.find("--sure"), std::string::npos) << run.output;
 }
@@ -263,7 +275,8 @@ TEST(Pipeline, ErrorsNameTheRealFix)
 TEST(Pipeline, HistoryRecordsTheCommandLine)
 {
     std::string dir = mcdn_test::temp_dir("pipeline_history");
-    auto run = run_mcdntool("-i " + box("box_0016spp.exr") + " --cnn -o " + quote(dir + "/out.exr"));
+    auto run =
+        run_mcdntool("-i " + box("box_0016spp.exr") + " --cnn -o " + quote(dir + "/out.exr"));
     ASSERT_EQ(run.exit_code, 0) << run.output;
     OIIO::ImageBuf out(dir + "/out.exr");
     const std::string history = out.spec().get_string_attribute("Exif:ImageHistory");
@@ -277,8 +290,8 @@ TEST(Pipeline, HistoryRecordsTheCommandLine)
 TEST(Pipeline, StagesAndOneOutputStreamInBands)
 {
     std::string dir = mcdn_test::temp_dir("pipeline_streamed");
-    const std::string in = "-i " + box("box_0016spp.exr") + " -i:as=variance "
-                           + box("box_0016spp_var.exr");
+    const std::string in =
+        "-i " + box("box_0016spp.exr") + " -i:as=variance " + box("box_0016spp_var.exr");
     int k = 0;
     for (const char* chain : { "--denoise", "--cnn", "--nfor --sure --mix:model=analytic" }) {
         const std::string streamed = dir + "/s" + std::to_string(k) + ".exr";
@@ -288,9 +301,8 @@ TEST(Pipeline, StagesAndOneOutputStreamInBands)
         ASSERT_EQ(run.exit_code, 0) << run.output;
         EXPECT_NE(run.output.find("in 2 band(s) of rows"), std::string::npos) << run.output;
         // -v counts the converged tiles of the bands as of the whole frame.
-        const auto whole = run_mcdntool("-v " + in + " " + chain + " -o "
-                                            + quote(dir + "/whole.exr"),
-                                        "MCDN_BAND_PIXELS=0");
+        const auto whole = run_mcdntool(
+            "-v " + in + " " + chain + " -o " + quote(dir + "/whole.exr"), "MCDN_BAND_PIXELS=0");
         ASSERT_EQ(whole.exit_code, 0) << whole.output;
         auto converged_line = [](const std::string& out) {
             const size_t at = out.find(" tiles converged");
@@ -305,7 +317,8 @@ TEST(Pipeline, StagesAndOneOutputStreamInBands)
         ASSERT_EQ(run.exit_code, 0) << run.output;
         OIIO::ImageBuf a(streamed), b(by_command);
         ASSERT_EQ(a.spec().channelnames, b.spec().channelnames) << chain;
-        EXPECT_EQ(a.spec().get_string_attribute("Software"), b.spec().get_string_attribute("Software"));
+        EXPECT_EQ(a.spec().get_string_attribute("Software"),
+                  b.spec().get_string_attribute("Software"));
         const auto d = OIIO::ImageBufAlgo::compare(a, b, 0, 0);
         EXPECT_LE(d.maxerror, std::string(chain) == "--denoise" ? 1e-4 : 0.0) << chain;
     }
@@ -346,11 +359,11 @@ TEST(Pipeline, StreamedChainChecksEveryBandsValues)
     half.setpixel(9, 60, std::vector<float>(size_t(half.nchannels()), NAN).data());
     const std::string bad_half = dir + "/bad_A.exr";
     ASSERT_TRUE(half.write(bad_half));
-    run = run_mcdntool("-v -i " + box("box_0016spp.exr") + " -i:as=variance "
-                           + box("box_0016spp_var.exr") + " -i:as=halfA " + quote(bad_half)
-                           + " -i:as=halfB " + box("box_0016spp_B.exr") + " --nfor -o "
-                           + quote(out),
-                       "MCDN_BAND_PIXELS=1024");
+    run =
+        run_mcdntool("-v -i " + box("box_0016spp.exr") + " -i:as=variance "
+                         + box("box_0016spp_var.exr") + " -i:as=halfA " + quote(bad_half)
+                         + " -i:as=halfB " + box("box_0016spp_B.exr") + " --nfor -o " + quote(out),
+                     "MCDN_BAND_PIXELS=1024");
     EXPECT_EQ(run.exit_code, 1) << run.output;
     EXPECT_NE(run.output.find("bad_A.exr"), std::string::npos) << run.output;
     EXPECT_NE(run.output.find("NaN at pixel (9, 60)"), std::string::npos) << run.output;
@@ -368,8 +381,10 @@ TEST(Pipeline, CrossFrameReadsNeighboursAcrossTheChunkAndWritesNone)
     std::map<std::string, std::string> before;
     for (int f : { 1, 2, 3, 4 })
         for (const char* face : { "", "_var", "_A", "_B" }) {
-            const std::string src = mcdn_test::test_data(std::string("box16/box_0016spp") + face + ".exr");
-            const std::string dst = OIIO::Strutil::fmt::format("{}/shot{}.{:04d}.exr", dir, face, f);
+            const std::string src =
+                mcdn_test::test_data(std::string("box16/box_0016spp") + face + ".exr");
+            const std::string dst =
+                OIIO::Strutil::fmt::format("{}/shot{}.{:04d}.exr", dir, face, f);
             if (*face) {
                 OIIO::Filesystem::copy(src, dst);
             } else {  // the render with Blender's Vector pass: a still camera
@@ -382,7 +397,8 @@ TEST(Pipeline, CrossFrameReadsNeighboursAcrossTheChunkAndWritesNone)
                     order[size_t(c)] = c;
                 for (const char* c : { "X", "Y", "Z", "W" })
                     names.push_back(std::string("ViewLayer.Vector.") + c);
-                OIIO::ImageBuf with = OIIO::ImageBufAlgo::channels(render, n + 4, order, values, names);
+                OIIO::ImageBuf with =
+                    OIIO::ImageBufAlgo::channels(render, n + 4, order, values, names);
                 ASSERT_TRUE(with.write(dst)) << with.geterror();
             }
             std::string bytes;
@@ -412,8 +428,10 @@ TEST(Pipeline, CrossFrameReadsNeighboursAcrossTheChunkAndWritesNone)
         const std::string out = dir + "/" + std::string(stage).substr(2, 3) + ".#.exr";
         run = run_mcdntool(shot + " --frames 3 " + stage + " -o " + quote(out));
         ASSERT_EQ(run.exit_code, 0) << stage << ": " << run.output;
-        EXPECT_TRUE(OIIO::Filesystem::exists(dir + "/" + std::string(stage).substr(2, 3) + ".0003.exr"));
-        EXPECT_FALSE(OIIO::Filesystem::exists(dir + "/" + std::string(stage).substr(2, 3) + ".0002.exr"));
+        EXPECT_TRUE(
+            OIIO::Filesystem::exists(dir + "/" + std::string(stage).substr(2, 3) + ".0003.exr"));
+        EXPECT_FALSE(
+            OIIO::Filesystem::exists(dir + "/" + std::string(stage).substr(2, 3) + ".0002.exr"));
     }
 
     // The shot's first frame has no previous one: fewer, and -v says so.
@@ -434,6 +452,7 @@ TEST(Pipeline, CrossFrameReadsNeighboursAcrossTheChunkAndWritesNone)
         run = run_mcdntool(shot + " --frames 2 " + stage + " -o " + quote(dir + "/nine.#.exr"));
         EXPECT_NE(run.exit_code, 0);
         EXPECT_NE(run.output.find(std::string(stage).substr(std::string(stage).find(':') + 1)),
-                  std::string::npos) << run.output;
+                  std::string::npos)
+            << run.output;
     }
 }

@@ -81,8 +81,7 @@ TEST(CnnOutliers, LightGroupsStillAddUpToTheBeauty)
 {
     AovSpec cycles;
     cycles.preset = "cycles";
-    Partition p = add_light_groups(with_firefly(box16(), cycles, kX, kY, 500.0f), "cycles",
-                                   false);
+    Partition p = add_light_groups(with_firefly(box16(), cycles, kX, kY, 500.0f), "cycles", false);
     CnnOptions o = options(CnnOptions::Outliers::Drop);
     o.aovs = p.spec;
     const ImageBuf out = cnn(p.image, o);

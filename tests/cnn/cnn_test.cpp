@@ -21,7 +21,10 @@ namespace {
 
 const char* kRender = "generated/0000_interior/0000_interior_0016spp";
 
-std::string tiny_weights() { return mcdn_test::test_data("cnn/kpcn_tiny.mcdnw"); }
+std::string tiny_weights()
+{
+    return mcdn_test::test_data("cnn/kpcn_tiny.mcdnw");
+}
 
 ImageBuf read_render(const std::string& prefix = kRender)
 {
@@ -40,7 +43,7 @@ nn::Tensor color_tensor(const ImageBuf& buf)
 {
     AovSet aovs;
     std::string error;
-    EXPECT_TRUE(resolve_aovs(aovs, AovSpec{}, buf.spec(), error)) << error;
+    EXPECT_TRUE(resolve_aovs(aovs, AovSpec {}, buf.spec(), error)) << error;
     const ROI roi = buf.roi();
     nn::Tensor t(roi.height(), roi.width(), 3);
     for (int c = 0; c < 3; ++c) {
@@ -58,7 +61,8 @@ nn::Tensor fixture_output(const std::string& name)
 {
     nn::Weights io;
     std::string error;
-    EXPECT_TRUE(nn::read_weights(mcdn_test::test_data("cnn/kpcn_tiny_io.mcdnw"), io, error)) << error;
+    EXPECT_TRUE(nn::read_weights(mcdn_test::test_data("cnn/kpcn_tiny_io.mcdnw"), io, error))
+        << error;
     const nn::NamedTensor* t = io.find(name);
     EXPECT_NE(t, nullptr) << name;
     nn::Tensor out;
@@ -186,8 +190,8 @@ TEST(Cnn, FiniteOnNanAndHugeFeatures)
 {
     ImageBuf src = read_render();
     const ImageSpec& spec = src.spec();
-    const char* poisoned[] = { "ViewLayer.Denoising Albedo.R", "ViewLayer.Denoising Normal.X",
-                               "ViewLayer.Denoising Depth.Z", "ViewLayer.DiffCol.G",
+    const char* poisoned[] = { "ViewLayer.Denoising Albedo.R",  "ViewLayer.Denoising Normal.X",
+                               "ViewLayer.Denoising Depth.Z",   "ViewLayer.DiffCol.G",
                                "variance.ViewLayer.GlossDir.B", "ViewLayer.Combined.R" };
     for (int i = 0; i < 6; ++i) {
         const int ch = spec.channelindex(poisoned[i]);
@@ -225,7 +229,9 @@ TEST(Cnn, WithoutSplitUsesTheSpecularNetworkOnColor)
     const int first = src.spec().channelindex("ViewLayer.Combined.R");
     const int var = src.spec().channelindex("variance.ViewLayer.Combined.R");
     const std::vector<int> order = { first, first + 1, first + 2, var, var + 1, var + 2 };
-    const std::vector<std::string> names = { "R", "G", "B", "variance.R", "variance.G", "variance.B" };
+    const std::vector<std::string> names = {
+        "R", "G", "B", "variance.R", "variance.G", "variance.B"
+    };
     ImageBuf color = OIIO::ImageBufAlgo::channels(src, 6, order, {}, names);
     CnnOptions options = tiny_options();
     options.aovs.preset = "generic";
@@ -283,7 +289,8 @@ TEST(Cnn, CommittedModelDenoises)
     ImageBuf dst;
     ASSERT_TRUE(cnn(dst, src, options)) << dst.geterror();
     ImageBuf ref;
-    ASSERT_TRUE(read_image(ref, mcdn_test::test_data("generated/0000_interior/0000_interior_ref.exr")))
+    ASSERT_TRUE(
+        read_image(ref, mcdn_test::test_data("generated/0000_interior/0000_interior_ref.exr")))
         << ref.geterror();
     const nn::Tensor noisy = color_tensor(src), denoised = color_tensor(dst),
                      reference = color_tensor(ref);

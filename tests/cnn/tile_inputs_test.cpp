@@ -26,7 +26,7 @@ TEST(CnnTileInputs, WindowsEqualTheWholeFrame)
         mcdn_test::test_data("generated/0000_interior/0000_interior_0016spp"));
     AovSet aovs;
     std::string error;
-    ASSERT_TRUE(resolve_aovs(aovs, AovSpec{}, src.spec(), error)) << error;
+    ASSERT_TRUE(resolve_aovs(aovs, AovSpec {}, src.spec(), error)) << error;
     const int w = src.spec().width, h = src.spec().height;
 
     kpcn::RawPlanes whole_raw;
@@ -44,12 +44,12 @@ TEST(CnnTileInputs, WindowsEqualTheWholeFrame)
         nn::Tensor features, image;
         kpcn::branch_inputs(whole_raw, branch, features, image);
         // Inside, at the left/top edge, across the right/bottom edge and past it, one pixel.
-        for (Rect window : { Rect{ 4, 8, 20, 16 }, Rect{ 0, 0, 12, 32 },
-                                   Rect{ 16, 12, w + 3, h + 5 },
-                                   Rect{ w - 1, h - 1, w, h } }) {
+        for (Rect window : { Rect { 4, 8, 20, 16 }, Rect { 0, 0, 12, 32 },
+                             Rect { 16, 12, w + 3, h + 5 }, Rect { w - 1, h - 1, w, h } }) {
             kpcn::RawPlanes raw;
-            ASSERT_TRUE(kpcn::read_raw_planes(raw, src, aovs, error,
-                                              kpcn::inputs_rect(window, w, h))) << error;
+            ASSERT_TRUE(
+                kpcn::read_raw_planes(raw, src, aovs, error, kpcn::inputs_rect(window, w, h)))
+                << error;
             kpcn::scale_depth(raw, range);
             nn::Tensor f, i;
             kpcn::branch_inputs(raw, branch, window, f, i);
@@ -63,10 +63,11 @@ TEST(CnnTileInputs, WindowsEqualTheWholeFrame)
                     for (int c = 0; c < kpcn::kInputChannels; ++c)
                         differ += a[c] != b[c];
                     for (int c = 0; c < 3; ++c)
-                        differ += i.pixel(y - window.y0, x - window.x0)[c] != extended(image, x, y)[c];
+                        differ +=
+                            i.pixel(y - window.y0, x - window.x0)[c] != extended(image, x, y)[c];
                 }
-            EXPECT_EQ(differ, 0) << "window " << window.x0 << "," << window.y0 << " - "
-                                 << window.x1 << "," << window.y1;
+            EXPECT_EQ(differ, 0) << "window " << window.x0 << "," << window.y0 << " - " << window.x1
+                                 << "," << window.y1;
         }
     }
 }
@@ -81,7 +82,7 @@ TEST(CnnTileInputs, DepthRangeInBandsIsTheWholePlanes)
     const ImageBuf src = mcdn_test::read_render(box);
     AovSet aovs;
     std::string error;
-    ASSERT_TRUE(resolve_aovs(aovs, AovSpec{}, src.spec(), error)) << error;
+    ASSERT_TRUE(resolve_aovs(aovs, AovSpec {}, src.spec(), error)) << error;
     ASSERT_GT(src.spec().height, 64);
     kpcn::RawPlanes raw;
     ASSERT_TRUE(kpcn::read_raw_planes(raw, src, aovs, error)) << error;

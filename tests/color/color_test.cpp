@@ -108,7 +108,8 @@ TEST(Color, ConvertsColorAndVarianceButNeverData)
     const auto& a = set.channels(Role::Albedo);
     double expected_g = m[3] * before[c[0]] + m[4] * before[c[1]] + m[5] * before[c[2]];
     EXPECT_NEAR(after[c[1]], expected_g, 1e-6 + 1e-5 * std::fabs(expected_g));
-    double expected_var = m[3] * m[3] * before[v[0]] + m[4] * m[4] * before[v[1]] + m[5] * m[5] * before[v[2]];
+    double expected_var =
+        m[3] * m[3] * before[v[0]] + m[4] * m[4] * before[v[1]] + m[5] * m[5] * before[v[2]];
     EXPECT_NEAR(after[v[1]], expected_var, 1e-9 + 1e-5 * expected_var);
     double expected_albedo = m[0] * before[a[0]] + m[1] * before[a[1]] + m[2] * before[a[2]];
     EXPECT_NEAR(after[a[0]], expected_albedo, 1e-6);
@@ -151,7 +152,7 @@ TEST(Color, OpsSeeTheWorkingSpaceAndResultsGoBack)
     AovSet set = resolve(box);
     for (int ch : set.channels(Role::Color)) {
         EXPECT_NEAR(seen[ch], original[ch], 1e-5 * (1 + original[ch]));  // op saw Rec.709
-        EXPECT_NEAR(result[ch], 2 * aces[ch], 1e-5 * (1 + aces[ch]));   // result is ACEScg
+        EXPECT_NEAR(result[ch], 2 * aces[ch], 1e-5 * (1 + aces[ch]));    // result is ACEScg
     }
     EXPECT_EQ(out.spec().get_int_attribute("mcdn:in_working_space"), 0);
 }

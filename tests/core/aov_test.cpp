@@ -56,8 +56,8 @@ TEST(Aov, CyclesPresetFindsAnyViewLayerName)
 
 TEST(Aov, CyclesLightGroupsBecomeExtras)
 {
-    ImageBuf buf = named({ "V.Combined.R", "V.Combined.G", "V.Combined.B",
-                           "V.Combined_key.R", "V.Combined_key.G", "V.Combined_key.B" });
+    ImageBuf buf = named({ "V.Combined.R", "V.Combined.G", "V.Combined.B", "V.Combined_key.R",
+                           "V.Combined_key.G", "V.Combined_key.B" });
     AovSet set;
     std::string error;
     ASSERT_TRUE(resolve_aovs(set, AovSpec(), buf.spec(), error)) << error;
@@ -68,9 +68,8 @@ TEST(Aov, CyclesLightGroupsBecomeExtras)
 
 TEST(Aov, GenericPresetReadsOneMultilayerFile)
 {
-    ImageBuf buf = named({ "R", "G", "B", "variance.R", "variance.G", "variance.B", "A.R",
-                           "A.G", "A.B", "albedo.R", "albedo.G", "albedo.B", "N.X", "N.Y",
-                           "N.Z", "Z" });
+    ImageBuf buf = named({ "R", "G", "B", "variance.R", "variance.G", "variance.B", "A.R", "A.G",
+                           "A.B", "albedo.R", "albedo.G", "albedo.B", "N.X", "N.Y", "N.Z", "Z" });
     AovSpec spec;
     spec.preset = "generic";
     AovSet set;

@@ -16,7 +16,10 @@ using mcdn_test::make_image;
 
 namespace {
 
-std::string box(const std::string& name) { return mcdn_test::test_data("box16/" + name); }
+std::string box(const std::string& name)
+{
+    return mcdn_test::test_data("box16/" + name);
+}
 
 std::vector<std::string> files_in(const std::string& dir)
 {
@@ -46,7 +49,8 @@ AovSet resolve(const ImageBuf& merged, const std::string& preset = "cycles")
 
 void set_value(ImageBuf& buf, int x, int y, int c, float v)
 {
-    static_cast<float*>(buf.localpixels())[(size_t(y) * buf.spec().width + x) * buf.nchannels() + c] = v;
+    static_cast<float*>(
+        buf.localpixels())[(size_t(y) * buf.spec().width + x) * buf.nchannels() + c] = v;
 }
 
 }  // namespace
@@ -216,7 +220,7 @@ TEST(Io, WriteKeepsChannelsAndMetadataAndLeavesNoTemporaryFile)
     EXPECT_EQ(spec.nchannels, 39);  // the render's channels, not the variance
     EXPECT_EQ(spec.format, OIIO::TypeDesc::HALF);
     EXPECT_EQ(spec.get_string_attribute("compression"), "zip");
-    EXPECT_EQ(spec.get_string_attribute("combine:K"), "8");  // the render's metadata
+    EXPECT_EQ(spec.get_string_attribute("combine:K"), "8");   // the render's metadata
     EXPECT_EQ(spec.get_string_attribute("mcdn:inputs"), "");  // bookkeeping dropped
 }
 
@@ -300,10 +304,11 @@ TEST(Io, TiledFilesReadAsTheirScanlineOriginals)
 {
     const std::string dir = mcdn_test::temp_dir("tiled");
     std::vector<InputFile> scanline, tiled;
-    for (const auto& [name, kind] : { std::pair<std::string, InputKind> { "box_0016spp.exr", InputKind::Mean },
-                                      { "box_0016spp_var.exr", InputKind::Variance },
-                                      { "box_0016spp_A.exr", InputKind::HalfA },
-                                      { "box_0016spp_B.exr", InputKind::HalfB } }) {
+    for (const auto& [name, kind] :
+         { std::pair<std::string, InputKind> { "box_0016spp.exr", InputKind::Mean },
+           { "box_0016spp_var.exr", InputKind::Variance },
+           { "box_0016spp_A.exr", InputKind::HalfA },
+           { "box_0016spp_B.exr", InputKind::HalfB } }) {
         ImageBuf in(box(name));
         ASSERT_TRUE(in.read(0, 0, true, OIIO::TypeDesc::FLOAT)) << in.geterror();
         in.set_write_tiles(48, 24);  // does not divide the 128² frame
@@ -322,7 +327,8 @@ TEST(Io, TiledFilesReadAsTheirScanlineOriginals)
         ASSERT_TRUE(read_inputs(a, scanline, selection)) << a.geterror();
         ASSERT_TRUE(read_inputs(b, tiled, selection)) << b.geterror();
         ASSERT_EQ(a.nchannels(), b.nchannels());
-        const OIIO::ImageBufAlgo::CompareResults cmp = OIIO::ImageBufAlgo::compare(a, b, 0.0f, 0.0f);
+        const OIIO::ImageBufAlgo::CompareResults cmp =
+            OIIO::ImageBufAlgo::compare(a, b, 0.0f, 0.0f);
         EXPECT_EQ(cmp.nfail, 0u) << (only_roles ? "roles only" : "every channel");
         EXPECT_EQ(cmp.maxerror, 0.0);
     }
@@ -347,8 +353,8 @@ TEST(Io, EveryExrCodecReadsAsTheCxxLibraryReadsIt)
     }
     values[3] = std::numeric_limits<float>::infinity();
     values[17] = std::numeric_limits<float>::quiet_NaN();
-    for (const char* codec : { "none", "rle", "zips", "zip", "piz", "pxr24", "b44", "b44a",
-                               "dwaa", "dwab" })
+    for (const char* codec :
+         { "none", "rle", "zips", "zip", "piz", "pxr24", "b44", "b44a", "dwaa", "dwab" })
         for (const OIIO::TypeDesc type : { OIIO::TypeDesc::FLOAT, OIIO::TypeDesc::HALF })
             for (int tile : { 0, 16 }) {
                 ImageSpec spec(w, h, nch, type);
@@ -356,12 +362,13 @@ TEST(Io, EveryExrCodecReadsAsTheCxxLibraryReadsIt)
                                       "ViewLayer.Combined.B", "albedo.R", "N.X" };
                 spec.attribute("compression", codec);
                 spec.tile_width = spec.tile_height = tile;
-                const std::string path = OIIO::Strutil::fmt::format(
-                    "{}/{}_{}_{}.exr", dir, codec, type.c_str(), tile);
+                const std::string path =
+                    OIIO::Strutil::fmt::format("{}/{}_{}_{}.exr", dir, codec, type.c_str(), tile);
                 auto out = OIIO::ImageOutput::create(path);
                 ASSERT_TRUE(out && out->open(path, spec)
                             && out->write_image(OIIO::TypeDesc::FLOAT, values.data())
-                            && out->close()) << path;
+                            && out->close())
+                    << path;
                 int before = 0;
                 OIIO::getattribute("openexr:core", before);
                 OIIO::attribute("openexr:core", 0);
@@ -373,7 +380,7 @@ TEST(Io, EveryExrCodecReadsAsTheCxxLibraryReadsIt)
                 ASSERT_TRUE(read_image(ours, path)) << path << ": " << ours.geterror();
                 ASSERT_EQ(ours.nchannels(), cxx.nchannels()) << path;
                 const size_t n = size_t(w) * h * nch;
-                EXPECT_EQ(std::memcmp(ours.localpixels(), cxx.localpixels(), n * sizeof(float)),
-                          0) << path;
+                EXPECT_EQ(std::memcmp(ours.localpixels(), cxx.localpixels(), n * sizeof(float)), 0)
+                    << path;
             }
 }

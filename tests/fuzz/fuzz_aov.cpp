@@ -29,9 +29,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size)
     mcdn::AovSet set;
     if (!mcdn::resolve_aovs(set, spec, merged, error))
         return 0;
-    set.require({ mcdn::Role::Color, mcdn::Role::ColorVariance, mcdn::Role::Albedo,
-                  mcdn::Role::DepthB },
-                merged, error);
+    set.require(
+        { mcdn::Role::Color, mcdn::Role::ColorVariance, mcdn::Role::Albedo, mcdn::Role::DepthB },
+        merged, error);
     set.has_component_split();
     for (int r = 0; r < mcdn::kRoleCount; ++r)
         for (int c : set.channels(mcdn::Role(r)))

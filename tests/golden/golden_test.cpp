@@ -1,5 +1,6 @@
 // Each op and the common chains on the fixtures, against stored golden images
-// (tests/data/golden). Regenerate on purpose: MCDN_UPDATE_GOLDENS=1 ctest --test-dir build -L golden
+// (tests/data/golden). Regenerate on purpose: MCDN_UPDATE_GOLDENS=1 ctest --test-dir build -L
+// golden
 #include "mcdn/chain.h"
 #include "mcdn/io.h"
 #include "mcdn/nfor.h"
@@ -14,7 +15,7 @@ using namespace mcdn_test;
 namespace {
 
 const std::vector<std::string> kBoxColor = { "ViewLayer.Combined.R", "ViewLayer.Combined.G",
-                                              "ViewLayer.Combined.B" };
+                                             "ViewLayer.Combined.B" };
 
 ImageBuf chain(const ImageBuf& src, const std::vector<std::string>& stages,
                const std::string& preset, const std::string& mix_model = "analytic")
@@ -35,17 +36,18 @@ TEST(Golden, PrefilterBoxFeatures)
 {
     ImageBuf out = prefilter(box16());
     ASSERT_FALSE(out.has_error()) << out.geterror();
-    EXPECT_TRUE(matches_golden(out, { "ViewLayer.Denoising Albedo.R", "ViewLayer.Denoising Albedo.G",
-                                      "ViewLayer.Denoising Albedo.B", "ViewLayer.Denoising Normal.X",
-                                      "ViewLayer.Denoising Normal.Y", "ViewLayer.Denoising Normal.Z",
-                                      "ViewLayer.Denoising Depth.Z" },
+    EXPECT_TRUE(matches_golden(out,
+                               { "ViewLayer.Denoising Albedo.R", "ViewLayer.Denoising Albedo.G",
+                                 "ViewLayer.Denoising Albedo.B", "ViewLayer.Denoising Normal.X",
+                                 "ViewLayer.Denoising Normal.Y", "ViewLayer.Denoising Normal.Z",
+                                 "ViewLayer.Denoising Depth.Z" },
                                "prefilter_box16"));
 }
 
 TEST(Golden, NforBox)
 {
-    EXPECT_TRUE(matches_golden(chain(box16(), { "prefilter", "nfor" }, "cycles"), kBoxColor,
-                               "nfor_box16"));
+    EXPECT_TRUE(
+        matches_golden(chain(box16(), { "prefilter", "nfor" }, "cycles"), kBoxColor, "nfor_box16"));
 }
 
 TEST(Golden, NforTungstenCornell)
@@ -58,7 +60,8 @@ TEST(Golden, NforSureMixBox)
 {
     ImageBuf out = chain(box16(), { "prefilter", "nfor", "sure", "mix" }, "cycles");
     std::vector<std::string> names = kBoxColor;
-    for (const char* n : { "sure.R", "sure.G", "sure.B", "mix.alpha.R", "mix.alpha.G", "mix.alpha.B" })
+    for (const char* n :
+         { "sure.R", "sure.G", "sure.B", "mix.alpha.R", "mix.alpha.G", "mix.alpha.B" })
         names.push_back(n);
     // SURE is a finite difference (divided by a step ~1e-3 of the image level), so float
     // differences between instruction sets grow ~1000x in sure.* and move alpha: looser
@@ -76,7 +79,8 @@ TEST(Golden, DenoiseBox)
 {
     ImageBuf out = chain(box16(), { "denoise" }, "", "net");
     std::vector<std::string> names = kBoxColor;
-    for (const char* n : { "sure.R", "sure.G", "sure.B", "mix.alpha.R", "mix.alpha.G", "mix.alpha.B" })
+    for (const char* n :
+         { "sure.R", "sure.G", "sure.B", "mix.alpha.R", "mix.alpha.G", "mix.alpha.B" })
         names.push_back(n);
     GoldenThresholds loose;  // SURE's finite difference, as above
     loose.relative = 2e-2;

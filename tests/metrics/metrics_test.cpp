@@ -13,7 +13,10 @@ using mcdn_test::make_image;
 namespace {
 
 // A 2x1 RGB image and reference whose errors are easy to compute by hand.
-ImageBuf two_pixels(float a, float b) { return make_image(2, 1, { "R", "G", "B" }, [=](int x, int, int) { return x == 0 ? a : b; }); }
+ImageBuf two_pixels(float a, float b)
+{
+    return make_image(2, 1, { "R", "G", "B" }, [=](int x, int, int) { return x == 0 ? a : b; });
+}
 
 Metrics measure(const ImageBuf& x, const ImageBuf& r, MetricsOptions o = {})
 {
@@ -40,7 +43,8 @@ TEST(Metrics, MatchHandComputedValues)
 
 TEST(Metrics, IdenticalImagesArePerfect)
 {
-    ImageBuf r = make_image(32, 32, { "R", "G", "B" }, [](int x, int y, int c) { return 0.01f * ((x * 7 + y * 3 + c) % 50); });
+    ImageBuf r = make_image(32, 32, { "R", "G", "B" },
+                            [](int x, int y, int c) { return 0.01f * ((x * 7 + y * 3 + c) % 50); });
     Metrics m = measure(r, r);
     EXPECT_EQ(m.mse, 0.0);
     EXPECT_EQ(m.relmse, 0.0);
@@ -52,9 +56,11 @@ TEST(Metrics, SsimFallsWithNoise)
 {
     ImageBuf r = make_image(32, 32, { "R", "G", "B" }, [](int x, int, int) { return x / 32.0f; });
     ImageBuf noisy = make_image(32, 32, { "R", "G", "B" }, [](int x, int y, int c) {
-        return x / 32.0f + (((x * 31 + y * 17 + c * 7) % 11) - 5) * 0.02f; });
+        return x / 32.0f + (((x * 31 + y * 17 + c * 7) % 11) - 5) * 0.02f;
+    });
     ImageBuf very = make_image(32, 32, { "R", "G", "B" }, [](int x, int y, int c) {
-        return x / 32.0f + (((x * 31 + y * 17 + c * 7) % 11) - 5) * 0.08f; });
+        return x / 32.0f + (((x * 31 + y * 17 + c * 7) % 11) - 5) * 0.08f;
+    });
     double s1 = measure(noisy, r).ssim, s2 = measure(very, r).ssim;
     EXPECT_LT(s1, 0.99);
     EXPECT_GT(s1, s2);
@@ -66,7 +72,8 @@ TEST(Metrics, TrimDropsTheWorstAndBestPixels)
     // 100x100 = 10000 pixels; trim 1e-4 drops one pixel each side: the single outlier.
     ImageBuf r = make_image(100, 100, { "R", "G", "B" }, [](int, int, int) { return 1.0f; });
     ImageBuf x = make_image(100, 100, { "R", "G", "B" }, [](int px, int py, int) {
-        return px == 50 && py == 50 ? 1000.0f : 1.1f; });
+        return px == 50 && py == 50 ? 1000.0f : 1.1f;
+    });
     MetricsOptions o;
     Metrics plain = measure(x, r, o);
     o.trim = true;
@@ -78,7 +85,8 @@ TEST(Metrics, TrimDropsTheWorstAndBestPixels)
 
 TEST(Metrics, ChoosesChannelsAndRejectsBadInput)
 {
-    ImageBuf x = make_image(4, 4, { "R", "G", "B", "A" }, [](int, int, int c) { return c == 3 ? 5.0f : 1.0f; });
+    ImageBuf x = make_image(4, 4, { "R", "G", "B", "A" },
+                            [](int, int, int c) { return c == 3 ? 5.0f : 1.0f; });
     ImageBuf r = make_image(4, 4, { "R", "G", "B", "A" }, [](int, int, int) { return 1.0f; });
     MetricsOptions alpha;
     alpha.image_channels = alpha.reference_channels = { 3 };
@@ -90,7 +98,8 @@ TEST(Metrics, ChoosesChannelsAndRejectsBadInput)
     ImageBuf small = make_image(3, 4, { "R", "G", "B" }, [](int, int, int) { return 1.0f; });
     EXPECT_FALSE(compute_metrics(m, x, small, {}, error));
     EXPECT_NE(error.find("3x4"), std::string::npos) << error;
-    ImageBuf nan = make_image(4, 4, { "R", "G", "B" }, [](int x, int, int) { return x == 2 ? NAN : 1.0f; });
+    ImageBuf nan =
+        make_image(4, 4, { "R", "G", "B" }, [](int x, int, int) { return x == 2 ? NAN : 1.0f; });
     EXPECT_FALSE(compute_metrics(m, nan, r, {}, error));
     EXPECT_NE(error.find("not finite at pixel (2, 0)"), std::string::npos) << error;
 }
@@ -98,7 +107,8 @@ TEST(Metrics, ChoosesChannelsAndRejectsBadInput)
 TEST(Metrics, HeatmapIsRgbInUnitRange)
 {
     ImageBuf r = make_image(16, 8, { "R", "G", "B" }, [](int, int, int) { return 0.5f; });
-    ImageBuf x = make_image(16, 8, { "R", "G", "B" }, [](int px, int, int) { return 0.5f + px * 0.05f; });
+    ImageBuf x =
+        make_image(16, 8, { "R", "G", "B" }, [](int px, int, int) { return 0.5f + px * 0.05f; });
     ImageBuf errors, picture;
     ASSERT_TRUE(error_map(errors, x, r, {}, ErrorKind::RelMSE));
     EXPECT_EQ(errors.nchannels(), 1);
@@ -119,7 +129,10 @@ TEST(Metrics, ReproduceTheSharedDataTable)
 {
     MCDN_REQUIRE_SHARED(box_dir, "box");
     // ../shared/data/README.md: noisy relMSE and SMAPE of each input
-    struct Row { std::string image, reference; double relmse, smape; };
+    struct Row {
+        std::string image, reference;
+        double relmse, smape;
+    };
     const Row rows[] = {
         { "box/box_0016spp.exr", "box/box_ref.exr", 0.1404, 0.1091 },
         { "box/box_0064spp.exr", "box/box_ref.exr", 0.0331, 0.0611 },
@@ -127,7 +140,8 @@ TEST(Metrics, ReproduceTheSharedDataTable)
         { "box/nfor-reference/box_0016spp_nfor.exr", "box/box_ref.exr", 0.00968, 0.0334 },
         { "tungsten/cornell20/color.pfm", "tungsten/cornell20/ref.pfm", 0.01185, 0.0756 },
         { "tungsten/materialtest/color.pfm", "tungsten/materialtest/ref.pfm", 0.02466, 0.0634 },
-        { "tungsten/cornell20/nfor-reference/nfor.pfm", "tungsten/cornell20/ref.pfm", 0.00075, 0.0114 },
+        { "tungsten/cornell20/nfor-reference/nfor.pfm", "tungsten/cornell20/ref.pfm", 0.00075,
+          0.0114 },
     };
     for (const auto& row : rows) {
         ImageBuf x, r;

@@ -15,8 +15,14 @@ namespace {
 
 constexpr int kW = 64, kH = 48, kShift = 3;  // the picture moves 3 px right per frame
 
-float picture(int x, int y, int c) { return 0.5f + 0.4f * std::sin(0.21f * x + 0.1f * c) * std::cos(0.17f * y); }
-float steady_error(int x, int y, int c) { return 0.05f * std::sin(1.3f * x + 2.1f * y + c); }
+float picture(int x, int y, int c)
+{
+    return 0.5f + 0.4f * std::sin(0.21f * x + 0.1f * c) * std::cos(0.17f * y);
+}
+float steady_error(int x, int y, int c)
+{
+    return 0.05f * std::sin(1.3f * x + 2.1f * y + c);
+}
 
 // Frame t: the picture and an error pattern, both moved by t * kShift px.
 ImageBuf frame(int t, bool with_error)
@@ -45,7 +51,11 @@ ImageBuf noisy(const ImageBuf& clean, unsigned seed)
 }
 
 // Pixel p of frame t was at p - (kShift, 0) in frame t-1.
-ImageBuf motion() { return make_image(kW, kH, { "X", "Y" }, [](int, int, int c) { return c == 0 ? -float(kShift) : 0.0f; }); }
+ImageBuf motion()
+{
+    return make_image(kW, kH, { "X", "Y" },
+                      [](int, int, int c) { return c == 0 ? -float(kShift) : 0.0f; });
+}
 
 TemporalMetrics temporal(const ImageBuf& x1, const ImageBuf& x0, const ImageBuf& r1,
                          const ImageBuf& r0, const ImageBuf* m)
@@ -61,7 +71,8 @@ TemporalMetrics temporal(const ImageBuf& x1, const ImageBuf& x0, const ImageBuf&
 TEST(TemporalMetrics, AnErrorThatMovesWithThePictureDoesNotFlicker)
 {
     const ImageBuf m = motion();
-    const TemporalMetrics t = temporal(frame(1, true), frame(0, true), frame(1, false), frame(0, false), &m);
+    const TemporalMetrics t =
+        temporal(frame(1, true), frame(0, true), frame(1, false), frame(0, false), &m);
     EXPECT_LT(t.mse, 1e-12);
     // The first kShift columns came from outside frame 0.
     EXPECT_EQ(t.pixels, (kW - kShift) * kH);
@@ -83,7 +94,8 @@ TEST(TemporalMetrics, NoiseDrawnAnewEachFrameCountsTwiceItsMse)
 
 TEST(TemporalMetrics, WithoutMotionCompensationAMovingErrorCounts)
 {
-    const TemporalMetrics t = temporal(frame(1, true), frame(0, true), frame(1, false), frame(0, false), nullptr);
+    const TemporalMetrics t =
+        temporal(frame(1, true), frame(0, true), frame(1, false), frame(0, false), nullptr);
     EXPECT_GT(t.mse, 1e-4);
     EXPECT_EQ(t.pixels, kW * kH);
 }
@@ -95,7 +107,8 @@ TEST(TemporalMetrics, MismatchedOrNonFiniteInputsAreErrors)
     const ImageBuf small = make_image(8, 8, { "R", "G", "B" }, [](int, int, int) { return 0.5f; });
     EXPECT_FALSE(compute_temporal_metrics(t, frame(1, false), small, frame(1, false), small,
                                           nullptr, TemporalOptions(), error));
-    const ImageBuf bad = make_image(kW, kH, { "X", "Y" }, [](int x, int, int) { return x == 5 ? NAN : 0.0f; });
+    const ImageBuf bad =
+        make_image(kW, kH, { "X", "Y" }, [](int x, int, int) { return x == 5 ? NAN : 0.0f; });
     EXPECT_FALSE(compute_temporal_metrics(t, frame(1, false), frame(0, false), frame(1, false),
                                           frame(0, false), &bad, TemporalOptions(), error));
     EXPECT_NE(error.find("'X'"), std::string::npos) << error;
@@ -111,7 +124,8 @@ TEST(TemporalMetrics, AReferenceNoiseIsWhatItsVarianceSays)
     const ImageBuf r0 = frame(0, false), r1 = frame(1, false);
     const ImageBuf n0 = noisy(r0, 3), n1 = noisy(r1, 4);
     const ImageBuf var = make_image(kW, kH, { "R", "G", "B" }, [=](int, int, int) { return v; });
-    const ImageBuf half = make_image(kW, kH, { "X", "Y" }, [](int, int, int c) { return c == 0 ? -2.5f : 0.0f; });
+    const ImageBuf half =
+        make_image(kW, kH, { "X", "Y" }, [](int, int, int c) { return c == 0 ? -2.5f : 0.0f; });
     Metrics m;
     ReferenceNoise noise;
     std::string error;

@@ -13,7 +13,10 @@ using namespace mcdn_test;
 
 namespace {
 
-float stripes(int x, int y, int c) { return ((x / 6 + y / 9) % 3) * 0.3f + 0.05f * c + 0.002f * y; }
+float stripes(int x, int y, int c)
+{
+    return ((x / 6 + y / 9) % 3) * 0.3f + 0.05f * c + 0.002f * y;
+}
 
 // sure's output for a 48x256 render denoised by a box blur (biased on the stripes), the
 // blur's tiles kept where SURE finds them worse (the safety net would make them the render,
@@ -53,7 +56,8 @@ std::pair<ImageBuf, ImageBuf> whole_and_banded(MixOptions o)
 TEST(MixBands, AnalyticInBandsEqualsTheWholeFrame)
 {
     auto [whole, banded] = whole_and_banded({});
-    EXPECT_TRUE(same_pixels(whole, banded)) << "largest difference " << max_difference(whole, banded);
+    EXPECT_TRUE(same_pixels(whole, banded))
+        << "largest difference " << max_difference(whole, banded);
 }
 
 TEST(MixBands, NetInBandsEqualsTheWholeFrame)

@@ -14,12 +14,19 @@ using namespace mcdn_test;
 
 namespace {
 
-float checker(int x, int y, int c) { return ((x / 3 + y / 3) % 2) ? 0.9f : 0.1f + 0.05f * c; }
-float smooth(int x, int y, int c) { return 0.3f + 0.002f * x + 0.001f * y + 0.05f * c; }
+float checker(int x, int y, int c)
+{
+    return ((x / 3 + y / 3) % 2) ? 0.9f : 0.1f + 0.05f * c;
+}
+float smooth(int x, int y, int c)
+{
+    return 0.3f + 0.002f * x + 0.001f * y + 0.05f * c;
+}
 
 double mse(const ImageBuf& a, const ImageBuf& truth)
 {
-    auto comp = OIIO::ImageBufAlgo::compare(OIIO::ImageBufAlgo::channels(a, 3, { 0, 1, 2 }), truth, 0, 0);
+    auto comp =
+        OIIO::ImageBufAlgo::compare(OIIO::ImageBufAlgo::channels(a, 3, { 0, 1, 2 }), truth, 0, 0);
     return comp.rms_error * comp.rms_error;
 }
 

@@ -77,7 +77,8 @@ TEST(MixNet, MatchesPyTorch)
     }
     nn::Net net;
     ASSERT_TRUE(load_mix_net(net, path, error)) << error;
-    const double feature_error = relative_error(net_features(in), to_tensor(*io.find("output.features")));
+    const double feature_error =
+        relative_error(net_features(in), to_tensor(*io.find("output.features")));
     Plane alpha[3];
     nn::Tensor raw;
     ASSERT_TRUE(net_alpha(alpha, in, net, error, &raw)) << error;
@@ -112,8 +113,8 @@ TEST(MixNet, FeaturesMadePerTileEqualTheWholeFrames)
             planes[k][c] = Plane(w, h);
             for (int y = 0; y < h; ++y)
                 for (int x = 0; x < w; ++x)
-                    planes[k][c].px[size_t(y) * w + x]
-                        = small.px[size_t(y % small.height) * small.width + x % small.width];
+                    planes[k][c].px[size_t(y) * w + x] =
+                        small.px[size_t(y % small.height) * small.width + x % small.width];
         }
     }
     const nn::Tensor whole = net_features(in);
@@ -310,9 +311,9 @@ TEST(MixNet, CloseToTheBetterInputOnGeneratedCrops)
     // (see its README) all 9 inputs meet it (at most 1.002x since 30 Nov, 1.016x with the
     // network before; without the analytic floor 0003_bump 4 spp was at 1.06x; with the
     // outlier floor's first threshold alone 0000_interior 64 spp was at 1.27x; the previous
-    // network without any floor kept render fireflies on 0007_fine 16 spp: 2.29x). The bounds leave room for small
-    // numerical changes upstream (NFOR, SURE) but catch a kept firefly or a network that
-    // keeps too much render: never worse than the render, at most 1.10x the better input
+    // network without any floor kept render fireflies on 0007_fine 16 spp: 2.29x). The bounds leave
+    // room for small numerical changes upstream (NFOR, SURE) but catch a kept firefly or a network
+    // that keeps too much render: never worse than the render, at most 1.10x the better input
     // anywhere, 1.03x on average.
     MixOptions options;
     options.model = MixOptions::Model::Net;
@@ -325,8 +326,9 @@ TEST(MixNet, CloseToTheBetterInputOnGeneratedCrops)
             ASSERT_TRUE(run_crop(e, crop, spp, options, error)) << error;
             const double better = std::min(e.render.rmse, e.denoised.rmse);
             const double ratio = e.mixed.rmse / better;
-            std::printf("%-14s %3d spp  RMSE render %.4f  NFOR %.4f  mix(net) %.4f  (%.3fx the better)\n",
-                        crop, spp, e.render.rmse, e.denoised.rmse, e.mixed.rmse, ratio);
+            std::printf(
+                "%-14s %3d spp  RMSE render %.4f  NFOR %.4f  mix(net) %.4f  (%.3fx the better)\n",
+                crop, spp, e.render.rmse, e.denoised.rmse, e.mixed.rmse, ratio);
             EXPECT_LE(e.mixed.rmse, e.render.rmse) << crop << " " << spp;
             EXPECT_LE(ratio, 1.10) << crop << " " << spp;
             sum_ratio += ratio;

@@ -48,8 +48,8 @@ TEST(NforExtras, LightGroupsAddUpToTheDenoisedBeauty)
     }
 }
 
-// The rounding share (nfor/extras_regression.h) does not hide a wrong filter: with the fill shifted by a
-// constant the input no longer adds up, nothing is shared, and the result is off by that
+// The rounding share (nfor/extras_regression.h) does not hide a wrong filter: with the fill shifted
+// by a constant the input no longer adds up, nothing is shared, and the result is off by that
 // constant (regressions reproduce constants) plus only the regressions' rounding.
 TEST(NforExtras, WithoutTheRoundingShareTheyAddUpToRounding)
 {
@@ -58,7 +58,8 @@ TEST(NforExtras, WithoutTheRoundingShareTheyAddUpToRounding)
     std::vector<float> add(p.image.nchannels(), 0.0f);
     for (const char* face : { "", "A.", "B." })
         for (const char* c : { "R", "G", "B" }) {
-            int ch = p.image.spec().channelindex(std::string(face) + "ViewLayer.Combined_fill." + c);
+            int ch =
+                p.image.spec().channelindex(std::string(face) + "ViewLayer.Combined_fill." + c);
             ASSERT_GE(ch, 0);
             add[ch] = shift;
         }
@@ -101,9 +102,8 @@ TEST(NforExtras, ThroughSureAndMixTheyStillAddUp)
     n.aovs = p.spec;
     SureOptions s;
     s.aovs = p.spec;
-    ImageBuf sured = sure(p.image, [&](ImageBuf& dst, const ImageBuf& src) {
-        return nfor(dst, src, n);
-    }, s);
+    ImageBuf sured = sure(
+        p.image, [&](ImageBuf& dst, const ImageBuf& src) { return nfor(dst, src, n); }, s);
     ASSERT_FALSE(sured.has_error()) << sured.geterror();
     MixOptions m;
     m.aovs = p.spec;

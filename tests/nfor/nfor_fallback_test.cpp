@@ -136,7 +136,8 @@ TEST(NforFallback, OverCleanRenderFallsBackEverywhere)
         for (int x = 0; x < clean.spec().width; ++x) {
             EXPECT_EQ(net.getchannel(x, y, 0, flag), 1.0f);
             for (int c : color) {
-                ASSERT_EQ(net.getchannel(x, y, 0, c), clean.getchannel(x, y, 0, c)) << x << "," << y;
+                ASSERT_EQ(net.getchannel(x, y, 0, c), clean.getchannel(x, y, 0, c))
+                    << x << "," << y;
                 changed_off += std::abs(off.getchannel(x, y, 0, c) - clean.getchannel(x, y, 0, c));
             }
         }

@@ -128,9 +128,10 @@ TEST(NforOutliers, LightGroupsStillAddUpToTheBeauty)
     AovSpec cycles;
     cycles.preset = "cycles";
     float excess[3];
-    Partition p = add_light_groups(with_firefly(box16(), cycles, kX, kY, 500.0f, excess),
-                                   "cycles", true);
-    for (NforOptions::Outliers mode : { NforOptions::Outliers::Keep, NforOptions::Outliers::Drop }) {
+    Partition p =
+        add_light_groups(with_firefly(box16(), cycles, kX, kY, 500.0f, excess), "cycles", true);
+    for (NforOptions::Outliers mode :
+         { NforOptions::Outliers::Keep, NforOptions::Outliers::Drop }) {
         NforOptions o = options(mode);
         o.aovs = p.spec;
         const ImageBuf out = nfor(p.image, o);
@@ -139,8 +140,8 @@ TEST(NforOutliers, LightGroupsStillAddUpToTheBeauty)
             for (int x = 0; x < out.spec().width; ++x)
                 for (int c = 0; c < 3; ++c) {
                     const float beauty = out.getchannel(x, y, 0, p.beauty[c]);
-                    const float sum = out.getchannel(x, y, 0, p.key[c])
-                                      + out.getchannel(x, y, 0, p.fill[c]);
+                    const float sum =
+                        out.getchannel(x, y, 0, p.key[c]) + out.getchannel(x, y, 0, p.fill[c]);
                     ASSERT_NEAR(sum, beauty, 1e-4f * (std::fabs(beauty) + 1.0f))
                         << "at " << x << "," << y << " channel " << c;
                 }

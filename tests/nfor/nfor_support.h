@@ -21,10 +21,15 @@ namespace nfor_test {
 inline float gauss(int x, int y, int stream)
 {
     auto hash = [](uint32_t v) {
-        v ^= v >> 16; v *= 0x7feb352dU; v ^= v >> 15; v *= 0x846ca68bU; v ^= v >> 16;
+        v ^= v >> 16;
+        v *= 0x7feb352dU;
+        v ^= v >> 15;
+        v *= 0x846ca68bU;
+        v ^= v >> 16;
         return v;
     };
-    uint32_t h1 = hash(uint32_t(x) * 73856093U ^ uint32_t(y) * 19349663U ^ uint32_t(stream) * 83492791U);
+    uint32_t h1 =
+        hash(uint32_t(x) * 73856093U ^ uint32_t(y) * 19349663U ^ uint32_t(stream) * 83492791U);
     uint32_t h2 = hash(h1 + 0x9e3779b9U);
     double u1 = (h1 + 0.5) / 4294967296.0, u2 = (h2 + 0.5) / 4294967296.0;
     return float(std::sqrt(-2.0 * std::log(u1)) * std::cos(6.283185307179586 * u2));
@@ -32,9 +37,9 @@ inline float gauss(int x, int y, int stream)
 
 struct Scene {
     int width = 64, height = 64;
-    std::function<float(int, int, int)> color;    // clean colour (x, y, channel)
-    std::function<float(int, int, int)> albedo;   // clean feature
-    float sigma_half = 0.1f;                      // noise of one half buffer
+    std::function<float(int, int, int)> color;   // clean colour (x, y, channel)
+    std::function<float(int, int, int)> albedo;  // clean feature
+    float sigma_half = 0.1f;                     // noise of one half buffer
 };
 
 inline std::vector<std::string> generic_channels()
@@ -117,7 +122,7 @@ struct Shot {
     }
 
     int width = 64, height = 64;
-    float vx = 0, vy = 0;      // motion of the content per frame, pixels (y down)
+    float vx = 0, vy = 0;  // motion of the content per frame, pixels (y down)
     float sigma_half = 0.15f;
     /// Motion channels written: the true motion, or none (0) when false.
     bool true_motion = true;
@@ -174,8 +179,7 @@ struct Shot {
 };
 
 /// An op's options for a Shot: its AOV spec.
-template <class Options>
-Options shot_options()
+template <class Options> Options shot_options()
 {
     Options o;
     o.aovs = Shot::aovs();

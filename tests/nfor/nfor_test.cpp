@@ -50,8 +50,12 @@ std::vector<int> color_channels(const OIIO::ImageBuf& merged, const std::string&
 TEST(Nfor, FeatureExplainedRampIsReconstructed)
 {
     Scene s;
-    s.albedo = [](int x, int y, int) { return 0.5f + 0.4f * std::sin(0.37f * x) * std::cos(0.23f * y); };
-    s.color = [&](int x, int y, int c) { return 0.1f + 0.1f * c + 0.8f * s.albedo(x, y, c) + 0.002f * x; };
+    s.albedo = [](int x, int y, int) {
+        return 0.5f + 0.4f * std::sin(0.37f * x) * std::cos(0.23f * y);
+    };
+    s.color = [&](int x, int y, int c) {
+        return 0.1f + 0.1f * c + 0.8f * s.albedo(x, y, c) + 0.002f * x;
+    };
     OIIO::ImageBuf in = render(s);
     double noisy = mse_against(in, s);
     OIIO::ImageBuf out = nfor(in, generic_options(), {}, 0);
@@ -113,7 +117,8 @@ TEST(Nfor, NanInfAndHugeInputsGiveFiniteOutput)
         ASSERT_GE(c, 0) << name;
         for (int y = 0; y < 64; ++y)
             for (int x = 0; x < 64; ++x)
-                ASSERT_TRUE(std::isfinite(out.getchannel(x, y, 0, c))) << name << " " << x << "," << y;
+                ASSERT_TRUE(std::isfinite(out.getchannel(x, y, 0, c)))
+                    << name << " " << x << "," << y;
     }
     // Away from the bad pixels the result is still a denoised image, not zeros.
     EXPECT_NEAR(out.getchannel(2, 62, 0, 0), 0.5f + 0.01f * ((2 * 62) % 13), 0.1f);
@@ -161,12 +166,13 @@ TEST(Nfor, KeepsChannelsAndAddsMaps)
 
 TEST(Nfor, MissingHalvesIsAnErrorNamingTheRole)
 {
-    OIIO::ImageBuf in = mcdn_test::make_image(16, 16, { "R", "G", "B" }, [](int, int, int) { return 0.5f; });
+    OIIO::ImageBuf in =
+        mcdn_test::make_image(16, 16, { "R", "G", "B" }, [](int, int, int) { return 0.5f; });
     OIIO::ImageBuf out;
     EXPECT_FALSE(nfor(out, in, generic_options()));
     std::string error = out.geterror();
-    EXPECT_NE(error.find("nfor needs two half buffers or the colour's variance"),
-              std::string::npos) << error;
+    EXPECT_NE(error.find("nfor needs two half buffers or the colour's variance"), std::string::npos)
+        << error;
     EXPECT_NE(error.find("color_a, color_b, color_variance"), std::string::npos) << error;
 }
 
@@ -177,8 +183,8 @@ TEST(Nfor, OneBufferPathWithoutHalves)
 {
     const std::string b = mcdn_test::test_data("box16/box_0016spp");
     OIIO::ImageBuf in;
-    ASSERT_TRUE(read_inputs(in, { { b + ".exr", InputKind::Mean },
-                                  { b + "_var.exr", InputKind::Variance } }));
+    ASSERT_TRUE(read_inputs(
+        in, { { b + ".exr", InputKind::Mean }, { b + "_var.exr", InputKind::Variance } }));
     NforOptions o;
     OIIO::ImageBuf one = nfor(in, o, {}, 1), two = nfor(in, o, {}, 2);
     ASSERT_FALSE(one.has_error()) << one.geterror();

@@ -35,11 +35,15 @@ inline Weights random_weights(const Net& net, unsigned seed)
             const int in_channels = net.nodes()[node.inputs[0]].channels;
             const float bound = std::sqrt(3.0f / (in_channels * node.kernel * node.kernel));
             std::uniform_real_distribution<float> w(-bound, bound), b(-0.2f, 0.2f);
-            NamedTensor weight { node.name + ".weight", { node.channels, in_channels, node.kernel, node.kernel }, {} };
+            NamedTensor weight { node.name + ".weight",
+                                 { node.channels, in_channels, node.kernel, node.kernel },
+                                 {} };
             weight.values.resize(size_t(node.channels) * in_channels * node.kernel * node.kernel);
             for (float& v : weight.values)
                 v = w(rng);
-            NamedTensor bias { node.name + ".bias", { node.channels }, std::vector<float>(node.channels) };
+            NamedTensor bias { node.name + ".bias",
+                               { node.channels },
+                               std::vector<float>(node.channels) };
             for (float& v : bias.values)
                 v = b(rng);
             weights.tensors.push_back(weight);

@@ -16,7 +16,7 @@ struct ConvCase {
     int height, width;
 };
 
-class ConvTest : public ::testing::TestWithParam<ConvCase> {};
+class ConvTest : public ::testing::TestWithParam<ConvCase> { };
 
 TEST_P(ConvTest, MatchesReference)
 {
@@ -24,7 +24,8 @@ TEST_P(ConvTest, MatchesReference)
     Net net("conv");
     Value x = net.input("x", c.in_channels);
     net.output("y", net.conv(x, "conv", c.out_channels, c.kernel, c.activation));
-    const double error = onednn_vs_reference(net, { random_tensor(c.height, c.width, c.in_channels, 7) });
+    const double error =
+        onednn_vs_reference(net, { random_tensor(c.height, c.width, c.in_channels, 7) });
     EXPECT_LT(error, tolerance);
 }
 
@@ -36,7 +37,7 @@ INSTANTIATE_TEST_SUITE_P(
                       ConvCase { 48, 9, 3, Activation::none, 12, 20 },   // mix output
                       ConvCase { 27, 50, 3, Activation::relu, 10, 11 },  // not multiples of 16
                       ConvCase { 64, 441, 1, Activation::none, 6, 7 },   // 21×21 kernel head
-                      ConvCase { 1, 1, 7, Activation::relu, 5, 3 }));    // image smaller than kernel
+                      ConvCase { 1, 1, 7, Activation::relu, 5, 3 }));  // image smaller than kernel
 
 TEST(NnOps, AddWithAndWithoutRelu)
 {
@@ -44,8 +45,9 @@ TEST(NnOps, AddWithAndWithoutRelu)
         Net net("add");
         Value a = net.input("a", 20), b = net.input("b", 20);
         net.output("y", net.add(a, b, activation));
-        EXPECT_LT(onednn_vs_reference(net, { random_tensor(6, 9, 20, 1), random_tensor(6, 9, 20, 2) }),
-                  tolerance);
+        EXPECT_LT(
+            onednn_vs_reference(net, { random_tensor(6, 9, 20, 1), random_tensor(6, 9, 20, 2) }),
+            tolerance);
     }
 }
 
@@ -69,8 +71,8 @@ TEST(NnOps, PoolUpsampleConcatSlice)
     EXPECT_EQ(out[0].width, 7);
     EXPECT_EQ(out[2].channels, 5 + 5 + 3);
     // Spot values, from the definitions (PyTorch max_pool2d(2), interpolate(nearest)).
-    EXPECT_EQ(out[0].at(2, 3, 4), std::max({ input.at(4, 6, 4), input.at(4, 7, 4), input.at(5, 6, 4),
-                                              input.at(5, 7, 4) }));
+    EXPECT_EQ(out[0].at(2, 3, 4), std::max({ input.at(4, 6, 4), input.at(4, 7, 4),
+                                             input.at(5, 6, 4), input.at(5, 7, 4) }));
     EXPECT_EQ(out[1].at(5, 9, 2), out[0].at(2, 4, 2));
     EXPECT_EQ(out[2].at(3, 4, 10), input.at(3, 4, 1));
 }
@@ -105,7 +107,8 @@ TEST(NnOps, ApplyKernelIsAWeightedAverage)
     ASSERT_TRUE(net.run({ logits, image }, out, error)) << error;
     for (int y = 0; y < 4; ++y)
         for (int x = 0; x < 4; ++x)
-            EXPECT_NEAR(out[0].at(y, x, 1), image.at(std::max(y - 1, 0), std::min(x + 1, 3), 1), 1e-6);
+            EXPECT_NEAR(out[0].at(y, x, 1), image.at(std::max(y - 1, 0), std::min(x + 1, 3), 1),
+                        1e-6);
 }
 
 TEST(NnOps, ResultDoesNotDependOnThreadCount)
@@ -142,7 +145,7 @@ TEST(NnOps, FusedResidualAddsMatchReference)
     Value a = net.add(input, net.conv(input, "c0", 16, 3, Activation::none));  // residual = input
     Value x = net.conv(a, "c1", 16, 3);
     Value r = net.conv(net.conv(x, "c2", 16, 3), "c3", 16, 3, Activation::none);
-    Value block = net.add(x, r, Activation::relu);                       // x stolen in place
+    Value block = net.add(x, r, Activation::relu);  // x stolen in place
     Value self = net.add(block, net.conv(block, "c4", 16, 3), Activation::relu);  // conv reads it
     Value kept = net.conv(self, "c5", 16, 3);
     Value later = net.add(kept, net.conv(kept, "c6", 16, 1));

@@ -68,7 +68,8 @@ TEST(NnPyTorch, TiledRunMatchesPyTorch)
     std::vector<Tensor> out;
     TileOptions options;
     options.tile_size = 8;
-    ASSERT_TRUE(run_tiled(net, { to_tensor(*io.find("input.features")) }, out, error, options)) << error;
+    ASSERT_TRUE(run_tiled(net, { to_tensor(*io.find("input.features")) }, out, error, options))
+        << error;
     EXPECT_LT(relative_error(out[0], to_tensor(*io.find("output.denoised"))), 1e-4);
 }
 

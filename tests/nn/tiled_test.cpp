@@ -45,7 +45,8 @@ TEST(NnTiled, EqualsWholeImageRun)
         ASSERT_TRUE(run_tiled(net, { input }, tiled, error, options)) << error;
         ASSERT_EQ(tiled.size(), 2u);
         for (int o = 0; o < 2; ++o)
-            EXPECT_LT(relative_error(tiled[o], whole[o]), 1e-6) << "tile " << tile << " output " << o;
+            EXPECT_LT(relative_error(tiled[o], whole[o]), 1e-6)
+                << "tile " << tile << " output " << o;
     }
 }
 

@@ -78,12 +78,14 @@ TEST(NnWeights, CorruptFilesAreOneLineErrors)
               std::string::npos);
     std::string version_2 = good;
     version_2[8] = 2;
-    EXPECT_NE(read_error(dir, version_2).find("weights format version 2, this build reads version 1"),
-              std::string::npos);
+    EXPECT_NE(
+        read_error(dir, version_2).find("weights format version 2, this build reads version 1"),
+        std::string::npos);
     const std::string truncated = read_error(dir, good.substr(0, good.size() - 5));
     EXPECT_NE(truncated.find("truncated in the data of tensor 'conv1.bias' [2]"), std::string::npos)
         << truncated;
-    EXPECT_NE(read_error(dir, good.substr(0, 10)).find("truncated in the header"), std::string::npos);
+    EXPECT_NE(read_error(dir, good.substr(0, 10)).find("truncated in the header"),
+              std::string::npos);
     EXPECT_NE(read_error(dir, good + "xx").find("2 unexpected bytes after the last tensor"),
               std::string::npos);
 
@@ -118,13 +120,16 @@ TEST(NnWeights, LoadChecksNamesAndShapes)
     Weights missing = w;
     missing.tensors.erase(missing.tensors.begin() + 1);
     EXPECT_FALSE(net.load(missing, error));
-    EXPECT_EQ(error.rfind("mix.mcdnw: tensor 'conv1.bias' is missing, the network 'mix' expects [2]", 0), 0u)
+    EXPECT_EQ(
+        error.rfind("mix.mcdnw: tensor 'conv1.bias' is missing, the network 'mix' expects [2]", 0),
+        0u)
         << error;
 
     Weights extra = w;
     extra.tensors.push_back({ "conv2.weight", { 1 }, { 0.0f } });
     EXPECT_FALSE(net.load(extra, error));
-    EXPECT_NE(error.find("tensor 'conv2.weight' [1] is not used by the network 'mix'"), std::string::npos)
+    EXPECT_NE(error.find("tensor 'conv2.weight' [1] is not used by the network 'mix'"),
+              std::string::npos)
         << error;
 
     std::vector<Tensor> out;

@@ -33,14 +33,14 @@ const std::string kPeers = std::string(MCDN_SHARED_DATA) + "/../peers/oidn";
 std::vector<std::pair<std::string, std::array<int, 2>>> tiny_unet(int inputs, int width)
 {
     const int w = width;
-    return { { "enc_conv0", { w, inputs } },  { "enc_conv1", { w, w } },
-             { "enc_conv2", { w, w } },       { "enc_conv3", { w, w } },
-             { "enc_conv4", { w, w } },       { "enc_conv5a", { w, w } },
-             { "enc_conv5b", { w, w } },      { "dec_conv4a", { w, 2 * w } },
-             { "dec_conv4b", { w, w } },      { "dec_conv3a", { w, 2 * w } },
-             { "dec_conv3b", { w, w } },      { "dec_conv2a", { w, 2 * w } },
-             { "dec_conv2b", { w, w } },      { "dec_conv1a", { w, w + inputs } },
-             { "dec_conv1b", { w, w } },      { "dec_conv0", { 3, w } } };
+    return { { "enc_conv0", { w, inputs } }, { "enc_conv1", { w, w } },
+             { "enc_conv2", { w, w } },      { "enc_conv3", { w, w } },
+             { "enc_conv4", { w, w } },      { "enc_conv5a", { w, w } },
+             { "enc_conv5b", { w, w } },     { "dec_conv4a", { w, 2 * w } },
+             { "dec_conv4b", { w, w } },     { "dec_conv3a", { w, 2 * w } },
+             { "dec_conv3b", { w, w } },     { "dec_conv2a", { w, 2 * w } },
+             { "dec_conv2b", { w, w } },     { "dec_conv1a", { w, w + inputs } },
+             { "dec_conv1b", { w, w } },     { "dec_conv0", { 3, w } } };
 }
 
 void put(std::string& bytes, uint64_t value, int size)
@@ -111,8 +111,7 @@ nn::Weights write_tiny_tza(const std::string& path, int inputs, int width, uint3
 ImageBuf render(int w, int h, uint32_t seed)
 {
     ImageSpec spec(w, h, 9, OIIO::TypeDesc::FLOAT);
-    spec.channelnames = { "R", "G", "B", "albedo.R", "albedo.G", "albedo.B",
-                          "N.X", "N.Y", "N.Z" };
+    spec.channelnames = { "R", "G", "B", "albedo.R", "albedo.G", "albedo.B", "N.X", "N.Y", "N.Z" };
     ImageBuf buf(spec);
     std::mt19937 random(seed);
     std::uniform_real_distribution<float> u(0.0f, 1.0f);
@@ -143,8 +142,8 @@ OidnOptions options_with(const std::string& weights)
 
 std::string temp_path(const std::string& name)
 {
-    return OIIO::Filesystem::temp_directory_path() + "/mcdn_oidn_" + std::to_string(getpid())
-           + "_" + name;
+    return OIIO::Filesystem::temp_directory_path() + "/mcdn_oidn_" + std::to_string(getpid()) + "_"
+           + name;
 }
 
 float max_abs_difference(const ImageBuf& a, const ImageBuf& b)
@@ -213,7 +212,8 @@ TEST(Oidn, TransferFunctionRoundTrips)
 {
     EXPECT_NEAR(oidn_net::pu_forward(65504.0f), 1.0f, 1e-6f);
     for (float y : { 0.0f, 1e-7f, 1e-4f, 0.01f, 0.18f, 1.0f, 30.0f, 1000.0f, 65504.0f })
-        EXPECT_NEAR(oidn_net::pu_inverse(oidn_net::pu_forward(y)), y, 1e-4f * std::max(y, 1e-3f)) << y;
+        EXPECT_NEAR(oidn_net::pu_inverse(oidn_net::pu_forward(y)), y, 1e-4f * std::max(y, 1e-3f))
+            << y;
 }
 
 TEST(Oidn, SameForAnyThreadsTilesAndBands)
@@ -278,11 +278,21 @@ TEST(Oidn, PublishedWeightsReproduceThePublishedNumbers)
         double relmse;
     };
     const std::vector<Row> rows = {
-        { { { data + "/box/box_0016spp.exr", InputKind::Mean } }, data + "/box/box_ref.exr", 0.00562 },
-        { { { data + "/box/box_0064spp.exr", InputKind::Mean } }, data + "/box/box_ref.exr", 0.00194 },
-        { { { data + "/box/box_0256spp.exr", InputKind::Mean } }, data + "/box/box_ref.exr", 0.00118 },
-        { { { data + "/tungsten/cornell20", InputKind::Mean } }, data + "/tungsten/cornell20/ref.pfm", 0.00055 },
-        { { { data + "/tungsten/materialtest", InputKind::Mean } }, data + "/tungsten/materialtest/ref.pfm", 0.00235 },
+        { { { data + "/box/box_0016spp.exr", InputKind::Mean } },
+          data + "/box/box_ref.exr",
+          0.00562 },
+        { { { data + "/box/box_0064spp.exr", InputKind::Mean } },
+          data + "/box/box_ref.exr",
+          0.00194 },
+        { { { data + "/box/box_0256spp.exr", InputKind::Mean } },
+          data + "/box/box_ref.exr",
+          0.00118 },
+        { { { data + "/tungsten/cornell20", InputKind::Mean } },
+          data + "/tungsten/cornell20/ref.pfm",
+          0.00055 },
+        { { { data + "/tungsten/materialtest", InputKind::Mean } },
+          data + "/tungsten/materialtest/ref.pfm",
+          0.00235 },
     };
     for (const Row& row : rows) {
         ImageBuf src, out;

@@ -9,18 +9,22 @@ using mcdn_test::quote;
 
 namespace {
 
-mcdn_test::Run oiiotool(const std::string& args) { return mcdn_test::run_oiiotool(args); }
+mcdn_test::Run oiiotool(const std::string& args)
+{
+    return mcdn_test::run_oiiotool(args);
+}
 
 std::string box_query(const std::string& chain)
 {
     std::string d = mcdn_test::test_data("box16/");
-    return "shot.mcdn?in=" + d + "box_0016spp.exr&variance=" + d + "box_0016spp_var.exr&halfA="
-           + d + "box_0016spp_A.exr&halfB=" + d + "box_0016spp_B.exr&preset=cycles&chain=" + chain;
+    return "shot.mcdn?in=" + d + "box_0016spp.exr&variance=" + d + "box_0016spp_var.exr&halfA=" + d
+           + "box_0016spp_A.exr&halfB=" + d + "box_0016spp_B.exr&preset=cycles&chain=" + chain;
 }
 
 double relmse_of(const std::string& image)
 {
-    auto run = mcdn_test::run_mcdntool("-i " + quote(image) + " --aov:preset=generic --metrics:format=json "
+    auto run = mcdn_test::run_mcdntool("-i " + quote(image)
+                                       + " --aov:preset=generic --metrics:format=json "
                                        + quote(mcdn_test::test_data("box16/box_ref.exr")));
     std::smatch m;
     if (!std::regex_search(run.output, m, std::regex("\"relmse\": ([-0-9.eE+]+)")))
@@ -36,14 +40,17 @@ TEST(OiioPlugin, QueryRunsTheChainInsideOiiotool)
         GTEST_SKIP() << "oiiotool not installed";
     std::string dir = mcdn_test::temp_dir("plugin_query");
     std::string out = dir + "/denoised.exr";
-    auto run = oiiotool(quote(box_query("prefilter,nfor"))
-                        + " --ch R=ViewLayer.Combined.R,G=ViewLayer.Combined.G,B=ViewLayer.Combined.B"
-                          " --colorconvert lin_rec709 lin_rec709 -o " + quote(out));
+    auto run =
+        oiiotool(quote(box_query("prefilter,nfor"))
+                 + " --ch R=ViewLayer.Combined.R,G=ViewLayer.Combined.G,B=ViewLayer.Combined.B"
+                   " --colorconvert lin_rec709 lin_rec709 -o "
+                 + quote(out));
     ASSERT_EQ(run.exit_code, 0) << run.output;
     std::string noisy = dir + "/noisy.exr";
-    auto copy = oiiotool(quote(mcdn_test::test_data("box16/box_0016spp.exr"))
-                         + " --ch R=ViewLayer.Combined.R,G=ViewLayer.Combined.G,B=ViewLayer.Combined.B -o "
-                         + quote(noisy));
+    auto copy =
+        oiiotool(quote(mcdn_test::test_data("box16/box_0016spp.exr"))
+                 + " --ch R=ViewLayer.Combined.R,G=ViewLayer.Combined.G,B=ViewLayer.Combined.B -o "
+                 + quote(noisy));
     ASSERT_EQ(copy.exit_code, 0) << copy.output;
     EXPECT_LT(relmse_of(out), 0.5 * relmse_of(noisy));
 }
@@ -53,13 +60,15 @@ TEST(OiioPlugin, RecipeFileWithRelativePaths)
     if (system("command -v oiiotool > /dev/null") != 0)
         GTEST_SKIP() << "oiiotool not installed";
     std::string dir = mcdn_test::temp_dir("plugin_recipe");
-    for (const char* f : { "box_0016spp.exr", "box_0016spp_var.exr", "box_0016spp_A.exr", "box_0016spp_B.exr" })
+    for (const char* f :
+         { "box_0016spp.exr", "box_0016spp_var.exr", "box_0016spp_A.exr", "box_0016spp_B.exr" })
         OIIO::Filesystem::copy(mcdn_test::test_data(std::string("box16/") + f), dir + "/" + f);
-    std::ofstream(dir + "/shot.mcdn") << "# denoise the box\n"
-                                         "in = box_0016spp.exr\nvariance = box_0016spp_var.exr\n"
-                                         "halfA = box_0016spp_A.exr\nhalfB = box_0016spp_B.exr\n"
-                                         "chain = prefilter,nfor,sure,mix\nsure.probes = 1\n"
-                                         "channels = ViewLayer.Combined.R,ViewLayer.Combined.G,ViewLayer.Combined.B\n";
+    std::ofstream(dir + "/shot.mcdn")
+        << "# denoise the box\n"
+           "in = box_0016spp.exr\nvariance = box_0016spp_var.exr\n"
+           "halfA = box_0016spp_A.exr\nhalfB = box_0016spp_B.exr\n"
+           "chain = prefilter,nfor,sure,mix\nsure.probes = 1\n"
+           "channels = ViewLayer.Combined.R,ViewLayer.Combined.G,ViewLayer.Combined.B\n";
     auto run = oiiotool(quote(dir + "/shot.mcdn") + " -o " + quote(dir + "/out.exr"));
     ASSERT_EQ(run.exit_code, 0) << run.output;
     OIIO::ImageBuf out(dir + "/out.exr");
@@ -103,17 +112,20 @@ TEST(OiioPlugin, TheReadmeExampleWorksWithoutOcio)
         "env -u OCIO OIIO_LIBRARY_PATH='" + std::string(MCDN_PLUGIN_DIR) + "' timeout 300 oiiotool "
         + quote("shot.mcdn?in=" + d + "box_0016spp.exr&variance=" + d + "box_0016spp_var.exr")
         + " --ch R=ViewLayer.Combined.R,G=ViewLayer.Combined.G,B=ViewLayer.Combined.B"
-          " --colorconvert linear sRGB -o " + quote(dir + "/preview.png"));
+          " --colorconvert linear sRGB -o "
+        + quote(dir + "/preview.png"));
     ASSERT_EQ(run.exit_code, 0) << run.output;
     EXPECT_TRUE(OIIO::Filesystem::exists(dir + "/preview.png"));
     // The denoised image itself, below the render's error.
-    run = oiiotool(quote("shot.mcdn?in=" + d + "box_0016spp.exr&variance=" + d + "box_0016spp_var.exr")
-                   + " --ch R=ViewLayer.Combined.R,G=ViewLayer.Combined.G,B=ViewLayer.Combined.B -o "
-                   + quote(dir + "/denoised.exr"));
+    run = oiiotool(
+        quote("shot.mcdn?in=" + d + "box_0016spp.exr&variance=" + d + "box_0016spp_var.exr")
+        + " --ch R=ViewLayer.Combined.R,G=ViewLayer.Combined.G,B=ViewLayer.Combined.B -o "
+        + quote(dir + "/denoised.exr"));
     ASSERT_EQ(run.exit_code, 0) << run.output;
-    auto noisy = oiiotool(quote(d + "box_0016spp.exr")
-                          + " --ch R=ViewLayer.Combined.R,G=ViewLayer.Combined.G,B=ViewLayer.Combined.B -o "
-                          + quote(dir + "/noisy.exr"));
+    auto noisy =
+        oiiotool(quote(d + "box_0016spp.exr")
+                 + " --ch R=ViewLayer.Combined.R,G=ViewLayer.Combined.G,B=ViewLayer.Combined.B -o "
+                 + quote(dir + "/noisy.exr"));
     ASSERT_EQ(noisy.exit_code, 0) << noisy.output;
     EXPECT_LT(relmse_of(dir + "/denoised.exr"), 0.5 * relmse_of(dir + "/noisy.exr"));
 }

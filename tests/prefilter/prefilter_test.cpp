@@ -68,9 +68,8 @@ TEST(Prefilter, ReducesFeatureNoiseAndKeepsTheEdge)
 
 TEST(Prefilter, ConstantFeatureStaysConstant)
 {
-    OIIO::ImageBuf in = mcdn_test::make_image(40, 24, generic_channels(), [](int, int, int ch) {
-        return ch / 6 == 1 ? 0.0f : 0.375f;
-    });
+    OIIO::ImageBuf in = mcdn_test::make_image(
+        40, 24, generic_channels(), [](int, int, int ch) { return ch / 6 == 1 ? 0.0f : 0.375f; });
     OIIO::ImageBuf out = prefilter(in, generic());
     ASSERT_FALSE(out.has_error()) << out.geterror();
     int mean = in.spec().channelindex("albedo.G");
@@ -98,7 +97,8 @@ TEST(Prefilter, NanFeatureVarianceAndThreadIndependence)
 
 TEST(Prefilter, NoFeaturesIsAnError)
 {
-    OIIO::ImageBuf in = mcdn_test::make_image(8, 8, { "R", "G", "B" }, [](int, int, int) { return 1.0f; });
+    OIIO::ImageBuf in =
+        mcdn_test::make_image(8, 8, { "R", "G", "B" }, [](int, int, int) { return 1.0f; });
     OIIO::ImageBuf out;
     EXPECT_FALSE(prefilter(out, in, generic()));
     EXPECT_NE(out.geterror().find("prefilter"), std::string::npos);

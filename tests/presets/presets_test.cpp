@@ -13,10 +13,10 @@
 
 namespace {
 
-using OIIO::ImageBuf;
-using OIIO::ImageBufAlgo::channels;
 using mcdn_test::run_mcdntool;
 using mcdn_test::test_data;
+using OIIO::ImageBuf;
+using OIIO::ImageBufAlgo::channels;
 
 const std::string kBox = "box16/box_0016spp";
 
@@ -36,7 +36,8 @@ struct Source {
 
 /// A file whose channels are the sources, in order; ops on the channels (diffuse/specular)
 /// are done by the caller through `extra`.
-ImageBuf assemble(const std::vector<Source>& sources, const std::vector<std::pair<std::string, ImageBuf>>& extra = {})
+ImageBuf assemble(const std::vector<Source>& sources,
+                  const std::vector<std::pair<std::string, ImageBuf>>& extra = {})
 {
     std::map<std::string, ImageBuf> files;
     for (const char* f : { "", "_var", "_A", "_B" })
@@ -120,11 +121,13 @@ const std::vector<std::string> kRGB = { "R", "G", "B" };
 // Z, denoise_albedo (help.autodesk.com, Arnold User Guide: Arnold Denoiser, AOVs).
 TEST(Presets, ArnoldBeautyWithVarianceRunsTheMixedChain)
 {
-    ImageBuf file = assemble(concat({ rgb(kRGB, "", "Combined"),
-                                      rgb({ "variance.R", "variance.G", "variance.B" }, "_var", "Combined"),
-                                      rgb({ "N.X", "N.Y", "N.Z" }, "", "Denoising Normal", "XYZ"),
-                                      { { "Z", "", "ViewLayer.Denoising Depth.Z" } },
-                                      rgb({ "denoise_albedo.R", "denoise_albedo.G", "denoise_albedo.B" }, "", "Denoising Albedo") }));
+    ImageBuf file =
+        assemble(concat({ rgb(kRGB, "", "Combined"),
+                          rgb({ "variance.R", "variance.G", "variance.B" }, "_var", "Combined"),
+                          rgb({ "N.X", "N.Y", "N.Z" }, "", "Denoising Normal", "XYZ"),
+                          { { "Z", "", "ViewLayer.Denoising Depth.Z" } },
+                          rgb({ "denoise_albedo.R", "denoise_albedo.G", "denoise_albedo.B" }, "",
+                              "Denoising Albedo") }));
     denoises_below_the_render("arnold", file, kRGB, "arnold", "cnn -> sure -> mix (net)");
 }
 
@@ -132,10 +135,11 @@ TEST(Presets, ArnoldBeautyWithVarianceRunsTheMixedChain)
 TEST(Presets, ArnoldLayerNamesAreDetected)
 {
     const std::vector<std::string> color = { "RGBA.R", "RGBA.G", "RGBA.B" };
-    ImageBuf file = assemble(concat({ rgb(color, "", "Combined"),
-                                      rgb({ "variance.R", "variance.G", "variance.B" }, "_var", "Combined"),
-                                      rgb({ "N.R", "N.G", "N.B" }, "", "Denoising Normal", "XYZ"),
-                                      rgb({ "albedo.R", "albedo.G", "albedo.B" }, "", "Denoising Albedo") }));
+    ImageBuf file =
+        assemble(concat({ rgb(color, "", "Combined"),
+                          rgb({ "variance.R", "variance.G", "variance.B" }, "_var", "Combined"),
+                          rgb({ "N.R", "N.G", "N.B" }, "", "Denoising Normal", "XYZ"),
+                          rgb({ "albedo.R", "albedo.G", "albedo.B" }, "", "Denoising Albedo") }));
     denoises_below_the_render("arnold_layers", file, color, "arnold", "cnn -> sure -> mix (net)");
 }
 
@@ -144,23 +148,26 @@ TEST(Presets, ArnoldLayerNamesAreDetected)
 TEST(Presets, RenderManDenoiseChannelsRunTheMixedChain)
 {
     const std::vector<std::string> color = { "Ci.r", "Ci.g", "Ci.b" };
-    ImageBuf file = assemble(concat({ rgb(color, "", "Combined"),
-                                      rgb({ "mse.r", "mse.g", "mse.b" }, "_var", "Combined"),
-                                      rgb({ "albedo.r", "albedo.g", "albedo.b" }, "", "Denoising Albedo"),
-                                      rgb({ "albedo_var.r", "albedo_var.g", "albedo_var.b" }, "_var", "Denoising Albedo"),
-                                      rgb({ "normal.x", "normal.y", "normal.z" }, "", "Denoising Normal", "XYZ"),
-                                      rgb({ "normal_var.x", "normal_var.y", "normal_var.z" }, "_var", "Denoising Normal", "XYZ"),
-                                      { { "zfiltered", "", "ViewLayer.Denoising Depth.Z" },
-                                        { "zfiltered_var", "_var", "ViewLayer.Denoising Depth.Z" } } }));
+    ImageBuf file = assemble(concat(
+        { rgb(color, "", "Combined"),
+          rgb({ "mse.r", "mse.g", "mse.b" }, "_var", "Combined"),
+          rgb({ "albedo.r", "albedo.g", "albedo.b" }, "", "Denoising Albedo"),
+          rgb({ "albedo_var.r", "albedo_var.g", "albedo_var.b" }, "_var", "Denoising Albedo"),
+          rgb({ "normal.x", "normal.y", "normal.z" }, "", "Denoising Normal", "XYZ"),
+          rgb({ "normal_var.x", "normal_var.y", "normal_var.z" }, "_var", "Denoising Normal",
+              "XYZ"),
+          { { "zfiltered", "", "ViewLayer.Denoising Depth.Z" },
+            { "zfiltered_var", "_var", "ViewLayer.Denoising Depth.Z" } } }));
     denoises_below_the_render("renderman", file, color, "renderman", "cnn -> sure -> mix (net)");
 }
 
 // What OIDN needs (and many Blender users have): the beauty with albedo and normal.
 TEST(Presets, BeautyAlbedoNormalOnlyRunsTheCnn)
 {
-    ImageBuf file = assemble(concat({ rgb(kRGB, "", "Combined"),
-                                      rgb({ "albedo.R", "albedo.G", "albedo.B" }, "", "Denoising Albedo"),
-                                      rgb({ "normal.X", "normal.Y", "normal.Z" }, "", "Denoising Normal", "XYZ") }));
+    ImageBuf file = assemble(
+        concat({ rgb(kRGB, "", "Combined"),
+                 rgb({ "albedo.R", "albedo.G", "albedo.B" }, "", "Denoising Albedo"),
+                 rgb({ "normal.X", "normal.Y", "normal.Z" }, "", "Denoising Normal", "XYZ") }));
     denoises_below_the_render("oidn", file, kRGB, "oidn", "cnn");
 }
 
@@ -171,9 +178,11 @@ TEST(Presets, CyclesBeautyWithDenoisingPassesRunsTheCnn)
                                              "ViewLayer.Combined.B" };
     std::vector<Source> s = rgb(color, "", "Combined");
     for (const char* c : { "R", "G", "B" })
-        s.push_back({ std::string("ViewLayer.Denoising Albedo.") + c, "", std::string("ViewLayer.Denoising Albedo.") + c });
+        s.push_back({ std::string("ViewLayer.Denoising Albedo.") + c, "",
+                      std::string("ViewLayer.Denoising Albedo.") + c });
     for (const char* c : { "X", "Y", "Z" })
-        s.push_back({ std::string("ViewLayer.Denoising Normal.") + c, "", std::string("ViewLayer.Denoising Normal.") + c });
+        s.push_back({ std::string("ViewLayer.Denoising Normal.") + c, "",
+                      std::string("ViewLayer.Denoising Normal.") + c });
     denoises_below_the_render("cycles_oidn", assemble(s), color, "cycles", "cnn");
 }
 
@@ -193,7 +202,8 @@ TEST(Presets, CyclesWithVarianceFileRunsTheMixedChain)
 TEST(Presets, TungstenDirectoryIsDetected)
 {
     const std::string dir = mcdn_test::temp_dir("presets_tungsten");
-    auto run = run_mcdntool("-v -i " + test_data("cornell20") + " --denoise -o " + dir + "/out.exr");
+    auto run =
+        run_mcdntool("-v -i " + test_data("cornell20") + " --denoise -o " + dir + "/out.exr");
     ASSERT_EQ(run.exit_code, 0) << run.output;
     EXPECT_NE(run.output.find("AOV preset 'tungsten'"), std::string::npos) << run.output;
     EXPECT_NE(run.output.find("--denoise runs cnn -> sure -> mix (net):"), std::string::npos)
@@ -218,7 +228,8 @@ TEST(Presets, DetectionSaysWhy)
 namespace {
 
 /// Writes `parts` (name, image) as one multi-part EXR.
-bool write_parts(const std::string& path, const std::vector<std::pair<std::string, ImageBuf>>& parts)
+bool write_parts(const std::string& path,
+                 const std::vector<std::pair<std::string, ImageBuf>>& parts)
 {
     std::vector<OIIO::ImageSpec> specs;
     for (const auto& [name, image] : parts) {
@@ -272,6 +283,8 @@ TEST(Presets, MultiPartExrIsOneAovSetAndIsWrittenBackInParts)
     EXPECT_NE(run.output.find("3 channels"), std::string::npos) << run.output;
     run = run_mcdntool("-i:part=nonesuch " + dir + "/beauty.exr --info");
     EXPECT_EQ(run.exit_code, 1);
-    EXPECT_NE(run.output.find("no part named 'nonesuch' (parts: rgba, variance, N, denoise_albedo)"),
-              std::string::npos) << run.output;
+    EXPECT_NE(
+        run.output.find("no part named 'nonesuch' (parts: rgba, variance, N, denoise_albedo)"),
+        std::string::npos)
+        << run.output;
 }

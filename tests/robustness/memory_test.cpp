@@ -37,10 +37,10 @@ TEST(Memory, AChainThatCannotFitIsRefusedBeforeItStarts)
     // Render, variance and both halves, 156 channels (the render's 39 and the colour of the
     // others read at least), 2 threads: streamed in bands it needs the input and one band
     // (it fits in 22 GB), more than a 4 GB slot has.
-    mcdn_test::Run run = run_mcdntool("--threads 2 -i " + f + " -i:as=variance " + f +
-                                      " -i:as=halfA " + f + " -i:as=halfB " + f +
-                                      " --cnn --sure --mix:model=net -o " +
-                                      quote(dir + "/out.exr"), "MCDN_MEMORY_LIMIT=4G");
+    mcdn_test::Run run = run_mcdntool(
+        "--threads 2 -i " + f + " -i:as=variance " + f + " -i:as=halfA " + f + " -i:as=halfB " + f
+            + " --cnn --sure --mix:model=net -o " + quote(dir + "/out.exr"),
+        "MCDN_MEMORY_LIMIT=4G");
     const std::string& output = run.output;
     EXPECT_EQ(run.exit_code, 1) << output;
     EXPECT_NE(output.find("a 8 Mpixel frame with 156 channels (48 read at least) needs about"),
@@ -65,10 +65,10 @@ TEST(Memory, OnlyTheChannelsReadCount)
     OIIO::ImageBufAlgo::fill(frame, { 0.25f });
     const std::string f = quote(dir + "/frame.exr");
     ASSERT_TRUE(frame.write(dir + "/frame.exr"));
-    mcdn_test::Run run = run_mcdntool("--threads 2 -i " + f + " -i:as=variance " + f +
-                                      " -i:as=halfA " + f + " -i:as=halfB " + f +
-                                      " --cnn --sure --mix:model=net -o " +
-                                      quote(dir + "/out.exr"), "MCDN_MEMORY_LIMIT=1.2G");
+    mcdn_test::Run run = run_mcdntool(
+        "--threads 2 -i " + f + " -i:as=variance " + f + " -i:as=halfA " + f + " -i:as=halfB " + f
+            + " --cnn --sure --mix:model=net -o " + quote(dir + "/out.exr"),
+        "MCDN_MEMORY_LIMIT=1.2G");
     EXPECT_EQ(run.exit_code, 0) << run.output;
     EXPECT_TRUE(OIIO::Filesystem::exists(dir + "/out.exr"));
 }
@@ -76,9 +76,9 @@ TEST(Memory, OnlyTheChannelsReadCount)
 TEST(Memory, TheLimitCanBeAFarmSlots)
 {
     std::string box = quote(test_data("box16/box_0016spp.exr"));
-    mcdn_test::Run run = run_mcdntool("-i " + box + " --cnn -o " +
-                                      quote(temp_dir("memory_low") + "/out.exr"),
-                                      "MCDN_MEMORY_LIMIT=1M");
+    mcdn_test::Run run =
+        run_mcdntool("-i " + box + " --cnn -o " + quote(temp_dir("memory_low") + "/out.exr"),
+                     "MCDN_MEMORY_LIMIT=1M");
     EXPECT_EQ(run.exit_code, 1) << run.output;
     EXPECT_NE(run.output.find("0.0 GB are available"), std::string::npos) << run.output;
     run = run_mcdntool("-i " + box + " --cnn -o " + quote(temp_dir("memory_ok") + "/out.exr"),

@@ -59,12 +59,13 @@ TEST(Output, NamingAnInputIsRefusedBeforeAnyWork)
     const std::string before = contents(render), var_before = contents(dir + "/var.exr");
     ASSERT_EQ(::link(render.c_str(), (dir + "/hardlink.exr").c_str()), 0);
     ASSERT_EQ(::symlink(render.c_str(), (dir + "/symlink.exr").c_str()), 0);
-    for (std::string out : { render, dir + "/./render.exr", dir + "/../" +
-                             Filesystem::filename(dir) + "/render.exr", dir + "/hardlink.exr",
-                             dir + "/symlink.exr", dir + "/var.exr" }) {
+    for (std::string out :
+         { render, dir + "/./render.exr", dir + "/../" + Filesystem::filename(dir) + "/render.exr",
+           dir + "/hardlink.exr", dir + "/symlink.exr", dir + "/var.exr" }) {
         for (std::string chain : { "", "--cnn", "--prefilter --nfor" }) {
-            mcdn_test::Run run = run_mcdntool("-i " + quote(render) + " -i:as=variance " +
-                                   quote(dir + "/var.exr") + " " + chain + " -o " + quote(out));
+            mcdn_test::Run run =
+                run_mcdntool("-i " + quote(render) + " -i:as=variance " + quote(dir + "/var.exr")
+                             + " " + chain + " -o " + quote(out));
             EXPECT_EQ(run.exit_code, 1) << out << " " << chain << ": " << run.output;
             EXPECT_NE(run.output.find("also an input"), std::string::npos) << run.output;
             // One line, and before any stage (--nfor without halves would fail otherwise).
@@ -75,8 +76,8 @@ TEST(Output, NamingAnInputIsRefusedBeforeAnyWork)
     EXPECT_EQ(contents(dir + "/var.exr"), var_before);
     EXPECT_TRUE(leftovers(dir).empty());
     // The reference of --metrics is an input too.
-    mcdn_test::Run run = run_mcdntool("-i " + quote(render) + " --metrics " + quote(dir + "/var.exr") +
-                           " -o " + quote(dir + "/var.exr"));
+    mcdn_test::Run run = run_mcdntool("-i " + quote(render) + " --metrics "
+                                      + quote(dir + "/var.exr") + " -o " + quote(dir + "/var.exr"));
     EXPECT_EQ(run.exit_code, 1) << run.output;
     EXPECT_EQ(contents(dir + "/var.exr"), var_before);
 }
@@ -110,8 +111,8 @@ TEST(Output, ADirectoryOrAMissingFolderFailsBeforeAnyWork)
     run = run_mcdntool("-i " + quote(render) + " --nfor -o " + quote(dir + "/no/such/out.exr"));
     EXPECT_EQ(run.exit_code, 1);
     EXPECT_NE(run.output.find("does not exist"), std::string::npos) << run.output;
-    run = run_mcdntool("-i " + quote(render) + " --nfor --heatmap:ref=" + quote(render) + " " +
-                       quote(dir + "/sub"));
+    run = run_mcdntool("-i " + quote(render) + " --nfor --heatmap:ref=" + quote(render) + " "
+                       + quote(dir + "/sub"));
     EXPECT_NE(run.output.find("is a directory"), std::string::npos) << run.output;
 }
 
@@ -120,7 +121,9 @@ TEST(Output, AFileTheUserCannotWriteIsNotReplaced)
     std::string dir = temp_dir("out_readonly");
     std::string render = copy_box(dir);
     std::string out = dir + "/out.exr";
-    { std::ofstream(out) << "keep me"; }
+    {
+        std::ofstream(out) << "keep me";
+    }
     ::chmod(out.c_str(), 0444);
     ::chmod(dir.c_str(), 0777);  // the folder is writable: only the file's mode protects it
     ::chmod(render.c_str(), 0644);

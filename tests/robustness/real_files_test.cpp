@@ -33,8 +33,8 @@ const std::string kRef = test_data("box16/box_ref.exr");
 std::string box_inputs(const std::string& render = kBox, const std::string& a = kHalfA,
                        const std::string& b = kHalfB)
 {
-    return "-i " + quote(render) + " -i:as=variance " + quote(kVar) + " -i:as=halfA "
-           + quote(a) + " -i:as=halfB " + quote(b);
+    return "-i " + quote(render) + " -i:as=variance " + quote(kVar) + " -i:as=halfA " + quote(a)
+           + " -i:as=halfB " + quote(b);
 }
 
 OIIO::ImageBuf read_float(const std::string& path)
@@ -45,8 +45,7 @@ OIIO::ImageBuf read_float(const std::string& path)
 }
 
 // `src` written to `path` with `spec_change` applied to its spec (tiles, MIP levels).
-template<class F>
-void write_with(const std::string& src, const std::string& path, F spec_change)
+template <class F> void write_with(const std::string& src, const std::string& path, F spec_change)
 {
     OIIO::ImageBuf buf = read_float(src);
     OIIO::ImageSpec spec = buf.spec();
@@ -99,8 +98,8 @@ TEST(RealFiles, AnyPartOfAMultiPartFileIsRead)
     EXPECT_EQ(max_abs_difference(dir + "/parts.exr", dir + "/files.exr"), 0.0);
     run = run_mcdntool("-i:part=nothere " + quote(mp) + " --info");
     EXPECT_EQ(run.exit_code, 1) << run.output;
-    EXPECT_NE(run.output.find("no part named 'nothere' (parts: rgba, variance)"),
-              std::string::npos) << run.output;
+    EXPECT_NE(run.output.find("no part named 'nothere' (parts: rgba, variance)"), std::string::npos)
+        << run.output;
 }
 
 // 2 and the tiled-output failure: tiled (1-row and 1-column tiles included) and MIP-mapped
@@ -113,7 +112,7 @@ TEST(RealFiles, TiledAndMipMappedInputsThroughEveryChain)
         int tw, th;
         bool mip;
     };
-    const Layout layouts[] = { { "t64", 64, 64, false }, { "t32x1", 32, 1, false },
+    const Layout layouts[] = { { "t64", 64, 64, false },  { "t32x1", 32, 1, false },
                                { "t1x32", 1, 32, false }, { "t16", 16, 16, false },
                                { "t48x8", 48, 8, false }, { "mip", 32, 32, true } };
     const std::string chains[] = { "--denoise", "--cnn", "--prefilter --nfor",
@@ -144,8 +143,8 @@ TEST(RealFiles, TiledAndMipMappedInputsThroughEveryChain)
             ASSERT_TRUE(IBA::make_texture(IBA::MakeTxTexture, src, path, config))
                 << OIIO::geterror();
         }
-        const std::string render
-            = l.mip ? dir + "/" + l.name + "_render.exr" : tiled(kBox, "render");
+        const std::string render =
+            l.mip ? dir + "/" + l.name + "_render.exr" : tiled(kBox, "render");
         const std::string a = tiled(kHalfA, "A"), b = tiled(kHalfB, "B");
         {
             auto in = OIIO::ImageInput::open(render);
@@ -157,11 +156,11 @@ TEST(RealFiles, TiledAndMipMappedInputsThroughEveryChain)
         }
         for (size_t i = 0; i < std::size(chains); ++i) {
             const std::string out = dir + "/" + l.name + "_out" + std::to_string(i) + ".exr";
-            mcdn_test::Run run = run_mcdntool(box_inputs(render, a, b) + " " + chains[i] + " -o "
-                                   + quote(out));
+            mcdn_test::Run run =
+                run_mcdntool(box_inputs(render, a, b) + " " + chains[i] + " -o " + quote(out));
             ASSERT_EQ(run.exit_code, 0) << l.name << " " << chains[i] << ": " << run.output;
-            EXPECT_EQ(max_abs_difference(out, dir + "/plain" + std::to_string(i) + ".exr"),
-                      0.0) << l.name << " " << chains[i];
+            EXPECT_EQ(max_abs_difference(out, dir + "/plain" + std::to_string(i) + ".exr"), 0.0)
+                << l.name << " " << chains[i];
             // The output is a plain scanline image of level 0.
             auto in = OIIO::ImageInput::open(out);
             ASSERT_TRUE(in);
@@ -204,8 +203,9 @@ TEST(RealFiles, FifosAndDevicesAreRefusedAtOnce)
     std::ofstream(dir + "/fifo.mcdn") << "in = fifo.exr\nchain = cnn\n";
     std::ofstream(dir + "/weights.mcdn") << "in = " << kBox << "\ncnn.weights = /dev/zero\n";
     for (const std::string& recipe : { dir + "/fifo.mcdn", dir + "/weights.mcdn" }) {
-        mcdn_test::Run run = run_mcdntool("-i " + quote(recipe) + " -o " + out,
-                               "OIIO_LIBRARY_PATH=" + quote(MCDN_PLUGIN_DIR), "timeout 30 ");
+        mcdn_test::Run run =
+            run_mcdntool("-i " + quote(recipe) + " -o " + out,
+                         "OIIO_LIBRARY_PATH=" + quote(MCDN_PLUGIN_DIR), "timeout 30 ");
         EXPECT_EQ(run.exit_code, 1) << recipe << ": " << run.output;
         EXPECT_NE(run.output.find("not a regular file"), std::string::npos) << run.output;
         if (has_oiiotool()) {
@@ -228,10 +228,10 @@ TEST(RealFiles, HalvesThatAreNotTheRendersAreCaught)
     ASSERT_TRUE(IBA::flip(read_float(kHalfA)).write(flipped_a));
     ASSERT_TRUE(IBA::flip(read_float(kHalfB)).write(flipped_b));
     // (--denoise without halves in its chain reads none: nothing to check.)
-    for (const std::string chain : { "--prefilter --nfor", "--prefilter --nfor --sure --mix",
-                                     "--nfor --sure --mix" }) {
-        mcdn_test::Run run
-            = run_mcdntool(box_inputs(kBox, flipped_a, flipped_b) + " " + chain + " -o " + out);
+    for (const std::string chain :
+         { "--prefilter --nfor", "--prefilter --nfor --sure --mix", "--nfor --sure --mix" }) {
+        mcdn_test::Run run =
+            run_mcdntool(box_inputs(kBox, flipped_a, flipped_b) + " " + chain + " -o " + out);
         EXPECT_EQ(run.exit_code, 1) << chain << ": " << run.output;
         EXPECT_NE(run.output.find("flipped_A.exr and " + flipped_b), std::string::npos)
             << run.output;
@@ -239,9 +239,9 @@ TEST(RealFiles, HalvesThatAreNotTheRendersAreCaught)
             << run.output;
     }
     // The halves of the reference (another render of the same frame), without a variance file.
-    mcdn_test::Run run = run_mcdntool("-i " + quote(kBox) + " -i:as=halfA " + quote(kRef)
-                                      + " -i:as=halfB " + quote(kRef) + " --prefilter --nfor -o "
-                                      + out);
+    mcdn_test::Run run =
+        run_mcdntool("-i " + quote(kBox) + " -i:as=halfA " + quote(kRef) + " -i:as=halfB "
+                     + quote(kRef) + " --prefilter --nfor -o " + out);
     EXPECT_EQ(run.exit_code, 1) << run.output;
     // A 3x3 block of 1e6 in halfA alone: those tiles' halves are the render, said with -v;
     // no value of that size reaches the output.
@@ -250,15 +250,15 @@ TEST(RealFiles, HalvesThatAreNotTheRendersAreCaught)
     for (int y = 8; y < 11; ++y)  // inside one 32x32 tile of the four
         for (int x = 8; x < 11; ++x)
             for (int c = r; c < r + 3; ++c)
-                static_cast<float*>(a.localpixels())[(size_t(y) * a.spec().width + x)
-                                                     * a.nchannels() + c] = 1e6f;
+                static_cast<float*>(
+                    a.localpixels())[(size_t(y) * a.spec().width + x) * a.nchannels() + c] = 1e6f;
     ASSERT_TRUE(a.write(dir + "/block_A.exr"));
     for (const std::string chain : { "--prefilter --nfor", "--prefilter --nfor --sure --mix" }) {
         run = run_mcdntool("-v " + box_inputs(kBox, dir + "/block_A.exr") + " " + chain + " -o "
                            + out);
         ASSERT_EQ(run.exit_code, 0) << run.output;
-        EXPECT_NE(run.output.find("the half buffers disagree with the render"),
-                  std::string::npos) << run.output;
+        EXPECT_NE(run.output.find("the half buffers disagree with the render"), std::string::npos)
+            << run.output;
         OIIO::ImageBuf result = read_float(dir + "/out.exr");
         const OIIO::ImageSpec& s = result.spec();
         const int red = s.channelindex("ViewLayer.Combined.R");
@@ -288,7 +288,8 @@ TEST(RealFiles, HugeValuesAndLongNormalsAreRefused)
     mcdn_test::Run run = run_mcdntool("-i " + quote(color) + " --cnn -o " + quote(dir + "/o.exr"));
     EXPECT_EQ(run.exit_code, 1) << run.output;
     EXPECT_NE(run.output.find("channel 'ViewLayer.Combined.G' (role color) has a huge value"),
-              std::string::npos) << run.output;
+              std::string::npos)
+        << run.output;
     run = run_mcdntool("-i " + quote(edited("normal.exr", "ViewLayer.Denoising Normal.X", 1e10f))
                        + " --cnn -o " + quote(dir + "/o.exr"));
     EXPECT_EQ(run.exit_code, 1) << run.output;
@@ -314,8 +315,9 @@ TEST(RealFiles, AnotherHostsTemporaryIsNotRemoved)
     const std::string prefix = dir + "/.out.exr.mcdn-tmp-";
     const std::string ours_dead = prefix + "99999999-0-" + mcdn::temporary_owner();
     const std::string other_host = prefix + "99999999-0-4026531836-othernode";
-    const std::string other_ns = prefix + "99999999-3-1234-" + mcdn::temporary_owner().substr(
-                                     mcdn::temporary_owner().find('-') + 1);
+    const std::string other_ns =
+        prefix + "99999999-3-1234-"
+        + mcdn::temporary_owner().substr(mcdn::temporary_owner().find('-') + 1);
     const std::string old_style = prefix + "99999999-0";
     const std::string other_old = prefix + "99999999-1-4026531836-othernode";
     for (const auto& f : { ours_dead, other_host, other_ns, old_style, other_old })
@@ -336,11 +338,10 @@ TEST(RealFiles, AnotherHostsTemporaryIsNotRemoved)
         return;
     OIIO::ImageBuf big = IBA::resize(read_float(kBox), "", 0.0f, OIIO::ROI(0, 512, 0, 512));
     ASSERT_TRUE(big.write(dir + "/big.exr"));
-    const std::string first = "MCDN_BAND_PIXELS=16384 unshare --pid --fork --mount-proc '"
-                              + std::string(MCDNTOOL) + "' -i " + quote(dir + "/big.exr")
-                              + " --cnn -o " + quote(dir + "/race.exr") + " > "
-                              + quote(dir + "/first.log") + " 2>&1; echo $? > "
-                              + quote(dir + "/first.rc");
+    const std::string first =
+        "MCDN_BAND_PIXELS=16384 unshare --pid --fork --mount-proc '" + std::string(MCDNTOOL)
+        + "' -i " + quote(dir + "/big.exr") + " --cnn -o " + quote(dir + "/race.exr") + " > "
+        + quote(dir + "/first.log") + " 2>&1; echo $? > " + quote(dir + "/first.rc");
     ASSERT_EQ(std::system(("(" + first + ") &").c_str()), 0);
     bool seen = false;
     for (int i = 0; i < 3000 && !seen; ++i) {
@@ -408,9 +409,9 @@ for i in range(16):
 print("rss", rss[4], rss[-1])
 assert rss[-1] - rss[4] < 50 * 1024, rss
 )";
-    mcdn_test::Run run = run_command("cd " + quote(dir) + " && OIIO_LIBRARY_PATH="
-                                     + quote(MCDN_PLUGIN_DIR) + " /usr/bin/python3 "
-                                     + quote(script) + " " + quote(dir));
+    mcdn_test::Run run =
+        run_command("cd " + quote(dir) + " && OIIO_LIBRARY_PATH=" + quote(MCDN_PLUGIN_DIR)
+                    + " /usr/bin/python3 " + quote(script) + " " + quote(dir));
     EXPECT_EQ(run.exit_code, 0) << run.output;
 }
 
@@ -479,14 +480,15 @@ TEST(RealFiles, TheSmallerItems)
         EXPECT_EQ(in->spec().get_string_attribute("compression"), c.substr(0, c.find(':')));
     }
     // A variance file without the colour's variance lists its own channels, not the render's.
-    OIIO::ImageBuf odd = make_image(64, 64, { "V.R", "V.G", "V.B" },
-                                    [](int, int, int) { return 0.01f; });
+    OIIO::ImageBuf odd =
+        make_image(64, 64, { "V.R", "V.G", "V.B" }, [](int, int, int) { return 0.01f; });
     ASSERT_TRUE(odd.write(dir + "/odd_var.exr"));
     run = run_mcdntool("-i " + quote(kBox) + " -i:as=variance " + quote(dir + "/odd_var.exr")
                        + " --cnn -o " + quote(out));
     EXPECT_EQ(run.exit_code, 1) << run.output;
     EXPECT_NE(run.output.find("channels there: variance.V.R,variance.V.G,variance.V.B;"),
-              std::string::npos) << run.output;
+              std::string::npos)
+        << run.output;
     // --fixnan error names the channel.
     OIIO::ImageBuf nan = read_float(kBox);
     const int depth = nan.spec().channelindex("ViewLayer.Depth.Z");
@@ -495,7 +497,8 @@ TEST(RealFiles, TheSmallerItems)
     run = run_mcdntool("-i " + quote(dir + "/nan.exr") + " --fixnan error -o " + quote(out));
     EXPECT_EQ(run.exit_code, 1) << run.output;
     EXPECT_NE(run.output.find("channel 'ViewLayer.Depth.Z' has NaN at pixel (4, 3)"),
-              std::string::npos) << run.output;
+              std::string::npos)
+        << run.output;
     // The stage named once.
     run = run_mcdntool("-i " + quote(kBox) + " --cnn:weights=" + quote(kBox) + " -o " + quote(out));
     EXPECT_EQ(run.exit_code, 1) << run.output;
@@ -526,12 +529,15 @@ TEST(RealFiles, TheSmallerItems)
         run = run_mcdntool("-i " + quote(dir + "/yc.exr") + " --denoise -o " + quote(out));
         EXPECT_EQ(run.exit_code, 1) << run.output;
         EXPECT_NE(run.output.find("yc.exr: cannot read: Subsampled channels are not supported"),
-                  std::string::npos) << run.output;
+                  std::string::npos)
+            << run.output;
         EXPECT_TRUE(ends_one_line(run)) << run.output;
     }
     // shot.1.exr and shot.0001.exr are both frame 1 of shot.@.exr: an error, not frame 1 twice.
     ASSERT_EQ(std::system(("cp " + quote(kBox) + " " + quote(dir + "/shot.1.exr") + " && cp "
-                           + quote(kBox) + " " + quote(dir + "/shot.0001.exr")).c_str()), 0);
+                           + quote(kBox) + " " + quote(dir + "/shot.0001.exr"))
+                              .c_str()),
+              0);
     run = run_mcdntool("-i " + quote(dir + "/shot.@.exr") + " -o " + quote(dir + "/o.@.exr"));
     EXPECT_EQ(run.exit_code, 1) << run.output;
     EXPECT_NE(run.output.find("are both frame 1"), std::string::npos) << run.output;
@@ -543,22 +549,22 @@ TEST(RealFiles, OutOfMemoryInEveryChainIsAnError)
 {
     std::string dir = temp_dir("real_oom");
     std::string inputs;
-    for (const auto& [file, as] : { std::pair { kBox, "" }, std::pair { kVar, ":as=variance" },
-                                    std::pair { kHalfA, ":as=halfA" },
-                                    std::pair { kHalfB, ":as=halfB" } }) {
+    for (const auto& [file, as] :
+         { std::pair { kBox, "" }, std::pair { kVar, ":as=variance" },
+           std::pair { kHalfA, ":as=halfA" }, std::pair { kHalfB, ":as=halfB" } }) {
         const std::string big = dir + "/" + OIIO::Filesystem::filename(file);
-        OIIO::ImageBuf resized = IBA::resize(read_float(file), "", 0.0f,
-                                             OIIO::ROI(0, 1024, 0, 1024));
+        OIIO::ImageBuf resized =
+            IBA::resize(read_float(file), "", 0.0f, OIIO::ROI(0, 1024, 0, 1024));
         ASSERT_TRUE(resized.write(big));
         inputs += " -i" + std::string(as) + " " + quote(big);
     }
-    for (const std::string chain : { "--denoise", "--cnn", "--prefilter --nfor",
-                                     "--prefilter --nfor --sure --mix", "--cnn --sure --mix",
-                                     "--nfor --sure --mix:model=analytic" })
+    for (const std::string chain :
+         { "--denoise", "--cnn", "--prefilter --nfor", "--prefilter --nfor --sure --mix",
+           "--cnn --sure --mix", "--nfor --sure --mix:model=analytic" })
         for (const char* limit : { "1572864", "900000" }) {
-            mcdn_test::Run run = run_command("ulimit -v " + std::string(limit) + "; '"
-                                             + MCDNTOOL + "'" + inputs + " " + chain + " -o "
-                                             + quote(dir + "/out.exr"));
+            mcdn_test::Run run =
+                run_command("ulimit -v " + std::string(limit) + "; '" + MCDNTOOL + "'" + inputs
+                            + " " + chain + " -o " + quote(dir + "/out.exr"));
             EXPECT_TRUE(run.exit_code == 0 || run.exit_code == 1)
                 << chain << " under " << limit << " kB: exit " << run.exit_code << ": "
                 << run.output;
@@ -567,8 +573,7 @@ TEST(RealFiles, OutOfMemoryInEveryChainIsAnError)
                 EXPECT_TRUE(ends_one_line(run)) << run.output;
             }
             EXPECT_TRUE(std::none_of(std::filesystem::directory_iterator(dir),
-                                     std::filesystem::directory_iterator(),
-                                     [](const auto& e) {
+                                     std::filesystem::directory_iterator(), [](const auto& e) {
                                          return e.path().filename().string().find("mcdn-tmp")
                                                 != std::string::npos;
                                      }));

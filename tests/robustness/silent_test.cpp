@@ -20,8 +20,7 @@ const std::string kBox = test_data("box16/box_0016spp.exr");
 const std::string kVar = test_data("box16/box_0016spp_var.exr");
 
 // The box render with `change` applied to its pixels, written to `path`.
-template<class F>
-std::string edited_box(const std::string& path, F change)
+template <class F> std::string edited_box(const std::string& path, F change)
 {
     OIIO::ImageBuf box(kBox);
     box.read(0, 0, true, OIIO::TypeDesc::FLOAT);
@@ -45,7 +44,8 @@ TEST(Silent, AVarianceFileWithoutAColorVarianceIsAnError)
 {
     std::string dir = temp_dir("silent_var");
     // A PNG renamed .exr: OIIO reads it by its content, channels R,G,B,A.
-    OIIO::ImageBuf png = make_image(64, 64, { "R", "G", "B", "A" }, [](int, int, int) { return 0.5f; });
+    OIIO::ImageBuf png =
+        make_image(64, 64, { "R", "G", "B", "A" }, [](int, int, int) { return 0.5f; });
     ASSERT_TRUE(png.write(dir + "/var.png"));
     ASSERT_EQ(std::rename((dir + "/var.png").c_str(), (dir + "/var.exr").c_str()), 0);
     // An EXR without the blue channel's variance.
@@ -61,13 +61,15 @@ TEST(Silent, AVarianceFileWithoutAColorVarianceIsAnError)
     ASSERT_TRUE(no_b.write(dir + "/var_no_b.exr"));
     for (std::string file : { dir + "/var.exr", dir + "/var_no_b.exr" })
         for (std::string chain : { "--nfor", "--cnn", "" }) {
-            mcdn_test::Run run = run_mcdntool("-i " + quote(kBox) + " -i:as=variance " + quote(file) +
-                                   " -i:as=halfA " + quote(test_data("box16/box_0016spp_A.exr")) +
-                                   " -i:as=halfB " + quote(test_data("box16/box_0016spp_B.exr")) +
-                                   " " + chain + " -o " + quote(dir + "/out.exr"));
+            mcdn_test::Run run =
+                run_mcdntool("-i " + quote(kBox) + " -i:as=variance " + quote(file)
+                             + " -i:as=halfA " + quote(test_data("box16/box_0016spp_A.exr"))
+                             + " -i:as=halfB " + quote(test_data("box16/box_0016spp_B.exr")) + " "
+                             + chain + " -o " + quote(dir + "/out.exr"));
             EXPECT_EQ(run.exit_code, 1) << file << chain << ": " << run.output;
             EXPECT_NE(run.output.find(file + ": given with -i:as=variance but has no variance"),
-                      std::string::npos) << run.output;
+                      std::string::npos)
+                << run.output;
             EXPECT_NE(run.output.find("variance.ViewLayer.Combined.B"), std::string::npos)
                 << run.output;  // the channels looked for
         }
@@ -80,11 +82,14 @@ TEST(Silent, HalfOutputClampsFirefliesWithAWarning)
         for (int i = 0; i < 3; ++i)
             set_value(b, "ViewLayer.Combined.R", 10 + i, 20, 1e6f);
     });
-    mcdn_test::Run run = run_mcdntool("-i " + quote(in) + " -o:datatype=half " + quote(dir + "/out.exr"));
+    mcdn_test::Run run =
+        run_mcdntool("-i " + quote(in) + " -o:datatype=half " + quote(dir + "/out.exr"));
     EXPECT_EQ(run.exit_code, 0) << run.output;
-    EXPECT_NE(run.output.find("warning: " + dir + "/out.exr: channel ViewLayer.Combined.R: 3 "
-                              "values beyond half's range clamped to +-65504"),
-              std::string::npos) << run.output;
+    EXPECT_NE(run.output.find("warning: " + dir
+                              + "/out.exr: channel ViewLayer.Combined.R: 3 "
+                                "values beyond half's range clamped to +-65504"),
+              std::string::npos)
+        << run.output;
     OIIO::ImageBuf out(dir + "/out.exr");
     auto stats = IBA::computePixelStats(out);
     for (size_t c = 0; c < stats.nancount.size(); ++c)
@@ -106,12 +111,13 @@ TEST(Silent, NanInPassThroughChannelsIsNamedAndFixnanRepairsIt)
     mcdn_test::Run run = run_mcdntool("-i " + quote(in) + " --cnn -o " + quote(dir + "/out.exr"));
     EXPECT_EQ(run.exit_code, 0) << run.output;
     EXPECT_NE(run.output.find("channel ViewLayer.Combined.A has 1 NaN and 0 Inf"),
-              std::string::npos) << run.output;
-    EXPECT_NE(run.output.find("channel ViewLayer.Normal.X has 1 NaN and 1 Inf"),
-              std::string::npos) << run.output;
+              std::string::npos)
+        << run.output;
+    EXPECT_NE(run.output.find("channel ViewLayer.Normal.X has 1 NaN and 1 Inf"), std::string::npos)
+        << run.output;
     for (std::string mode : { "black", "box3" }) {
-        run = run_mcdntool("-i " + quote(in) + " --cnn --fixnan " + mode + " -o " +
-                           quote(dir + "/fixed.exr"));
+        run = run_mcdntool("-i " + quote(in) + " --cnn --fixnan " + mode + " -o "
+                           + quote(dir + "/fixed.exr"));
         EXPECT_EQ(run.exit_code, 0) << run.output;
         EXPECT_EQ(run.output.find("warning"), std::string::npos) << run.output;
         auto stats = IBA::computePixelStats(OIIO::ImageBuf(dir + "/fixed.exr"));
@@ -146,7 +152,9 @@ TEST(Silent, TheMissingFeaturesAreNamedWithV)
 {
     mcdn_test::Run run = run_mcdntool("-v -i " + quote(kBox) + " --cnn -o /dev/null");
     EXPECT_NE(run.output.find("features found: albedo, normal, depth, diffuse_color, "
-                              "glossy_color; missing: none"), std::string::npos) << run.output;
+                              "glossy_color; missing: none"),
+              std::string::npos)
+        << run.output;
     std::string dir = temp_dir("silent_features");
     OIIO::ImageBuf box(kBox);
     std::vector<int> keep;
@@ -157,12 +165,16 @@ TEST(Silent, TheMissingFeaturesAreNamedWithV)
     ASSERT_TRUE(no_albedo.write(dir + "/no_albedo.exr"));
     run = run_mcdntool("-v -i " + quote(dir + "/no_albedo.exr") + " --cnn -o /dev/null");
     EXPECT_NE(run.output.find("missing: albedo (nfor and prefilter leave them out"),
-              std::string::npos) << run.output;
+              std::string::npos)
+        << run.output;
 }
 
 namespace {
 
-mcdn_test::Run oiiotool(const std::string& args) { return run_oiiotool(args); }
+mcdn_test::Run oiiotool(const std::string& args)
+{
+    return run_oiiotool(args);
+}
 
 }  // namespace
 
@@ -186,8 +198,8 @@ TEST(Silent, RecipesSayWhatIsWrong)
     run = oiiotool(quote(dir + "/bom.mcdn") + " -o " + quote(dir + "/bom.exr"));
     EXPECT_EQ(run.exit_code, 0) << run.output;
     // %00 in a query path is an error, not a silently shorter path.
-    run = oiiotool(quote("x.mcdn?in=" + kBox + "%00.junk&chain=cnn") + " -o " +
-                   quote(dir + "/nul.exr"));
+    run = oiiotool(quote("x.mcdn?in=" + kBox + "%00.junk&chain=cnn") + " -o "
+                   + quote(dir + "/nul.exr"));
     EXPECT_EQ(run.exit_code, 1) << run.output;
     EXPECT_NE(run.output.find("%00"), std::string::npos) << run.output;
 }

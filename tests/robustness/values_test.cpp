@@ -11,9 +11,15 @@ using namespace mcdn_test;
 
 namespace {
 
-mcdn_test::Run oiiotool(const std::string& args) { return run_oiiotool(args); }
+mcdn_test::Run oiiotool(const std::string& args)
+{
+    return run_oiiotool(args);
+}
 
-void write_file(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
+void write_file(const std::string& path, const std::string& text)
+{
+    std::ofstream(path) << text;
+}
 
 const std::string kBox = test_data("box16/box_0016spp.exr");
 
@@ -28,8 +34,8 @@ TEST(Recipes, ALoopIsAnErrorNotAHang)
     write_file(dir + "/a.mcdn", "in = b.mcdn\nchain = cnn\n");
     write_file(dir + "/b.mcdn", "in = ./a.mcdn\nchain = cnn\n");
     // The query form too: its `in` names a recipe file that loops.
-    for (std::string recipe : { dir + "/self.mcdn", dir + "/a.mcdn",
-                                dir + "/q.mcdn?in=" + dir + "/a.mcdn&chain=cnn" }) {
+    for (std::string recipe :
+         { dir + "/self.mcdn", dir + "/a.mcdn", dir + "/q.mcdn?in=" + dir + "/a.mcdn&chain=cnn" }) {
         mcdn_test::Run run = oiiotool(quote(recipe) + " -o " + quote(dir + "/out.exr"));
         EXPECT_EQ(run.exit_code, 1) << recipe << ": " << run.output;
         EXPECT_NE(run.output.find("recipe loop"), std::string::npos) << run.output;
@@ -43,8 +49,8 @@ TEST(Recipes, ANestedRecipeWorks)
     std::string dir = temp_dir("recipe_nested");
     write_file(dir + "/inner.mcdn", "in = " + kBox + "\nchain = cnn\n");
     write_file(dir + "/outer.mcdn", "in = inner.mcdn\nchain = cnn\n");
-    for (std::string recipe : { dir + "/outer.mcdn",
-                                dir + "/x.mcdn?in=" + dir + "/inner.mcdn&chain=cnn" }) {
+    for (std::string recipe :
+         { dir + "/outer.mcdn", dir + "/x.mcdn?in=" + dir + "/inner.mcdn&chain=cnn" }) {
         mcdn_test::Run run = oiiotool(quote(recipe) + " -o " + quote(dir + "/out.exr"));
         EXPECT_EQ(run.exit_code, 0) << recipe << ": " << run.output;
     }
@@ -76,7 +82,8 @@ TEST(Threads, OneRuleInTheLibrary)
 TEST(Threads, TooManyIsAnErrorInEveryFrontEnd)
 {
     for (std::string n : { "70000", "65537", "abc", "-5" }) {
-        mcdn_test::Run run = run_mcdntool("-i " + quote(kBox) + " --threads " + n + " --cnn -o /dev/null");
+        mcdn_test::Run run =
+            run_mcdntool("-i " + quote(kBox) + " --threads " + n + " --cnn -o /dev/null");
         EXPECT_EQ(run.exit_code, 1) << n << ": " << run.output;
         EXPECT_NE(run.output.find("threads"), std::string::npos) << run.output;
     }
@@ -84,8 +91,8 @@ TEST(Threads, TooManyIsAnErrorInEveryFrontEnd)
         GTEST_SKIP() << "oiiotool not installed";
     std::string dir = temp_dir("threads_plugin");
     for (std::string n : { "70000", "abc", "-5" }) {
-        mcdn_test::Run run = oiiotool(quote("x.mcdn?in=" + kBox + "&chain=cnn&threads=" + n) + " -o "
-                           + quote(dir + "/out.exr"));
+        mcdn_test::Run run = oiiotool(quote("x.mcdn?in=" + kBox + "&chain=cnn&threads=" + n)
+                                      + " -o " + quote(dir + "/out.exr"));
         EXPECT_EQ(run.exit_code, 1) << n << ": " << run.output;
         EXPECT_NE(run.output.find("threads=" + n), std::string::npos) << run.output;
     }
@@ -95,21 +102,21 @@ TEST(Values, SilentlyAcceptedValuesAreErrors)
 {
     std::string dir = temp_dir("values");
     for (std::string args : { "-o:compression=bogus", "-o:compression=ZIP" }) {
-        mcdn_test::Run run = run_mcdntool("-i " + quote(kBox) + " --cnn " + args + " " +
-                               quote(dir + "/out.exr"));
+        mcdn_test::Run run =
+            run_mcdntool("-i " + quote(kBox) + " --cnn " + args + " " + quote(dir + "/out.exr"));
         EXPECT_EQ(run.exit_code, 1) << args << ": " << run.output;
         EXPECT_NE(run.output.find("compression="), std::string::npos) << run.output;
         EXPECT_FALSE(OIIO::Filesystem::exists(dir + "/out.exr"));
     }
     for (std::string eps : { "0", "-1e-3", "0.5" }) {
-        mcdn_test::Run run = run_mcdntool("-i " + quote(kBox) + " -i:as=variance " +
-                               quote(test_data("box16/box_0016spp_var.exr")) +
-                               " --cnn --sure:eps=" + eps + " -o " + quote(dir + "/out.exr"));
+        mcdn_test::Run run = run_mcdntool(
+            "-i " + quote(kBox) + " -i:as=variance " + quote(test_data("box16/box_0016spp_var.exr"))
+            + " --cnn --sure:eps=" + eps + " -o " + quote(dir + "/out.exr"));
         EXPECT_EQ(run.exit_code, 1) << eps << ": " << run.output;
         EXPECT_NE(run.output.find("eps=" + eps), std::string::npos) << run.output;
     }
-    mcdn_test::Run run = run_mcdntool("-i " + quote(kBox) + " -o:compression=dwaa " +
-                                      quote(dir + "/ok.exr"));
+    mcdn_test::Run run =
+        run_mcdntool("-i " + quote(kBox) + " -o:compression=dwaa " + quote(dir + "/ok.exr"));
     EXPECT_EQ(run.exit_code, 0) << run.output;
     // Levels, for the library's and Python's writers.
     std::string error;

@@ -24,7 +24,10 @@ namespace {
 
 constexpr int T = kConvergedTileSize;
 
-Plane constant_plane(int w, int h, float v) { return Plane(w, h, v); }
+Plane constant_plane(int w, int h, float v)
+{
+    return Plane(w, h, v);
+}
 
 ImageBuf read_examples_box()
 {
@@ -170,7 +173,10 @@ TEST(ConvergedTiles, FrameScanEqualsThePlanes)
     spec.channelnames = { "R", "G", "B", "N.X", "variance.R", "variance.G", "variance.B", "Z" };
     ImageBuf frame(spec);
     uint32_t state = 7;
-    auto next = [&] { state = state * 1664525u + 1013904223u; return (state >> 8) * (1.0f / 16777216.0f); };
+    auto next = [&] {
+        state = state * 1664525u + 1013904223u;
+        return (state >> 8) * (1.0f / 16777216.0f);
+    };
     std::vector<float> px(8);
     for (int y = 0; y < h; ++y)
         for (int x = 0; x < w; ++x) {
@@ -312,7 +318,8 @@ TEST(SkipNfor, ConstantFeatureIsDroppedNotFitted)
             ASSERT_GE(c, 0);
             OIIO::ImageBufAlgo::fill(src, { 0.5f }, OIIO::ROI(0, 128, 0, 128, 0, 1, c, c + 1));
         }
-    FeaturePlanes flat { Plane(4, 4, 0.5f), Plane(4, 4, 0.0f), Plane(4, 4, 0.5f), Plane(4, 4, 0.5f) };
+    FeaturePlanes flat { Plane(4, 4, 0.5f), Plane(4, 4, 0.0f), Plane(4, 4, 0.5f),
+                         Plane(4, 4, 0.5f) };
     FeaturePlanes ramp = flat;
     ramp.half_b(3, 3) = 0.25f;
     std::vector<FeaturePlanes> features { flat, ramp, flat };
@@ -339,7 +346,8 @@ TEST(SkipNfor, ConstantFeatureIsDroppedNotFitted)
     ASSERT_GE(albedo_var, 0);
     for (int y = 0; y < 128; y += 7)
         for (int x = 0; x < 128; x += 7)
-            ASSERT_EQ(filtered.getchannel(x, y, 0, albedo_var), src.getchannel(x, y, 0, albedo_var));
+            ASSERT_EQ(filtered.getchannel(x, y, 0, albedo_var),
+                      src.getchannel(x, y, 0, albedo_var));
 }
 
 TEST(SkipPrefilter, ConvergedTilesKeepTheirHalves)
@@ -353,8 +361,10 @@ TEST(SkipPrefilter, ConvergedTilesKeepTheirHalves)
     float converged_change = 0, noisy_change = 0;
     for (int y = 0; y < 128; ++y)
         for (int x = 0; x < 128; ++x) {
-            float d = std::fabs(out.getchannel(x, y, 0, normal_a) - src.getchannel(x, y, 0, normal_a));
-            (x < T ? converged_change : noisy_change) = std::max(x < T ? converged_change : noisy_change, d);
+            float d =
+                std::fabs(out.getchannel(x, y, 0, normal_a) - src.getchannel(x, y, 0, normal_a));
+            (x < T ? converged_change : noisy_change) =
+                std::max(x < T ? converged_change : noisy_change, d);
         }
     EXPECT_EQ(converged_change, 0.0f);
     EXPECT_GT(noisy_change, 0.0f);
@@ -444,7 +454,8 @@ TEST(SkipChains, AConvergedFrameIsTheRenderThroughEveryChain)
     EXPECT_EQ(count.converged, 16);
     EXPECT_EQ(count.tiles, 16);
     for (const std::vector<std::string>& stages :
-         { std::vector<std::string> { "cnn", "sure", "mix" }, { "prefilter", "nfor", "sure", "mix" },
+         { std::vector<std::string> { "cnn", "sure", "mix" },
+           { "prefilter", "nfor", "sure", "mix" },
            { "denoise" } }) {
         ChainOptions chain;
         chain.aovs = cycles();
@@ -472,7 +483,7 @@ TEST(SkipFrontEnds, RecipeKeyAndCommandLineModifier)
     ImageBuf from_recipe;
     ASSERT_TRUE(run_chain(from_recipe, src, chain, {}, 2)) << from_recipe.geterror();
     EXPECT_GT(max_color_difference(from_recipe, src, 0, T), 0.0f);  // filtered: skip off
-    chain.settings.clear();  // default: skipping on
+    chain.settings.clear();                                         // default: skipping on
     ImageBuf skipped;
     ASSERT_TRUE(run_chain(skipped, src, chain, {}, 2)) << skipped.geterror();
     EXPECT_EQ(max_color_difference(skipped, src, 0, T), 0.0f);
@@ -483,10 +494,12 @@ TEST(SkipFrontEnds, RecipeKeyAndCommandLineModifier)
                                + mcdn_test::quote(b + "_A.exr") + " -i:as=halfB "
                                + mcdn_test::quote(b + "_B.exr");
     const std::string out = mcdn_test::temp_dir("skip_cli") + "/out.exr";
-    auto bad = mcdn_test::run_mcdntool("-i " + inputs + " --nfor:skip=2 -o " + mcdn_test::quote(out));
+    auto bad =
+        mcdn_test::run_mcdntool("-i " + inputs + " --nfor:skip=2 -o " + mcdn_test::quote(out));
     EXPECT_NE(bad.exit_code, 0);
     EXPECT_NE(bad.output.find("--nfor:skip=2 must be 0 or 1"), std::string::npos) << bad.output;
-    auto negative = mcdn_test::run_mcdntool("-i " + inputs + " --sure:converged=-1 -o " + mcdn_test::quote(out));
+    auto negative = mcdn_test::run_mcdntool("-i " + inputs + " --sure:converged=-1 -o "
+                                            + mcdn_test::quote(out));
     EXPECT_NE(negative.exit_code, 0);
     auto good = mcdn_test::run_mcdntool("-i " + inputs + " --nfor:skip=0:converged=0.05 -o "
                                         + mcdn_test::quote(out));

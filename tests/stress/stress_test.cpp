@@ -25,7 +25,8 @@ std::vector<std::string> channels()
 {
     std::vector<std::string> names;
     for (const char* prefix : { "", "variance.", "A.", "B." })
-        for (const char* base : { "R", "G", "B", "albedo.R", "albedo.G", "albedo.B", "N.X", "N.Y", "N.Z", "Z" })
+        for (const char* base :
+             { "R", "G", "B", "albedo.R", "albedo.G", "albedo.B", "N.X", "N.Y", "N.Z", "Z" })
             names.push_back(std::string(prefix) + base);
     return names;
 }
@@ -37,8 +38,10 @@ float plausible(int x, int y, int c)
     float noise = float(((x * 7919 + y * 104729 + c * 31) % 97) - 48) / 480.0f;
     if (face == 1)
         return k < 3 ? 0.01f : 0.001f;  // variances
-    float base = k < 3 ? 0.3f + 0.01f * x + 0.2f * (k == 1) : k < 6 ? 0.5f + 0.1f * ((x / 4) % 2)
-               : k < 9 ? (k == 8 ? 1.0f : 0.0f) : 2.0f + 0.05f * y;
+    float base = k < 3   ? 0.3f + 0.01f * x + 0.2f * (k == 1)
+                 : k < 6 ? 0.5f + 0.1f * ((x / 4) % 2)
+                 : k < 9 ? (k == 8 ? 1.0f : 0.0f)
+                         : 2.0f + 0.05f * y;
     return base + (k < 3 ? noise : 0.1f * noise);
 }
 
@@ -52,7 +55,9 @@ struct Case {
 std::vector<Case> cases()
 {
     auto at = [](int px, int py, std::function<bool(int)> channel, float value) {
-        return [=](int x, int y, int c, float v) { return x == px && y == py && channel(c) ? value : v; };
+        return [=](int x, int y, int c, float v) {
+            return x == px && y == py && channel(c) ? value : v;
+        };
     };
     auto color = [](int c) { return c % 10 < 3 && c / 10 != 1; };
     auto feature = [](int c) { return c % 10 >= 3 && c / 10 != 1; };
@@ -63,14 +68,20 @@ std::vector<Case> cases()
         { "nan colour", 24, 20, at(5, 5, color, NAN) },
         { "inf colour", 24, 20, at(5, 5, color, INFINITY) },
         { "-inf feature", 24, 20, at(7, 3, feature, -INFINITY) },
-        { "nan feature variance", 24, 20, [=](int x, int y, int c, float v) { return feature_variance(c) && x < 3 ? NAN : v; } },
-        { "negative colour", 24, 20, [=](int x, int, int c, float v) { return color(c) && x % 3 == 0 ? -v : v; } },
+        { "nan feature variance", 24, 20,
+          [=](int x, int y, int c, float v) { return feature_variance(c) && x < 3 ? NAN : v; } },
+        { "negative colour", 24, 20,
+          [=](int x, int, int c, float v) { return color(c) && x % 3 == 0 ? -v : v; } },
         { "1e30", 24, 20, at(10, 10, color, 1e30f) },
         { "firefly 1e6", 24, 20, at(12, 9, color, 1e6f) },
-        { "denormals", 24, 20, [](int, int, int c, float v) { return c / 10 == 1 ? 1e-40f : v * 1e-39f; } },
-        { "zero variance", 24, 20, [](int, int, int c, float v) { return c / 10 == 1 ? 0.0f : v; } },
-        { "constant features", 24, 20, [=](int, int, int c, float v) { return feature(c) ? 0.5f : v; } },
-        { "collinear features", 24, 20, [=](int x, int, int c, float v) { return feature(c) ? 0.1f * x : v; } },
+        { "denormals", 24, 20,
+          [](int, int, int c, float v) { return c / 10 == 1 ? 1e-40f : v * 1e-39f; } },
+        { "zero variance", 24, 20,
+          [](int, int, int c, float v) { return c / 10 == 1 ? 0.0f : v; } },
+        { "constant features", 24, 20,
+          [=](int, int, int c, float v) { return feature(c) ? 0.5f : v; } },
+        { "collinear features", 24, 20,
+          [=](int x, int, int c, float v) { return feature(c) ? 0.1f * x : v; } },
         { "all zero", 24, 20, [](int, int, int, float) { return 0.0f; } },
         { "half float", 24, 20, keep, true },
         { "1x1", 1, 1, keep },
@@ -82,8 +93,9 @@ std::vector<Case> cases()
 
 ImageBuf input(const Case& k)
 {
-    ImageBuf buf = make_image(k.width, k.height, channels(),
-                              [&](int x, int y, int c) { return k.edit(x, y, c, plausible(x, y, c)); });
+    ImageBuf buf = make_image(k.width, k.height, channels(), [&](int x, int y, int c) {
+        return k.edit(x, y, c, plausible(x, y, c));
+    });
     if (k.half)
         buf = buf.copy(OIIO::TypeDesc::HALF);
     return buf;
@@ -104,7 +116,8 @@ void expect_finite_outputs(const ImageBuf& out, const ImageBuf& src, const std::
     std::vector<int> written;
     for (int c = 0; c < out.nchannels(); ++c) {
         const std::string& name = out.spec().channelnames[c];
-        if (src.spec().channelindex(name) < 0 || std::find(own.begin(), own.end(), name) != own.end())
+        if (src.spec().channelindex(name) < 0
+            || std::find(own.begin(), own.end(), name) != own.end())
             written.push_back(c);
     }
     std::vector<float> px(out.nchannels());
@@ -112,9 +125,8 @@ void expect_finite_outputs(const ImageBuf& out, const ImageBuf& src, const std::
         for (int x = out.xbegin(); x < out.xend(); ++x) {
             out.getpixel(x, y, px.data(), out.nchannels());
             for (int c : written)
-                ASSERT_TRUE(std::isfinite(px[c]))
-                    << what << ": " << out.spec().channelnames[c] << " at (" << x << ", " << y
-                    << ") is " << px[c];
+                ASSERT_TRUE(std::isfinite(px[c])) << what << ": " << out.spec().channelnames[c]
+                                                  << " at (" << x << ", " << y << ") is " << px[c];
         }
 }
 

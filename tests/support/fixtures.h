@@ -22,7 +22,10 @@ inline OIIO::ImageBuf read_render(const std::string& b)
 }
 
 /// tests/data/box16: Blender Cycles 16 spp with variance and both halves (cycles preset).
-inline OIIO::ImageBuf box16() { return read_render(test_data("box16/box_0016spp")); }
+inline OIIO::ImageBuf box16()
+{
+    return read_render(test_data("box16/box_0016spp"));
+}
 
 /// box16 stacked four times: 64×256, tall enough for bands of whole 32-row tiles whose
 /// 96-row halos still cut the frame (the band tests: tests/nfor, tests/sure, tests/mix).

@@ -39,8 +39,7 @@ inline bool update_goldens()
 /// writes it instead. Returns a gtest assertion result carrying the report.
 inline ::testing::AssertionResult matches_golden(const OIIO::ImageBuf& result,
                                                  const std::vector<std::string>& names,
-                                                 const std::string& name,
-                                                 GoldenThresholds t = {})
+                                                 const std::string& name, GoldenThresholds t = {})
 {
     std::string path = test_data("golden/" + name + ".exr");
     std::vector<int> order;
@@ -116,15 +115,17 @@ inline ::testing::AssertionResult matches_golden(const OIIO::ImageBuf& result,
     double fail_fraction = double(bad.size()) / std::max<size_t>(n, 1);
     if (fail_fraction <= t.fail_fraction && mean <= t.mean_relative)
         return ::testing::AssertionSuccess();
-    std::sort(bad.begin(), bad.end(), [](const Bad& a, const Bad& b) { return a.excess > b.excess; });
+    std::sort(bad.begin(), bad.end(),
+              [](const Bad& a, const Bad& b) { return a.excess > b.excess; });
     auto failure = ::testing::AssertionFailure();
     failure << name << ": " << bad.size() << " values over the per-pixel threshold ("
-            << 100 * fail_fraction << "%), mean relative difference " << mean
-            << " (limit " << t.mean_relative << "); worst:";
+            << 100 * fail_fraction << "%), mean relative difference " << mean << " (limit "
+            << t.mean_relative << "); worst:";
     for (size_t i = 0; i < std::min<size_t>(bad.size(), 5); ++i)
         failure << "\n  (" << bad[i].x << ", " << bad[i].y << ") " << names[bad[i].c] << ": got "
                 << bad[i].got << ", golden " << bad[i].want;
-    failure << "\nIf the change is intended: MCDN_UPDATE_GOLDENS=1 ctest --test-dir build -L golden";
+    failure
+        << "\nIf the change is intended: MCDN_UPDATE_GOLDENS=1 ctest --test-dir build -L golden";
     return failure;
 }
 

@@ -15,7 +15,10 @@
 
 namespace mcdn_test {
 
-inline std::string test_data(const std::string& rel) { return std::string(MCDN_TEST_DATA) + "/" + rel; }
+inline std::string test_data(const std::string& rel)
+{
+    return std::string(MCDN_TEST_DATA) + "/" + rel;
+}
 
 /// Path inside ../shared/data, or "" when that checkout is absent (a user's clone).
 inline std::string shared_data(const std::string& rel)
@@ -24,9 +27,9 @@ inline std::string shared_data(const std::string& rel)
     return OIIO::Filesystem::exists(path) ? path : std::string();
 }
 
-#define MCDN_REQUIRE_SHARED(var, rel)                                                   \
-    std::string var = mcdn_test::shared_data(rel);                                     \
-    if (var.empty())                                                                   \
+#define MCDN_REQUIRE_SHARED(var, rel)                                                              \
+    std::string var = mcdn_test::shared_data(rel);                                                 \
+    if (var.empty())                                                                               \
         GTEST_SKIP() << "../shared/data/" << rel << " absent (user clone): skipped";
 
 /// A fresh empty directory for one test's outputs, of this process (two test runs at once
@@ -51,7 +54,7 @@ inline std::string temp_dir(const std::string& name)
 }
 
 /// A float buffer with the given channel names, every value from `fill(x, y, c)`.
-template<class F>
+template <class F>
 OIIO::ImageBuf make_image(int w, int h, const std::vector<std::string>& names, F fill)
 {
     OIIO::ImageSpec spec(w, h, int(names.size()), OIIO::TypeDesc::FLOAT);
@@ -98,18 +101,24 @@ inline Run run_mcdntool(const std::string& args, const std::string& env = "",
 /// Runs Debian's oiiotool with the built plugin, under a time limit (exit 124 if it hangs).
 inline Run run_oiiotool(const std::string& args)
 {
-    return run_command("OIIO_LIBRARY_PATH='" + std::string(MCDN_PLUGIN_DIR) +
-                       "' timeout 300 oiiotool " + args);
+    return run_command("OIIO_LIBRARY_PATH='" + std::string(MCDN_PLUGIN_DIR)
+                       + "' timeout 300 oiiotool " + args);
 }
 
 /// True when oiiotool is on PATH (tests that need it skip otherwise).
-inline bool has_oiiotool() { return std::system("command -v oiiotool >/dev/null") == 0; }
+inline bool has_oiiotool()
+{
+    return std::system("command -v oiiotool >/dev/null") == 0;
+}
 
 /// A command prefix that runs it as root without the capabilities that override file
 /// permissions (CAP_DAC_OVERRIDE, ...): permissions then apply as to any user, and a build
 /// tree under /root stays reachable (an unprivileged user could not load it there).
 const std::string kWithoutRootsPowers = "setpriv --bounding-set=-all --inh-caps=-all ";
 
-inline std::string quote(const std::string& s) { return "'" + s + "'"; }
+inline std::string quote(const std::string& s)
+{
+    return "'" + s + "'";
+}
 
 }  // namespace mcdn_test

@@ -36,22 +36,27 @@ inline Partition add_light_groups(const OIIO::ImageBuf& merged, const std::strin
     if (preset != "cycles")
         for (const char* group : { "key", "fill" }) {
             std::string g = std::string("Combined_") + group;
-            EXPECT_TRUE(p.spec.parse_override(
-                "extra." + g + "=" + g + ".R," + g + ".G," + g + ".B", error)) << error;
+            EXPECT_TRUE(
+                p.spec.parse_override("extra." + g + "=" + g + ".R," + g + ".G," + g + ".B", error))
+                << error;
         }
     const OIIO::ImageSpec& spec = merged.spec();
     std::vector<std::string> names = spec.channelnames;
     // (channel to add, beauty channel it shares, is the key)
-    struct Added { std::string name; int beauty; bool key; };
+    struct Added {
+        std::string name;
+        int beauty;
+        bool key;
+    };
     std::vector<Added> added;
     const char* prefixes[] = { "", "A.", "B." };
     const mcdn::Role faces[] = { mcdn::Role::Color, mcdn::Role::ColorA, mcdn::Role::ColorB };
     for (int f = 0; f < (own_halves ? 3 : 1); ++f)
         for (const char* group : { "key", "fill" })
             for (int c = 0; c < 3; ++c)
-                added.push_back({ std::string(prefixes[f]) + layer + "Combined_" + group + "."
-                                      + "RGB"[c],
-                                  aovs.channels(faces[f])[c], group[0] == 'k' });
+                added.push_back(
+                    { std::string(prefixes[f]) + layer + "Combined_" + group + "." + "RGB"[c],
+                      aovs.channels(faces[f])[c], group[0] == 'k' });
     for (const Added& a : added)
         names.push_back(a.name);
     std::vector<float> px(spec.image_pixels() * spec.nchannels);

@@ -17,8 +17,8 @@ namespace mcdn_test {
 /// Channel layout of the generic preset with halves: R,G,B, variance.*, A.*, B.*.
 inline std::vector<std::string> generic_channels()
 {
-    return { "R", "G", "B", "variance.R", "variance.G", "variance.B",
-             "A.R", "A.G", "A.B", "B.R", "B.G", "B.B" };
+    return { "R",   "G",   "B",   "variance.R", "variance.G", "variance.B",
+             "A.R", "A.G", "A.B", "B.R",        "B.G",        "B.B" };
 }
 
 /// A render of `truth` with per-pixel variance of the mean `variance`: halves A and B are
@@ -56,9 +56,9 @@ inline OIIO::ImageBuf truth_image(int w, int h, const std::function<float(int, i
 inline mcdn::Denoiser box_denoiser(int radius)
 {
     return [radius](OIIO::ImageBuf& dst, const OIIO::ImageBuf& src) {
-        OIIO::ImageBuf halves = OIIO::ImageBufAlgo::add(
-            OIIO::ImageBufAlgo::channels(src, 3, { 6, 7, 8 }),
-            OIIO::ImageBufAlgo::channels(src, 3, { 9, 10, 11 }));
+        OIIO::ImageBuf halves =
+            OIIO::ImageBufAlgo::add(OIIO::ImageBufAlgo::channels(src, 3, { 6, 7, 8 }),
+                                    OIIO::ImageBufAlgo::channels(src, 3, { 9, 10, 11 }));
         halves = OIIO::ImageBufAlgo::mul(halves, 0.5f);
         int size = 2 * radius + 1;
         OIIO::ImageBuf kernel = OIIO::ImageBufAlgo::make_kernel("box", size, size);

@@ -20,7 +20,10 @@ using namespace mcdn_test;
 
 namespace {
 
-float ramp(int x, int y, int c) { return 0.2f + 0.003f * x + 0.004f * (y % 50) + 0.1f * c; }
+float ramp(int x, int y, int c)
+{
+    return 0.2f + 0.003f * x + 0.004f * (y % 50) + 0.1f * c;
+}
 
 ImageBuf sure_of(const ImageBuf& src, const Denoiser& denoiser, SureOptions options)
 {
@@ -44,12 +47,10 @@ TEST(SureBands, NforChainInBandsEqualsTheWholeFrame)
     }
     PrefilterOptions p;
     NforOptions n;
-    Denoiser chain = compose({ { "prefilter", [&](ImageBuf& d, const ImageBuf& s) {
-                                    return prefilter(d, s, p, {}, 2);
-                                } },
-                               { "nfor", [&](ImageBuf& d, const ImageBuf& s) {
-                                    return nfor(d, s, n, {}, 2);
-                                } } });
+    Denoiser chain = compose(
+        { { "prefilter",
+            [&](ImageBuf& d, const ImageBuf& s) { return prefilter(d, s, p, {}, 2); } },
+          { "nfor", [&](ImageBuf& d, const ImageBuf& s) { return nfor(d, s, n, {}, 2); } } });
     SureOptions whole;
     whole.denoiser_radius = chain_radius({ stage_reach(p), stage_reach(n) });
     EXPECT_EQ(whole.denoiser_radius, 13 + 64);

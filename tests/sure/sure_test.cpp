@@ -10,8 +10,14 @@ using namespace mcdn_test;
 
 namespace {
 
-float gradient(int x, int y, int c) { return 0.2f + 0.004f * x + 0.002f * y + 0.1f * c; }
-float checker(int x, int y, int c) { return ((x / 4 + y / 4) % 2) ? 0.8f : 0.1f + 0.05f * c; }
+float gradient(int x, int y, int c)
+{
+    return 0.2f + 0.004f * x + 0.002f * y + 0.1f * c;
+}
+float checker(int x, int y, int c)
+{
+    return ((x / 4 + y / 4) % 2) ? 0.8f : 0.1f + 0.05f * c;
+}
 
 double true_mse(const ImageBuf& result, const ImageBuf& truth)
 {
@@ -20,7 +26,10 @@ double true_mse(const ImageBuf& result, const ImageBuf& truth)
     return comp.rms_error * comp.rms_error;
 }
 
-int channel(const ImageBuf& buf, const char* name) { return buf.spec().channelindex(name); }
+int channel(const ImageBuf& buf, const char* name)
+{
+    return buf.spec().channelindex(name);
+}
 
 }  // namespace
 
@@ -84,9 +93,8 @@ TEST(Sure, OneHugeVariancePixelLeavesTheOthersProbed)
         px[c] = variance * 1e12f;
     heavy.setpixel(64, 64, px, 12);
     const ROI interior(4, 124, 4, 124), near_heavy(63, 66, 63, 66);
-    auto [clean_mean, clean_spread] =
-        divergence_mean_and_spread(sure(clean, box_denoiser(1), options), variance, interior,
-                                   near_heavy);
+    auto [clean_mean, clean_spread] = divergence_mean_and_spread(
+        sure(clean, box_denoiser(1), options), variance, interior, near_heavy);
     ImageBuf out = sure(heavy, box_denoiser(1), options);
     ASSERT_FALSE(out.has_error()) << out.geterror();
     auto [mean, spread] = divergence_mean_and_spread(out, variance, interior, near_heavy);

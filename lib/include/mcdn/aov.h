@@ -26,17 +26,38 @@ using OIIO::string_view;
 
 /// What a group of channels means to the denoisers.
 enum class Role {
-    Color, ColorVariance, ColorA, ColorB,
-    Albedo, AlbedoVariance, AlbedoA, AlbedoB,
-    Normal, NormalVariance, NormalA, NormalB,
-    Depth, DepthVariance, DepthA, DepthB,
-    Visibility, VisibilityVariance, VisibilityA, VisibilityB,
+    Color,
+    ColorVariance,
+    ColorA,
+    ColorB,
+    Albedo,
+    AlbedoVariance,
+    AlbedoA,
+    AlbedoB,
+    Normal,
+    NormalVariance,
+    NormalA,
+    NormalB,
+    Depth,
+    DepthVariance,
+    DepthA,
+    DepthB,
+    Visibility,
+    VisibilityVariance,
+    VisibilityA,
+    VisibilityB,
     // Light components. Either the components themselves (generic preset: `diffuse.*`,
     // `specular.*`) or Blender's factors: diffuse = DiffCol * (DiffDir + DiffInd).
-    Diffuse, Specular,
-    DiffuseColor, DiffuseDirect, DiffuseIndirect,
-    GlossyColor, GlossyDirect, GlossyIndirect,
-    Emission, Environment,
+    Diffuse,
+    Specular,
+    DiffuseColor,
+    DiffuseDirect,
+    DiffuseIndirect,
+    GlossyColor,
+    GlossyDirect,
+    GlossyIndirect,
+    Emission,
+    Environment,
     // Motion vectors, 4 channels: towards the previous frame (x, y) and from the next
     // (x, y), in pixels, y up (Blender's Vector pass; ops/motion.h). Read by the
     // cross-frame modes only.
@@ -79,8 +100,7 @@ struct InputFile {
     InputFile() = default;
     InputFile(std::string path_, InputKind kind_ = InputKind::Mean, std::string part_ = {})
         : path(std::move(path_)), kind(kind_), part(std::move(part_))
-    {
-    }
+    { }
 };
 
 /// The attribute read_inputs (mcdn/io.h) sets on a merged buffer: one "kind=path" line per
@@ -162,8 +182,7 @@ std::string detect_aov_preset(const ImageSpec& merged, std::string* why = nullpt
 /// Resolves `spec` against the channel names of a merged buffer. Roles the preset knows but
 /// the buffer lacks are simply absent (use AovSet::require); an override or extra naming a
 /// channel that is not there is an error.
-bool resolve_aovs(AovSet& set, const AovSpec& spec, const ImageSpec& merged,
-                  std::string& error);
+bool resolve_aovs(AovSet& set, const AovSpec& spec, const ImageSpec& merged, std::string& error);
 
 /// Names the input file a channel of the merged buffer came from, for error messages
 /// ("box_var.exr (-i:as=variance)"), from merged_input_files.

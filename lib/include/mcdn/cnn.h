@@ -73,8 +73,7 @@ int receptive_radius(const CnnOptions& options);
 /// (missing features are zero). Deterministic for any `nthreads` (0 = all cores).
 bool cnn(ImageBuf& dst, const ImageBuf& src, const CnnOptions& options = {}, ROI roi = {},
          int nthreads = 0);
-ImageBuf cnn(const ImageBuf& src, const CnnOptions& options = {}, ROI roi = {},
-             int nthreads = 0);
+ImageBuf cnn(const ImageBuf& src, const CnnOptions& options = {}, ROI roi = {}, int nthreads = 0);
 
 /// cnn() keeps its workers (a copy of the networks and their buffers per thread, sized by
 /// CnnOptions::tile_size) for the next call: fresh ones are page faults the kernel must

@@ -39,12 +39,12 @@ std::string input_colorspace(const AovSpec& aovs, const ImageSpec& image);
 
 /// The 3x3 matrix (row-major) of a scene-linear conversion; false with `error` when either
 /// space is unknown or the transform is not linear (a display or log encoding).
-bool linear_transform(std::array<double, 9>& matrix, const std::string& from,
-                      const std::string& to, std::string& error);
+bool linear_transform(std::array<double, 9>& matrix, const std::string& from, const std::string& to,
+                      std::string& error);
 
 /// Converts the colour channels of `aovs` in `buf` (a float buffer) from `from` to `to`.
 bool convert_color_channels(ImageBuf& buf, const AovSet& aovs, const std::string& from,
-                             const std::string& to, std::string& error);
+                            const std::string& to, std::string& error);
 
 /// Runs `op` in the working space: converts a copy of src in (if it is not already there),
 /// runs op, converts dst's colour channels back. The common case (input already in the

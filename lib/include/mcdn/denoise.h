@@ -58,8 +58,8 @@ struct DenoiseOptions {
 
 /// dst = src denoised by the planned chain (run_chain), colour role replaced; src's other
 /// channels kept as the chain keeps them.
-bool denoise(ImageBuf& dst, const ImageBuf& src, const DenoiseOptions& options = {},
-             ROI roi = {}, int nthreads = 0);
+bool denoise(ImageBuf& dst, const ImageBuf& src, const DenoiseOptions& options = {}, ROI roi = {},
+             int nthreads = 0);
 ImageBuf denoise(const ImageBuf& src, const DenoiseOptions& options = {}, ROI roi = {},
                  int nthreads = 0);
 

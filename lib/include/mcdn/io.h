@@ -104,8 +104,7 @@ bool validate_inputs(const ImageBuf& merged, const AovSet& aovs, std::string& er
 /// image. A 32x32 tile (kConvergedTileSize) with a pixel far off (a corrupt block in one
 /// half) has its colour halves set to the render there: `repaired_tiles` counts them, for
 /// the caller to say (a fallback is never silent). True without halves.
-bool check_halves(ImageBuf& merged, const AovSet& aovs, int& repaired_tiles,
-                  std::string& error);
+bool check_halves(ImageBuf& merged, const AovSet& aovs, int& repaired_tiles, std::string& error);
 
 struct WriteOptions {
     /// half or float. Half keeps file sizes small; variances may underflow in half.

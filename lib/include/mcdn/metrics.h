@@ -77,8 +77,7 @@ struct TemporalMetrics {
 bool compute_temporal_metrics(TemporalMetrics& result, const ImageBuf& image,
                               const ImageBuf& previous, const ImageBuf& reference,
                               const ImageBuf& previous_reference, const ImageBuf* motion,
-                              const TemporalOptions& options, std::string& error,
-                              int nthreads = 0);
+                              const TemporalOptions& options, std::string& error, int nthreads = 0);
 
 /// What a reference's own noise adds to the squared-error metrics. A reference that is
 /// itself a render, with variance of the mean v at a pixel, adds v to the expected squared
@@ -115,8 +114,8 @@ bool error_map(ImageBuf& dst, const ImageBuf& image, const ImageBuf& reference,
 /// False-colour picture of an error map: log10(error) from `log10_min` to `log10_max`
 /// mapped through the "inferno" colour map (OIIO IBA::color_map), RGB in [0, 1], ready for
 /// PNG. Pixels below the range are black, above it pale yellow.
-bool heatmap(ImageBuf& dst, const ImageBuf& error, double log10_min = -4.0,
-             double log10_max = 0.0, ROI roi = {}, int nthreads = 0);
+bool heatmap(ImageBuf& dst, const ImageBuf& error, double log10_min = -4.0, double log10_max = 0.0,
+             ROI roi = {}, int nthreads = 0);
 
 /// `name value` lines (text) or one JSON object, for the CLI and the benchmarks.
 std::string format_metrics(const Metrics& m, bool json);

@@ -58,11 +58,11 @@ struct MixOptions {
 
     // The t-test bound, eq. 12-18.
     bool t_test = true;
-    int t_radius = 5;             // 11x11 neighbourhood N_p
-    float t_shift = 4.2f;         // c
-    float t_strength = 2.0f;      // a
-    float t_sigma_scale = 100.0f; // sigma_s = min(sqrt(Var[x-bar]), 1) * 100
-    float t_epsilon = 1e-6f;      // eq. 17
+    int t_radius = 5;              // 11x11 neighbourhood N_p
+    float t_shift = 4.2f;          // c
+    float t_strength = 2.0f;       // a
+    float t_sigma_scale = 100.0f;  // sigma_s = min(sqrt(Var[x-bar]), 1) * 100
+    float t_epsilon = 1e-6f;       // eq. 17
 
     /// Add mix.alpha.R/G/B (alpha', the final per-pixel mix).
     bool output_alpha = false;
@@ -100,7 +100,6 @@ int receptive_radius(const MixOptions& options, const std::string& denoiser = "n
 /// (in place: no copy of the frame when it is one band).
 bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options = {}, ROI roi = {},
          int nthreads = 0);
-ImageBuf mix(const ImageBuf& src, const MixOptions& options = {}, ROI roi = {},
-             int nthreads = 0);
+ImageBuf mix(const ImageBuf& src, const MixOptions& options = {}, ROI roi = {}, int nthreads = 0);
 
 }  // namespace mcdn

@@ -141,8 +141,7 @@ struct NforOptions {
 /// keep src's values. Output is finite and identical for any thread count.
 bool nfor(ImageBuf& dst, const ImageBuf& src, const NforOptions& options = {}, ROI roi = {},
           int nthreads = 0);
-ImageBuf nfor(const ImageBuf& src, const NforOptions& options = {}, ROI roi = {},
-              int nthreads = 0);
+ImageBuf nfor(const ImageBuf& src, const NforOptions& options = {}, ROI roi = {}, int nthreads = 0);
 
 /// How far an output pixel reaches into the input, in pixels: 77 at the defaults, 64 when
 /// the input is already prefiltered ("mcdn:prefiltered", as after a prefilter stage). The

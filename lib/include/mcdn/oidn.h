@@ -46,8 +46,8 @@ std::string oidn_weights_dir();
 
 /// The weights file oidn() reads for inputs with or without an albedo and a normal; false
 /// with `error` naming the places looked in and where OIDN's weights come from.
-bool oidn_weights(std::string& path, const OidnOptions& options, bool has_albedo,
-                  bool has_normal, std::string& error);
+bool oidn_weights(std::string& path, const OidnOptions& options, bool has_albedo, bool has_normal,
+                  std::string& error);
 
 /// How far a pixel of oidn()'s result reaches into its input (the UNet's receptive field;
 /// -1 when no weights can be read).
@@ -58,7 +58,6 @@ int receptive_radius(const OidnOptions& options);
 /// Deterministic for any `nthreads` (0 = all cores).
 bool oidn(ImageBuf& dst, const ImageBuf& src, const OidnOptions& options = {}, ROI roi = {},
           int nthreads = 0);
-ImageBuf oidn(const ImageBuf& src, const OidnOptions& options = {}, ROI roi = {},
-              int nthreads = 0);
+ImageBuf oidn(const ImageBuf& src, const OidnOptions& options = {}, ROI roi = {}, int nthreads = 0);
 
 }  // namespace mcdn

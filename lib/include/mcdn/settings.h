@@ -33,7 +33,8 @@ bool apply_settings(CnnOptions& options, const Settings& settings, std::string& 
 bool apply_settings(SureOptions& options, const Settings& settings, std::string& error);
 bool apply_settings(MixOptions& options, const Settings& settings, std::string& error);
 
-/// The settings of one stage out of "stage.key" settings: {"nfor.window": "19"} -> {"window": "19"}.
+/// The settings of one stage out of "stage.key" settings: {"nfor.window": "19"} -> {"window":
+/// "19"}.
 Settings stage_settings(const std::map<std::string, std::string>& all, const std::string& stage);
 
 /// True when `text` is a number within float range (nan and inf would reach the ops as NaN).

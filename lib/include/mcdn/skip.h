@@ -27,7 +27,8 @@
 //                    light group) is not filtered: it stays 0, what a filter gives it.
 //
 // The pass-through keeps the render's own error (per pixel at most max_relative_error² of
-// relMSE), where a denoiser might still reduce it: lower the threshold for more accuracy, raise it for more speed.
+// relMSE), where a denoiser might still reduce it: lower the threshold for more accuracy, raise it
+// for more speed.
 //
 // Pixels near converged tiles lose the converged neighbours' contribution to their
 // filters (nfor's windows reach ~50 px through its passes, the CNN's its receptive field);

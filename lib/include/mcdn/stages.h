@@ -58,7 +58,7 @@ struct MadeStage {
 
 /// The whole frame's facts a stage reads (the chain's light pass, core/frame_facts.h).
 struct StageFacts {
-    bool color_sums = false;        ///< the colour's sums (probe steps, the t-test's sigma_s)
+    bool color_sums = false;         ///< the colour's sums (probe steps, the t-test's sigma_s)
     bool depth_range = false;        ///< the depth range (the CNN's depth normalisation)
     bool constant_features = false;  ///< which features and extras hold one value
     bool exposure = false;           ///< the colour's autoexposure (OIDN's networks)

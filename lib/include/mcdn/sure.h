@@ -99,15 +99,19 @@ constexpr const char* kSure[3] = { "sure.R", "sure.G", "sure.B" };
 constexpr const char* kDivergence[3] = { "sure.divergence.R", "sure.divergence.G",
                                          "sure.divergence.B" };  // sigma^2 f'(x)
 constexpr const char* kResidual[3] = { "sure.residual.R", "sure.residual.G",
-                                       "sure.residual.B" };      // ||y - x||^2
-constexpr const char* kFallback = "sure.fallback";  // SureOptions::output_fallback
+                                       "sure.residual.B" };  // ||y - x||^2
+constexpr const char* kFallback = "sure.fallback";           // SureOptions::output_fallback
 /// x of an extra AOV's channel (light groups; see NforOptions::denoise_extras), for --mix.
-inline std::string noisy_extra(const std::string& channel) { return "noisy." + channel; }
+inline std::string noisy_extra(const std::string& channel)
+{
+    return "noisy." + channel;
+}
 }  // namespace sure_channels
 
 /// Runs `denoiser` K + 1 times. dst = the denoised image (colour = y, every other channel
 /// of src kept) plus noisy.*, sure.*, sure.divergence.*, sure.residual.* (written inside
-/// `roi`, zero outside), and noisy.<channel> of each RGB extra AOV. Needs the colour and its variance; half buffers are optional.
+/// `roi`, zero outside), and noisy.<channel> of each RGB extra AOV. Needs the colour and its
+/// variance; half buffers are optional.
 bool sure(ImageBuf& dst, const ImageBuf& src, const Denoiser& denoiser,
           const SureOptions& options = {}, ROI roi = {}, int nthreads = 0);
 ImageBuf sure(const ImageBuf& src, const Denoiser& denoiser, const SureOptions& options = {},

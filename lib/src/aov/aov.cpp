@@ -15,15 +15,36 @@ using OIIO::Strutil::splits;
 namespace {
 
 constexpr const char* kRoleNames[kRoleCount] = {
-    "color", "color_variance", "color_a", "color_b",
-    "albedo", "albedo_variance", "albedo_a", "albedo_b",
-    "normal", "normal_variance", "normal_a", "normal_b",
-    "depth", "depth_variance", "depth_a", "depth_b",
-    "visibility", "visibility_variance", "visibility_a", "visibility_b",
-    "diffuse", "specular",
-    "diffuse_color", "diffuse_direct", "diffuse_indirect",
-    "glossy_color", "glossy_direct", "glossy_indirect",
-    "emission", "environment",
+    "color",
+    "color_variance",
+    "color_a",
+    "color_b",
+    "albedo",
+    "albedo_variance",
+    "albedo_a",
+    "albedo_b",
+    "normal",
+    "normal_variance",
+    "normal_a",
+    "normal_b",
+    "depth",
+    "depth_variance",
+    "depth_a",
+    "depth_b",
+    "visibility",
+    "visibility_variance",
+    "visibility_a",
+    "visibility_b",
+    "diffuse",
+    "specular",
+    "diffuse_color",
+    "diffuse_direct",
+    "diffuse_indirect",
+    "glossy_color",
+    "glossy_direct",
+    "glossy_indirect",
+    "emission",
+    "environment",
     "motion",
 };
 
@@ -79,8 +100,7 @@ Candidates preset_candidates(const std::string& preset, const std::string& layer
         case Role::Color: return { with_suffixes(L + "Combined", "RGB") };
         case Role::Albedo: return { with_suffixes(L + "Denoising Albedo", "RGB") };
         case Role::Normal: return { with_suffixes(L + "Denoising Normal", "XYZ") };
-        case Role::Depth:
-            return { { L + "Denoising Depth.Z" }, { L + "Depth.Z" } };
+        case Role::Depth: return { { L + "Denoising Depth.Z" }, { L + "Depth.Z" } };
         case Role::DiffuseColor: return { with_suffixes(L + "DiffCol", "RGB") };
         case Role::DiffuseDirect: return { with_suffixes(L + "DiffDir", "RGB") };
         case Role::DiffuseIndirect: return { with_suffixes(L + "DiffInd", "RGB") };
@@ -108,7 +128,8 @@ Candidates preset_candidates(const std::string& preset, const std::string& layer
         switch (role) {
         case Role::Color:
             return { with_suffixes("Ci", "rgb"), with_suffixes("Ci", "RGB"), { "R", "G", "B" } };
-        case Role::Albedo: return { with_suffixes("albedo", "rgb"), with_suffixes("albedo", "RGB") };
+        case Role::Albedo:
+            return { with_suffixes("albedo", "rgb"), with_suffixes("albedo", "RGB") };
         case Role::Normal:
             return { with_suffixes("normal", "xyz"), with_suffixes("normal", "rgb"),
                      with_suffixes("normal", "XYZ"), with_suffixes("normal", "RGB") };
@@ -160,7 +181,9 @@ Candidates preset_face_candidates(const std::string& preset, Role base, Face fac
             return { with_suffixes("normal_var", "xyz"), with_suffixes("normal_var", "rgb"),
                      with_suffixes("normal_var", "XYZ"), with_suffixes("normal_var", "RGB") };
         case Role::Depth:
-            return { { "zfiltered_var" }, { "zfiltered_var.r" }, { "zfiltered_var.z" },
+            return { { "zfiltered_var" },
+                     { "zfiltered_var.r" },
+                     { "zfiltered_var.z" },
                      { "zfiltered_var.Z" } };
         default: return {};
         }
@@ -207,7 +230,10 @@ std::string find_cycles_layer(const ImageSpec& spec)
     return {};
 }
 
-bool has_channel(const ImageSpec& spec, const char* name) { return spec.channelindex(name) >= 0; }
+bool has_channel(const ImageSpec& spec, const char* name)
+{
+    return spec.channelindex(name) >= 0;
+}
 
 bool has_channel_starting(const ImageSpec& spec, const char* stem)
 {
@@ -242,14 +268,14 @@ std::string detect_aov_preset(const ImageSpec& merged, std::string* why)
     for (const InputFile& file : merged_input_files(merged))
         if (OIIO::Filesystem::is_directory(file.path))
             return said("tungsten", "a Tungsten buffer directory (" + file.path + ")");
-    const bool variance_in_render = !has_input_of_kind(merged, InputKind::Variance)
-                                    && has_channel(merged, "variance.R");
+    const bool variance_in_render =
+        !has_input_of_kind(merged, InputKind::Variance) && has_channel(merged, "variance.R");
     if (has_channel(merged, "RGBA.R") || variance_in_render
         || has_channel(merged, "denoise_albedo.R") || has_channel(merged, "diffuse_albedo.R")
         || has_channel_starting(merged, "RGBA_"))
-        return said("arnold", has_channel(merged, "RGBA.R")  ? "Arnold's RGBA layer"
-                              : variance_in_render            ? "a variance layer in the render"
-                                                              : "Arnold's AOV names");
+        return said("arnold", has_channel(merged, "RGBA.R") ? "Arnold's RGBA layer"
+                              : variance_in_render          ? "a variance layer in the render"
+                                                            : "Arnold's AOV names");
     const bool features = has_channel(merged, "albedo.R") || has_channel(merged, "N.X")
                           || has_channel(merged, "normal.X") || has_channel(merged, "normal.R");
     const bool variance = has_channel(merged, "variance.R") || has_channel(merged, "A.R");
@@ -258,7 +284,10 @@ std::string detect_aov_preset(const ImageSpec& merged, std::string* why)
     return said("generic", "no renderer's names (R,G,B, albedo.*, N.*, Z, variance.*)");
 }
 
-const char* role_name(Role role) { return kRoleNames[int(role)]; }
+const char* role_name(Role role)
+{
+    return kRoleNames[int(role)];
+}
 
 std::optional<Role> role_from_name(string_view name)
 {
@@ -278,7 +307,10 @@ int role_channel_count(Role role)
     return 3;
 }
 
-Role face_of(Role base, Face face) { return Role(int(base) + int(face)); }
+Role face_of(Role base, Face face)
+{
+    return Role(int(base) + int(face));
+}
 
 const char* input_kind_name(InputKind kind)
 {
@@ -293,8 +325,7 @@ const char* input_kind_name(InputKind kind)
 
 std::optional<InputKind> input_kind_from_name(string_view name)
 {
-    for (InputKind k : { InputKind::Mean, InputKind::Variance, InputKind::HalfA,
-                         InputKind::HalfB })
+    for (InputKind k : { InputKind::Mean, InputKind::Variance, InputKind::HalfA, InputKind::HalfB })
         if (name == input_kind_name(k))
             return k;
     return std::nullopt;
@@ -313,8 +344,8 @@ const char* input_kind_prefix(InputKind kind)
 
 const std::vector<std::string>& aov_presets()
 {
-    static const std::vector<std::string> presets = { "cycles", "arnold", "renderman", "tungsten",
-                                                      "oidn", "generic" };
+    static const std::vector<std::string> presets = { "cycles",   "arnold", "renderman",
+                                                      "tungsten", "oidn",   "generic" };
     return presets;
 }
 
@@ -369,8 +400,7 @@ bool AovSpec::parse_override(string_view token, std::string& error)
     return true;
 }
 
-bool resolve_aovs(AovSet& set, const AovSpec& spec, const ImageSpec& merged,
-                  std::string& error)
+bool resolve_aovs(AovSet& set, const AovSpec& spec, const ImageSpec& merged, std::string& error)
 {
     const auto& presets = aov_presets();
     std::string why;
@@ -378,8 +408,8 @@ bool resolve_aovs(AovSet& set, const AovSpec& spec, const ImageSpec& merged,
                                    ? detect_aov_preset(merged, &why)
                                    : spec.preset;
     if (std::find(presets.begin(), presets.end(), preset) == presets.end()) {
-        error = OIIO::Strutil::fmt::format("unknown aov preset '{}' (presets: {}, or auto)",
-                                           preset, join(presets, ", "));
+        error = OIIO::Strutil::fmt::format("unknown aov preset '{}' (presets: {}, or auto)", preset,
+                                           join(presets, ", "));
         return false;
     }
     set = AovSet();
@@ -395,9 +425,9 @@ bool resolve_aovs(AovSet& set, const AovSpec& spec, const ImageSpec& merged,
         // AovSpec is a plain struct: overrides written without parse_override are checked too.
         auto parsed = role_from_name(role_str);
         if (!parsed || int(names.size()) != role_channel_count(*parsed)) {
-            error = OIIO::Strutil::fmt::format(
-                "aov override {}={}: not a role with {} channel(s)", role_str, join(names, ","),
-                parsed ? role_channel_count(*parsed) : 0);
+            error = OIIO::Strutil::fmt::format("aov override {}={}: not a role with {} channel(s)",
+                                               role_str, join(names, ","),
+                                               parsed ? role_channel_count(*parsed) : 0);
             return false;
         }
         Role role = *parsed;
@@ -468,12 +498,12 @@ bool resolve_aovs(AovSet& set, const AovSpec& spec, const ImageSpec& merged,
         }
     }
     for (AovSet::Extra& extra : set.m_extras) {
-        extra.variance = find_channels(merged, prefixed(input_kind_prefix(InputKind::Variance),
-                                                        extra.names));
-        extra.half_a = find_channels(merged, prefixed(input_kind_prefix(InputKind::HalfA),
-                                                      extra.names));
-        extra.half_b = find_channels(merged, prefixed(input_kind_prefix(InputKind::HalfB),
-                                                      extra.names));
+        extra.variance =
+            find_channels(merged, prefixed(input_kind_prefix(InputKind::Variance), extra.names));
+        extra.half_a =
+            find_channels(merged, prefixed(input_kind_prefix(InputKind::HalfA), extra.names));
+        extra.half_b =
+            find_channels(merged, prefixed(input_kind_prefix(InputKind::HalfB), extra.names));
     }
     return true;
 }
@@ -499,8 +529,8 @@ bool AovSet::require(const std::vector<Role>& required, const ImageSpec& merged,
         Role base = faced ? faced->first : role;
         const char* prefix = faced ? input_kind_prefix(faced->second) : "";
         std::string layer = m_preset == "cycles" ? find_cycles_layer(merged) : "";
-        Candidates candidates = faced ? preset_face_candidates(m_preset, base, faced->second)
-                                      : Candidates();
+        Candidates candidates =
+            faced ? preset_face_candidates(m_preset, base, faced->second) : Candidates();
         for (const auto& names : preset_candidates(m_preset, layer, base))
             candidates.push_back(prefixed(prefix, names));
         std::string wanted = candidates.empty() ? std::string("(no default in this preset)")
@@ -524,10 +554,9 @@ bool AovSet::require(const std::vector<Role>& required, const ImageSpec& merged,
             "aov preset '{}': role '{}' not found, looked for {} in {}; channels there: {}; "
             "{}{}=ch1,...",
             m_preset, role_name(role), wanted, source,
-            source_channel_list(merged, candidates.empty() ? std::string(prefix)
-                                                           : candidates[0][0]),
-            fix,
-            role_name(role));
+            source_channel_list(merged,
+                                candidates.empty() ? std::string(prefix) : candidates[0][0]),
+            fix, role_name(role));
         return false;
     }
     return true;
@@ -539,8 +568,8 @@ std::vector<InputFile> merged_input_files(const ImageSpec& merged)
     const std::string lines = merged.get_string_attribute(kInputsAttribute);
     for (const auto& line : OIIO::Strutil::splits(lines, "\n")) {
         size_t eq = line.find('=');
-        auto kind = eq == std::string::npos ? std::nullopt
-                                            : input_kind_from_name(line.substr(0, eq));
+        auto kind =
+            eq == std::string::npos ? std::nullopt : input_kind_from_name(line.substr(0, eq));
         if (kind)
             files.push_back({ line.substr(eq + 1), *kind });
     }
@@ -582,8 +611,7 @@ std::string channel_source(const ImageSpec& merged, string_view channel)
     if (files.empty())
         return OIIO::Strutil::fmt::format("the inputs (none given with -i:as={})",
                                           input_kind_name(kind));
-    return OIIO::Strutil::fmt::format("{} (-i:as={})", join(files, ", "),
-                                      input_kind_name(kind));
+    return OIIO::Strutil::fmt::format("{} (-i:as={})", join(files, ", "), input_kind_name(kind));
 }
 
 std::string channel_list(const ImageSpec& spec, int max)

@@ -88,12 +88,13 @@ bool parse_chain(std::vector<std::string>& stages, const std::string& text, std:
                 return true;  // the best chain the inputs allow (mcdn/denoise.h)
             }
             error = format("chain '{}': {} picks the whole chain itself; give it alone or "
-                           "name the stages", text, s);
+                           "name the stages",
+                           text, s);
             return false;
         }
         if (!stage) {
-            error = format("unknown stage '{}' in chain '{}' (stages: {}, or {} alone)", s,
-                           text, Strutil::join(chain_stages(), ", "),
+            error = format("unknown stage '{}' in chain '{}' (stages: {}, or {} alone)", s, text,
+                           Strutil::join(chain_stages(), ", "),
                            Strutil::join(stage_names({ StageKind::Plan }), " or "));
             return false;
         }
@@ -168,8 +169,8 @@ bool keeps_prefiltered_features(const ChainOptions& o)
 }
 
 // `own`: src itself, mutable (run_chain_on_own), or null.
-bool run_stages(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOptions& o,
-                ROI roi, int nthreads);
+bool run_stages(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOptions& o, ROI roi,
+                int nthreads);
 bool run_chain_impl(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOptions& o,
                     ROI roi, int nthreads);
 
@@ -230,8 +231,7 @@ bool run_chain_impl(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const Cha
                     ROI roi, int nthreads)
 {
     // A band of a larger frame (it carries the frame's facts) is never cut again.
-    const bool whole_frame = (!roi.defined() || roi == src.roi())
-                             && !is_frame_band(src.spec());
+    const bool whole_frame = (!roi.defined() || roi == src.roi()) && !is_frame_band(src.spec());
     if (o.band_pixels > 0 && whole_frame && int64_t(src.roi().npixels()) > o.band_pixels)
         return run_chain_into(dst, src, o, nthreads);
     const bool put_back = !keeps_prefiltered_features(o);
@@ -245,13 +245,14 @@ bool run_chain_impl(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const Cha
         }
         features = feature_channel_names(aovs, src.spec());
         if (o.output_channels_only) {
-            const std::vector<std::string> output = Strutil::splits(
-                src.spec().get_string_attribute(kOutputChannelsAttribute), "\n");
+            const std::vector<std::string> output =
+                Strutil::splits(src.spec().get_string_attribute(kOutputChannelsAttribute), "\n");
             if (!output.empty())
                 features.erase(std::remove_if(features.begin(), features.end(),
                                               [&](const std::string& name) {
                                                   return std::find(output.begin(), output.end(),
-                                                                   name) == output.end();
+                                                                   name)
+                                                         == output.end();
                                               }),
                                features.end());
         }
@@ -281,8 +282,8 @@ bool run_chain_impl(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const Cha
     return true;
 }
 
-bool run_stages(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOptions& o,
-                ROI roi, int nthreads)
+bool run_stages(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOptions& o, ROI roi,
+                int nthreads)
 {
     std::vector<std::string> check;
     std::string error;
@@ -330,16 +331,16 @@ bool run_stages(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOp
         }
         ImageBuf next;
         // A mix runs in place on a result of the chain's own (not on src): a frame less.
-        ImageBuf& out = stage.kind == StageKind::Mixer && current == &made_image ? made_image
-                                                                                 : next;
+        ImageBuf& out =
+            stage.kind == StageKind::Mixer && current == &made_image ? made_image : next;
         // Probed in the chain's own input where it has one (a frame less).
         const bool probe_own = stage.kind == StageKind::Estimator && own && current == &src;
         if (stage.kind == StageKind::Estimator) {
             context.denoiser_radius = chain_radius(pending_reach);
             // A denoiser that writes only its colour and extras and reads no extra when
             // probed may run in the input itself (SureOptions::denoiser_in_place).
-            context.denoiser_in_place = pending.size() == 1
-                                        && find_stage(pending[0].first)->probes_in_place;
+            context.denoiser_in_place =
+                pending.size() == 1 && find_stage(pending[0].first)->probes_in_place;
             context.denoiser = compose_in_place(std::move(pending));
             pending.clear();
             pending_reach.clear();

@@ -34,8 +34,8 @@ namespace mcdn {
 namespace {
 
 // The stages the chain runs: "denoise" is planned here, once for the frame.
-bool resolved_stages(std::vector<std::string>& stages, const ImageSpec& spec,
-                     const ChainOptions& o, std::string& error)
+bool resolved_stages(std::vector<std::string>& stages, const ImageSpec& spec, const ChainOptions& o,
+                     std::string& error)
 {
     stages = o.stages;
     const StageInfo* plan = stages.size() == 1 ? find_stage(stages[0]) : nullptr;
@@ -88,13 +88,15 @@ public:
         m_names = feature_channel_names(aovs, spec);
         // The extras' means and halves too: an empty one is left out (core/extra_aovs.h).
         for (const AovSet::Extra& extra : aovs.extras())
-            for (const std::vector<int>* channels : { &extra.channels, &extra.half_a, &extra.half_b })
+            for (const std::vector<int>* channels :
+                 { &extra.channels, &extra.half_a, &extra.half_b })
                 for (int ch : *channels)
                     m_names.push_back(spec.channel_name(ch));
         for (const StageInfo& stage : stage_table())  // a stage's extra features= channels
             if (auto it = o.settings.find(stage.name + ".features"); it != o.settings.end())
                 for (const std::string& name : OIIO::Strutil::splits(it->second, ","))
-                    for (const std::string& face : { name, "variance." + name, "A." + name, "B." + name })
+                    for (const std::string& face :
+                         { name, "variance." + name, "A." + name, "B." + name })
                         if (spec.channelindex(face) >= 0)
                             m_names.push_back(face);
         for (const std::string& name : m_names)
@@ -114,7 +116,7 @@ public:
         const std::vector<int>& variance = m_aovs.channels(Role::ColorVariance);
         if (m_needs_color)
             add_color_sums(m_color, rows, m_aovs.channels(Role::Color).data(),
-                            variance.size() == 3 ? variance.data() : nullptr);
+                           variance.size() == 3 ? variance.data() : nullptr);
         if (m_needs_depth && m_aovs.has(Role::Depth)) {
             const kpcn::DepthRange depth = kpcn::depth_range(rows, m_aovs);
             m_depth_lo = std::min(m_depth_lo, depth.lo);
@@ -214,7 +216,8 @@ int chain_reach(const ImageSpec& spec, const ChainOptions& o)
             return -1;
         const Settings settings = stage_settings(o.settings, name);
         // Without a reach of its own (sure) a stage reaches no further than its denoisers.
-        reaches.push_back(stage->reach ? stage->reach(settings, denoiser) : StageReach { 0, 0, false });
+        reaches.push_back(stage->reach ? stage->reach(settings, denoiser)
+                                       : StageReach { 0, 0, false });
         if (stage->kind == StageKind::Denoiser && !stage->changes_features)
             denoiser = name;  // the prefilter filters the features, not the colour
     }
@@ -278,8 +281,7 @@ bool run_bands(const std::vector<Band>& bands, const ROI& whole, const FrameFact
             AovSet result_aovs;
             result.specmod().erase_attribute("mcdn:in_working_space");
             if (!resolve_aovs(result_aovs, o.aovs, result.spec(), error)
-                || !convert_color_channels(result, result_aovs, working_colorspace(), from,
-                                           error))
+                || !convert_color_channels(result, result_aovs, working_colorspace(), from, error))
                 return false;
         }
         ROI own = whole;
@@ -303,8 +305,8 @@ std::vector<Band> chain_bands(const ImageSpec& spec, const ChainOptions& o)
 
 // A frame of one band: the chain on the whole of it, handed on at once. `own`: input
 // itself, when it is ours (read for the chain), else null.
-bool run_whole(const ImageBuf& input, ImageBuf* own, const ChainOptions& o,
-               const BandSink& sink, std::string& error, int nthreads)
+bool run_whole(const ImageBuf& input, ImageBuf* own, const ChainOptions& o, const BandSink& sink,
+               std::string& error, int nthreads)
 {
     const ROI whole = input.roi();  // before the chain: it may release its own input
     ImageBuf result;

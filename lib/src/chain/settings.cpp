@@ -42,7 +42,8 @@ bool parse_bandwidths(const std::string& text, std::array<float, 2>& k)
 // Digits only: std::stoull would throw on "abc" and wrap "-1" around.
 bool parse_seed(const std::string& text, uint64_t& seed)
 {
-    if (text.empty() || text.size() > 19 || text.find_first_not_of("0123456789") != std::string::npos)
+    if (text.empty() || text.size() > 19
+        || text.find_first_not_of("0123456789") != std::string::npos)
         return false;
     seed = std::stoull(text);
     return true;

@@ -23,8 +23,8 @@ public:
         const auto& keys = setting_keys(stage);
         for (const auto& [key, value] : settings)
             if (std::find(keys.begin(), keys.end(), key) == keys.end())
-                fail(OIIO::Strutil::fmt::format("{}={}: unknown setting of {} (settings: {})", key, value, stage,
-                            OIIO::Strutil::join(keys, ", ")));
+                fail(OIIO::Strutil::fmt::format("{}={}: unknown setting of {} (settings: {})", key,
+                                                value, stage, OIIO::Strutil::join(keys, ", ")));
     }
 
     bool ok() const { return m_ok; }
@@ -35,7 +35,8 @@ public:
         if (const std::string* v = find(key)) {
             int w = OIIO::Strutil::string_is_int(*v) ? OIIO::Strutil::stoi(*v) : 0;
             if (w < 1 || w % 2 == 0 || w > 101)
-                fail(OIIO::Strutil::fmt::format("{}={} must be an odd width between 1 and 101", key, *v));
+                fail(OIIO::Strutil::fmt::format("{}={} must be an odd width between 1 and 101", key,
+                                                *v));
             else
                 radius = (w - 1) / 2;
         }
@@ -100,7 +101,7 @@ public:
         number("converged", o.max_relative_error);
         if (m_ok && !(o.max_relative_error >= 0))
             fail(OIIO::Strutil::fmt::format("converged={} must be >= 0 (a relative standard error)",
-                        m_settings.at("converged")));
+                                            m_settings.at("converged")));
         return *this;
     }
 

@@ -20,8 +20,7 @@ namespace {
 
 // ---- settings -> Options --------------------------------------------------------------
 
-template <class Options>
-bool check_settings(const Settings& settings, std::string& error)
+template <class Options> bool check_settings(const Settings& settings, std::string& error)
 {
     Options o;
     return apply_settings(o, settings, error);
@@ -39,8 +38,7 @@ bool options_of(Options& o, const Settings& settings, const StageContext& contex
     return true;
 }
 
-template <class Options>
-StageReach reach_of(const Settings& settings, const std::string&)
+template <class Options> StageReach reach_of(const Settings& settings, const std::string&)
 {
     Options o;
     std::string error;
@@ -57,7 +55,10 @@ bool has_features(const AovSet& aovs)
     return false;
 }
 
-bool has_halves(const AovSet& aovs) { return aovs.has(Role::ColorA) && aovs.has(Role::ColorB); }
+bool has_halves(const AovSet& aovs)
+{
+    return aovs.has(Role::ColorA) && aovs.has(Role::ColorB);
+}
 
 // A denoiser of one frame, cross-frame when the context has neighbours: the frames combined
 // where they agree (mcdn/frames.h), then the denoiser; both are the denoiser (SURE probes
@@ -107,14 +108,12 @@ StageInfo prefilter_stage()
     s.reads_halves = true;
     s.facts.constant_features = true;
     s.frame_buffers = 0.5;  // the prefiltered features beside the frame
-    s.help
-        = "NFOR feature prefilter (§5.1): NL-means cross-filtering of albedo, normal, depth "
-          "and visibility with their half buffers. window=11 patch=7 k=0.5; features=a,b "
-          "adds extra feature channels.";
-    s.needs
-        = "the features (albedo, normal, depth, visibility) with their half buffers "
-          "(-i:as=halfA, -i:as=halfB) and variances; without halves each feature is "
-          "filtered by its own variance.";
+    s.help = "NFOR feature prefilter (§5.1): NL-means cross-filtering of albedo, normal, depth "
+             "and visibility with their half buffers. window=11 patch=7 k=0.5; features=a,b "
+             "adds extra feature channels.";
+    s.needs = "the features (albedo, normal, depth, visibility) with their half buffers "
+              "(-i:as=halfA, -i:as=halfB) and variances; without halves each feature is "
+              "filtered by its own variance.";
     s.check = check_settings<PrefilterOptions>;
     s.make = make_prefilter;
     s.reach = reach_of<PrefilterOptions>;
@@ -152,34 +151,32 @@ StageInfo nfor_stage()
 {
     StageInfo s;
     s.name = "nfor";
-    s.keys = { "window", "patch", "k", "mse", "selection", "features", "features-out",
-                  "halves", "extras", "outliers", "fallback", "fallback-aov", "skip",
-                  "converged" };
+    s.keys = { "window",   "patch",        "k",      "mse",      "selection",
+               "features", "features-out", "halves", "extras",   "outliers",
+               "fallback", "fallback-aov", "skip",   "converged" };
     s.cross_frame = true;
     s.reads_halves = true;
     s.facts.color_sums = true;
     s.facts.constant_features = true;
     s.frame_buffers = 2.0;  // the result and the per-buffer regression outputs
-    s.help
-        = "NFOR denoiser (§5.2-5.4): first-order regression on the features, collaborative, "
-          "bandwidth chosen per pixel. window=19 patch=7 k=0.5,1.0; mse=1 and selection=1 "
-          "add nfor.mse.* and nfor.selection.* channels. Prefilters the features itself "
-          "unless --prefilter ran. Extra AOVs (light groups, extra.NAME) are denoised with "
-          "the beauty's weights so they still add up (extras=0: keep them as they are). "
-          "A pixel holding one sample worth a hundred of its neighbours (a caustic through "
-          "glass, a firefly) is kept out of the regressions and its excess removed, as a "
-          "sample clamp would (outliers=drop; keep: added back where it was; off: left in). "
-          "Safety net (on; fallback=0: off): a 32x32 tile where NFOR's own MSE estimate is "
-          "above the render's variance is the render, -v says how many (fallback-aov=1 adds "
-          "channel nfor.fallback, 1 on those tiles). "
-          "Cross-frame (§8), in a sequence: frames=2 fits over the 2 previous and 2 next "
-          "frames too, aligned by the motion vectors (Blender's Vector pass); it reads them "
-          "(also across --frames chunk edges), never writes them, and runs the whole frame.";
-    s.needs
-        = "the colour and its two half buffers (each the mean of half the samples: "
-          "-i:as=halfA, -i:as=halfB; a Tungsten folder has them); the variance of the mean "
-          "(else the halves' difference); features, prefiltered unless --prefilter ran. "
-          "Without halves, render them, or use --denoise or --cnn.";
+    s.help = "NFOR denoiser (§5.2-5.4): first-order regression on the features, collaborative, "
+             "bandwidth chosen per pixel. window=19 patch=7 k=0.5,1.0; mse=1 and selection=1 "
+             "add nfor.mse.* and nfor.selection.* channels. Prefilters the features itself "
+             "unless --prefilter ran. Extra AOVs (light groups, extra.NAME) are denoised with "
+             "the beauty's weights so they still add up (extras=0: keep them as they are). "
+             "A pixel holding one sample worth a hundred of its neighbours (a caustic through "
+             "glass, a firefly) is kept out of the regressions and its excess removed, as a "
+             "sample clamp would (outliers=drop; keep: added back where it was; off: left in). "
+             "Safety net (on; fallback=0: off): a 32x32 tile where NFOR's own MSE estimate is "
+             "above the render's variance is the render, -v says how many (fallback-aov=1 adds "
+             "channel nfor.fallback, 1 on those tiles). "
+             "Cross-frame (§8), in a sequence: frames=2 fits over the 2 previous and 2 next "
+             "frames too, aligned by the motion vectors (Blender's Vector pass); it reads them "
+             "(also across --frames chunk edges), never writes them, and runs the whole frame.";
+    s.needs = "the colour and its two half buffers (each the mean of half the samples: "
+              "-i:as=halfA, -i:as=halfB; a Tungsten folder has them); the variance of the mean "
+              "(else the halves' difference); features, prefiltered unless --prefilter ran. "
+              "Without halves, render them, or use --denoise or --cnn.";
     s.check = check_settings<NforOptions>;
     s.make = make_nfor;
     s.reach = reach_of<NforOptions>;
@@ -196,9 +193,10 @@ bool make_cnn(MadeStage& made, const Settings& settings, const StageContext& con
     if (!options_of(o, settings, context, error))
         return false;
     made.reach = stage_reach(o);
-    made.run = across_frames([o, n = context.nthreads](ImageBuf& dst, const ImageBuf& src) {
-        return cnn(dst, src, o, {}, n);
-    }, context);
+    made.run =
+        across_frames([o, n = context.nthreads](
+                          ImageBuf& dst, const ImageBuf& src) { return cnn(dst, src, o, {}, n); },
+                      context);
     return true;
 }
 
@@ -229,21 +227,19 @@ StageInfo cnn_stage()
     s.facts.depth_range = true;
     s.frame_buffers = 1.2;  // the result and the converged map
     s.thread_bytes = cnn_thread_bytes;
-    s.help
-        = "Kernel-predicting CNN denoiser (KPCN): diffuse/specular split, our trained weights "
-          "(models/kpcn.mcdnw; weights=FILE), tiled (tile=384). Extra AOVs take their share "
-          "of the beauty's denoised light through its kernels (extras=0: keep them). A pixel "
-          "holding one sample worth a hundred of its neighbours (a caustic through glass, a "
-          "firefly) is taken out of the network's input and its excess removed, by --nfor's "
-          "rule (outliers=drop; off: left in, where the kernels spread it). "
-          "Cross-frame, in a sequence: frames=2 first combines this frame with 2 previous "
-          "and 2 next ones, aligned by the motion vectors (Blender's Vector pass), weighted "
-          "by how well their patches agree: a render of up to 5 times the samples where "
-          "they do. It reads them (also across --frames chunk edges), never writes them.";
-    s.needs
-        = "the colour; the diffuse/specular split (Cycles' DiffCol/Dir/Ind and Gloss*, or "
-          "diffuse.*, specular.*) where present; albedo, normal, depth and their variances "
-          "(missing ones are zero: -v names them).";
+    s.help = "Kernel-predicting CNN denoiser (KPCN): diffuse/specular split, our trained weights "
+             "(models/kpcn.mcdnw; weights=FILE), tiled (tile=384). Extra AOVs take their share "
+             "of the beauty's denoised light through its kernels (extras=0: keep them). A pixel "
+             "holding one sample worth a hundred of its neighbours (a caustic through glass, a "
+             "firefly) is taken out of the network's input and its excess removed, by --nfor's "
+             "rule (outliers=drop; off: left in, where the kernels spread it). "
+             "Cross-frame, in a sequence: frames=2 first combines this frame with 2 previous "
+             "and 2 next ones, aligned by the motion vectors (Blender's Vector pass), weighted "
+             "by how well their patches agree: a render of up to 5 times the samples where "
+             "they do. It reads them (also across --frames chunk edges), never writes them.";
+    s.needs = "the colour; the diffuse/specular split (Cycles' DiffCol/Dir/Ind and Gloss*, or "
+              "diffuse.*, specular.*) where present; albedo, normal, depth and their variances "
+              "(missing ones are zero: -v names them).";
     s.check = check_settings<CnnOptions>;
     s.make = make_cnn;
     s.reach = reach_of<CnnOptions>;
@@ -276,9 +272,10 @@ bool make_oidn(MadeStage& made, const Settings& settings, const StageContext& co
     if (r < 0 && !oidn_weights(path, o, true, true, error))
         return false;
     made.reach = { r, r, false };
-    made.run = across_frames([o, n = context.nthreads](ImageBuf& dst, const ImageBuf& src) {
-        return oidn(dst, src, o, {}, n);
-    }, context);
+    made.run =
+        across_frames([o, n = context.nthreads](
+                          ImageBuf& dst, const ImageBuf& src) { return oidn(dst, src, o, {}, n); },
+                      context);
     return true;
 }
 
@@ -299,21 +296,19 @@ StageInfo oidn_stage()
         const double side = o.tile_size + 2 * 96;
         return side * side * 250 * sizeof(float);
     };
-    s.help
-        = "Intel Open Image Denoise's published network on our engine, with your copy of "
-          "OIDN's weights (weights=FILE.tza or a folder of them; else $MCDN_OIDN_WEIGHTS, "
-          "else <prefix>/share/mcdenoise/oidn/; mcdenoise does not ship them: they are "
-          "OIDN's, Apache 2.0, from RenderKit/oidn-weights). The model follows the inputs: "
-          "colour + albedo + normal (rt_hdr_alb_nrm), colour + albedo (rt_hdr_alb), colour "
-          "(rt_hdr). Tiled (tile=512); extra AOVs are kept as they are. Cross-frame, in a "
-          "sequence: frames=2 combines this frame with 2 previous and 2 next ones first, as "
-          "--cnn:frames=2 does. "
-          "--oidn --sure --mix is Progressive Denoising's configuration (§6): OIDN's result, "
-          "its SURE, and the mix that converges to the render.";
-    s.needs
-        = "the colour; the albedo and normal where present (Cycles' Denoising Albedo and "
-          "Denoising Normal, any preset's). --sure and --mix after it need the colour's "
-          "variance.";
+    s.help = "Intel Open Image Denoise's published network on our engine, with your copy of "
+             "OIDN's weights (weights=FILE.tza or a folder of them; else $MCDN_OIDN_WEIGHTS, "
+             "else <prefix>/share/mcdenoise/oidn/; mcdenoise does not ship them: they are "
+             "OIDN's, Apache 2.0, from RenderKit/oidn-weights). The model follows the inputs: "
+             "colour + albedo + normal (rt_hdr_alb_nrm), colour + albedo (rt_hdr_alb), colour "
+             "(rt_hdr). Tiled (tile=512); extra AOVs are kept as they are. Cross-frame, in a "
+             "sequence: frames=2 combines this frame with 2 previous and 2 next ones first, as "
+             "--cnn:frames=2 does. "
+             "--oidn --sure --mix is Progressive Denoising's configuration (§6): OIDN's result, "
+             "its SURE, and the mix that converges to the render.";
+    s.needs = "the colour; the albedo and normal where present (Cycles' Denoising Albedo and "
+              "Denoising Normal, any preset's). --sure and --mix after it need the colour's "
+              "variance.";
     s.check = [](const Settings& settings, std::string& error) {
         OidnOptions o;
         return oidn_settings(o, settings, error);
@@ -333,9 +328,10 @@ StageInfo oidn_stage()
                   + oidn_weights_dir() + ")";
             return false;
         }
-        how = path + " on " + (albedo && normal ? "colour, albedo and normal"
-                               : albedo         ? "colour and albedo"
-                                                : "the colour alone");
+        how = path + " on "
+              + (albedo && normal ? "colour, albedo and normal"
+                 : albedo         ? "colour and albedo"
+                                  : "the colour alone");
         return true;
     };
     return s;
@@ -379,16 +375,15 @@ StageInfo sure_stage()
     s.keys = { "probes", "eps", "seed", "fallback", "fallback-aov", "skip", "converged" };
     s.facts.color_sums = true;
     s.frame_buffers = 1.5;  // the noisy copy and the denoiser's responses
-    s.help
-        = "Monte-Carlo SURE of the denoisers before it (PD §3.2): adds sure.*, "
-          "sure.divergence.*, sure.residual.* and noisy.* channels. probes=1 (K; costs K+1 "
-          "denoiser runs), eps=1e-3 (relative probe step). -v says in how many 32x32 tiles SURE "
-          "finds the denoiser worse than the render, and those tiles are the render (safety net, "
-          "for any denoiser; fallback=0: the denoiser's are kept); fallback-aov=1 adds channel "
-          "sure.fallback, 1 on those tiles.";
-    s.needs
-        = "the colour and the variance of its mean, and a denoiser before it (--cnn, --nfor, "
-          "--prefilter --nfor), which it runs probes+1 times.";
+    s.help =
+        "Monte-Carlo SURE of the denoisers before it (PD §3.2): adds sure.*, "
+        "sure.divergence.*, sure.residual.* and noisy.* channels. probes=1 (K; costs K+1 "
+        "denoiser runs), eps=1e-3 (relative probe step). -v says in how many 32x32 tiles SURE "
+        "finds the denoiser worse than the render, and those tiles are the render (safety net, "
+        "for any denoiser; fallback=0: the denoiser's are kept); fallback-aov=1 adds channel "
+        "sure.fallback, 1 on those tiles.";
+    s.needs = "the colour and the variance of its mean, and a denoiser before it (--cnn, --nfor, "
+              "--prefilter --nfor), which it runs probes+1 times.";
     s.check = check_settings<SureOptions>;
     s.make = make_sure;
     s.can_run = sure_can_run;
@@ -429,20 +424,19 @@ StageInfo mix_stage()
     StageInfo s;
     s.name = "mix";
     s.kind = StageKind::Mixer;
-    s.keys = { "model", "weights", "ttest", "alpha", "afloor", "outlier", "drop", "skip",
-                 "converged" };
+    s.keys = { "model",   "weights", "ttest", "alpha",    "afloor",
+               "outlier", "drop",    "skip",  "converged" };
     s.facts.color_sums = true;
     s.frame_buffers = 0.8;  // the result
-    s.help
-        = "Progressive mix of the render and the denoised image (PD §4), after --sure: "
-          "model=net|analytic (default net), ttest=1 bounds alpha by the t-test (eq. 18), "
-          "alpha=1 adds "
-          "mix.alpha.* channels; with model=net: the network trained for the denoiser before "
-          "--sure (models/mix_cnn.mcdnw after --cnn, else models/mix.mcdnw; weights=FILE), "
-          "afloor=1, alpha is at least the analytic model's; with either model: "
-          "outlier=0.3, alpha is at least eq. 9 where the "
-          "render's variance exceeds 0.3 (y^2 + 0.01), drop=1.5: alpha = 1 where it exceeds "
-          "1.5 (y^2 + 0.01) (0: off).";
+    s.help = "Progressive mix of the render and the denoised image (PD §4), after --sure: "
+             "model=net|analytic (default net), ttest=1 bounds alpha by the t-test (eq. 18), "
+             "alpha=1 adds "
+             "mix.alpha.* channels; with model=net: the network trained for the denoiser before "
+             "--sure (models/mix_cnn.mcdnw after --cnn, else models/mix.mcdnw; weights=FILE), "
+             "afloor=1, alpha is at least the analytic model's; with either model: "
+             "outlier=0.3, alpha is at least eq. 9 where the "
+             "render's variance exceeds 0.3 (y^2 + 0.01), drop=1.5: alpha = 1 where it exceeds "
+             "1.5 (y^2 + 0.01) (0: off).";
     s.needs = "what --sure adds (sure.*, noisy.*): give --sure first; the colour's variance.";
     s.check = check_settings<MixOptions>;
     s.make = make_mix;
@@ -460,26 +454,23 @@ StageInfo denoise_stage()
     s.kind = StageKind::Plan;
     s.cross_frame = true;
     s.reads_light_split = true;
-    s.help
-        = "The best chain the inputs allow: with a colour variance --cnn --sure --mix "
-          "(KPCN, its SURE, the progressive mix by the network: never much worse than the "
-          "better of render and CNN), without one --cnn alone; with OIDN's weights where "
-          "--oidn finds them, --oidn in the CNN's place. -v prints which and why. "
-          "To choose stages and their settings, name them instead. In a sequence, frames=2 "
-          "is cross-frame: the CNN's input is this frame combined with 2 previous and 2 next "
-          "ones where they agree (as --cnn:frames=2), against flicker.";
-    s.needs
-        = "the colour (any preset); with its variance (the renderer's variance AOV, Cycles "
-          "via -i:as=variance, a Tungsten folder) the mixed chain. Albedo, normal and depth "
-          "help the CNN; missing ones are zero (-v names them).";
+    s.help = "The best chain the inputs allow: with a colour variance --cnn --sure --mix "
+             "(KPCN, its SURE, the progressive mix by the network: never much worse than the "
+             "better of render and CNN), without one --cnn alone; with OIDN's weights where "
+             "--oidn finds them, --oidn in the CNN's place. -v prints which and why. "
+             "To choose stages and their settings, name them instead. In a sequence, frames=2 "
+             "is cross-frame: the CNN's input is this frame combined with 2 previous and 2 next "
+             "ones where they agree (as --cnn:frames=2), against flicker.";
+    s.needs = "the colour (any preset); with its variance (the renderer's variance AOV, Cycles "
+              "via -i:as=variance, a Tungsten folder) the mixed chain. Albedo, normal and depth "
+              "help the CNN; missing ones are zero (-v names them).";
     return s;
 }
 
 std::vector<StageInfo> make_table()
 {
-    std::vector<StageInfo> table = { denoise_stage(), prefilter_stage(), nfor_stage(),
-                                     cnn_stage(),     oidn_stage(),      sure_stage(),
-                                     mix_stage() };
+    std::vector<StageInfo> table = { denoise_stage(), prefilter_stage(), nfor_stage(), cnn_stage(),
+                                     oidn_stage(),    sure_stage(),      mix_stage() };
     // The plan's memory is that of its longest chain (mcdn/denoise.h): cnn, sure, mix.
     for (const char* planned : { "cnn", "sure", "mix" }) {
         const auto& stage = *std::find_if(table.begin(), table.end(),

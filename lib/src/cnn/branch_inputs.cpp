@@ -2,8 +2,8 @@
 // needs its raw planes and one more column and row (the forward differences), so no
 // whole-frame input exists (34 channels: ~280 MB at 1080p, 4.5 GB at 8K). A tile is made in
 // strips of rows, each read and computed in cache on the engine's OpenMP workers (between
-// two tiles' convolutions: work on another pool would share the cores with them spinning). Every value is
-// the whole-frame computation's, bit for bit: the same per-pixel arithmetic, the depth
+// two tiles' convolutions: work on another pool would share the cores with them spinning). Every
+// value is the whole-frame computation's, bit for bit: the same per-pixel arithmetic, the depth
 // scaled by the whole frame's range (scale_depth), and rows and columns past the frame
 // (nn::run_tiled's extension to the alignment) copies of its last ones.
 // training/cnn/model.py branch_inputs is the same computation in Python.
@@ -33,7 +33,10 @@ float finite_input(float v)
     return std::min(std::max(v, -kInputLimit), kInputLimit);
 }
 
-float relu(float v) { return v > 0 ? v : 0.0f; }
+float relu(float v)
+{
+    return v > 0 ? v : 0.0f;
+}
 
 /// Channels 0-13 of raw pixel i, unclamped (the gradients are taken before the clamp), and
 /// the 3 values the branch's kernels filter. Colour in the network domain (0-2) and its
@@ -75,8 +78,8 @@ void pixel_inputs(const RawPlanes& raw, Branch branch, size_t i, float* f, float
 
 /// Rows [first, last) of a tile's inputs (tensors shaped to the window; the image's
 /// channels 0-2), from raw planes covering inputs_rect of those rows.
-void strip_inputs(const RawPlanes& raw, Branch branch, const Rect& window, int first,
-                  int last, nn::Tensor& features, nn::Tensor& image)
+void strip_inputs(const RawPlanes& raw, Branch branch, const Rect& window, int first, int last,
+                  nn::Tensor& features, nn::Tensor& image)
 {
     const int frame_width = raw.frame_width, frame_height = raw.frame_height;
     const Rect rect = inputs_rect({ window.x0, window.y0 + first, window.x1, window.y0 + last },
@@ -108,8 +111,8 @@ void strip_inputs(const RawPlanes& raw, Branch branch, const Rect& window, int f
             for (int k = 0; k < kGuides; ++k) {
                 const int ch = kGuide[k];
                 f[14 + k] = x + 1 < frame_width ? g[kPixelChannels + ch] - g[ch] : 0.0f;
-                f[24 + k] = y + 1 < frame_height ? g[size_t(rw) * kPixelChannels + ch] - g[ch]
-                                                 : 0.0f;
+                f[24 + k] =
+                    y + 1 < frame_height ? g[size_t(rw) * kPixelChannels + ch] - g[ch] : 0.0f;
             }
             for (int k = 0; k < kInputChannels; ++k)
                 f[k] = finite_input(f[k]);
@@ -124,9 +127,8 @@ constexpr int kStripRows = 16;  // one more row read per strip: ~6%
 template <class Strip> void for_strips(int rows, Strip strip)
 {
     const int strips = (rows + kStripRows - 1) / kStripRows;
-    nn::parallel_rows(strips, [&](int s) {
-        strip(s * kStripRows, std::min((s + 1) * kStripRows, rows));
-    });
+    nn::parallel_rows(strips,
+                      [&](int s) { strip(s * kStripRows, std::min((s + 1) * kStripRows, rows)); });
 }
 
 }  // namespace
@@ -139,9 +141,8 @@ Rect inputs_rect(const Rect& window, int frame_width, int frame_height)
 }
 
 bool tile_inputs(const ImageBuf& src, const AovSet& aovs, const DepthRange& depth,
-                 const std::vector<ExtraPlanes>& extras, const Rect& window,
-                 BranchInputs* diffuse, BranchInputs& specular, std::string& error,
-                 const DroppedOutliers* outliers)
+                 const std::vector<ExtraPlanes>& extras, const Rect& window, BranchInputs* diffuse,
+                 BranchInputs& specular, std::string& error, const DroppedOutliers* outliers)
 {
     const int image_channels = extras.empty() ? 3 : 3 * (2 + int(extras.size()));
     for (BranchInputs* b : { diffuse, &specular })
@@ -178,8 +179,8 @@ bool tile_inputs(const ImageBuf& src, const AovSet& aovs, const DepthRange& dept
     return read;
 }
 
-void branch_inputs(const RawPlanes& raw, Branch branch, const Rect& window,
-                   nn::Tensor& features, nn::Tensor& image)
+void branch_inputs(const RawPlanes& raw, Branch branch, const Rect& window, nn::Tensor& features,
+                   nn::Tensor& image)
 {
     nn::reshape(features, window.y1 - window.y0, window.x1 - window.x0, kInputChannels);
     nn::reshape(image, features.height, features.width, 3);

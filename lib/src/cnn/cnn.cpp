@@ -61,8 +61,8 @@ void recombine(kpcn::OutputFrame& color_frame, kpcn::OutputFrame& frame, Rect re
             const bool render_stays = converged.pixel(x, y);
             for (int c = 0; c < 3; ++c) {
                 const float s = std::expm1(ls[c]);
-                const float d = split ? (std::max(demod[c].px[i], 0.0f) + kpcn::kAlbedoEpsilon) * irr[c]
-                                      : 0.0f;
+                const float d =
+                    split ? (std::max(demod[c].px[i], 0.0f) + kpcn::kAlbedoEpsilon) * irr[c] : 0.0f;
                 if (!render_stays)
                     out[color[c]] = sanitize(s + d);
                 if (keep_components) {
@@ -74,7 +74,8 @@ void recombine(kpcn::OutputFrame& color_frame, kpcn::OutputFrame& frame, Rect re
         }
     if (!keep_components)
         return;
-    for (auto [result, filtered] : { std::pair{ &diffuse, irradiance }, std::pair{ &specular, &log_spec } }) {
+    for (auto [result, filtered] :
+         { std::pair { &diffuse, irradiance }, std::pair { &specular, &log_spec } }) {
         result->filtered = filtered;
         result->window_x0 = window.x0;
         result->window_y0 = window.y0;
@@ -122,13 +123,12 @@ kpcn::DroppedOutliers find_outliers(const ImageBuf& src, const AovSet& aovs,
     FrameFacts facts;
     const ColorSums frame = frame_facts(facts, src.spec()) ? facts.color : color_sums(color);
     const NforOptions nfor_options;  // the same thresholds as NFOR's
-    const OutlierRule rule = outlier_rule(nfor_options.outlier_sigma,
-                                          nfor_options.outlier_variance_ratio,
-                                          nfor_options.outlier_level_ratio, frame);
-    const OutlierPixels found = take_out_outliers(color.mean, color.variance,
-                                                  halves ? color.half_a : nullptr,
-                                                  halves ? color.half_b : nullptr, extras,
-                                                  converged, rule, nthreads);
+    const OutlierRule rule =
+        outlier_rule(nfor_options.outlier_sigma, nfor_options.outlier_variance_ratio,
+                     nfor_options.outlier_level_ratio, frame);
+    const OutlierPixels found =
+        take_out_outliers(color.mean, color.variance, halves ? color.half_a : nullptr,
+                          halves ? color.half_b : nullptr, extras, converged, rule, nthreads);
     for (size_t k = 0; k < found.pixels.size(); ++k) {
         const uint32_t i = found.pixels[k];
         std::array<float, 3> mean, variance, scale;
@@ -149,9 +149,8 @@ kpcn::DroppedOutliers find_outliers(const ImageBuf& src, const AovSet& aovs,
 // The network's tiles (nn/tiled.cpp) that write a pixel of `where`, only over tiles that are
 // not converged (nn/network_regions.h).
 bool network_tiles(std::vector<nn::Tile>& tiles, const nn::Net& net,
-                   const ConvergedTiles& converged, const CnnOptions& options,
-                   const ImageBuf& src, const ImageBuf& dst, const ROI& where,
-                   std::string& error)
+                   const ConvergedTiles& converged, const CnnOptions& options, const ImageBuf& src,
+                   const ImageBuf& dst, const ROI& where, std::string& error)
 {
     nn::TileOptions tile_options;
     tile_options.tile_size = options.tile_size;
@@ -169,7 +168,7 @@ bool network_tiles(std::vector<nn::Tile>& tiles, const nn::Net& net,
 // In place, the colour made in a frame of its own (colour channels 0-2) into the output's
 // colour channels, inside `where`.
 void copy_color(kpcn::OutputFrame& frame, const std::vector<int>& out_color,
-                 kpcn::OutputFrame& color_frame, const ImageBuf& dst, const ROI& where)
+                kpcn::OutputFrame& color_frame, const ImageBuf& dst, const ROI& where)
 {
     for (int y = where.ybegin - dst.spec().y; y < where.yend - dst.spec().y; ++y)
         for (int x = where.xbegin - dst.spec().x; x < where.xend - dst.spec().x; ++x)
@@ -184,9 +183,9 @@ bool run_branches(kpcn::Worker& k, const ImageBuf& src, const AovSet& aovs,
                   const Rect& window, bool split, const kpcn::DroppedOutliers& outliers,
                   std::string& error)
 {
-    bool ok = kpcn::tile_inputs(src, aovs, depth, extras, window,
-                                split ? &k.diffuse_inputs : nullptr, k.specular_inputs, error,
-                                outliers.empty() ? nullptr : &outliers);
+    bool ok =
+        kpcn::tile_inputs(src, aovs, depth, extras, window, split ? &k.diffuse_inputs : nullptr,
+                          k.specular_inputs, error, outliers.empty() ? nullptr : &outliers);
     if (ok && split) {
         ok = k.model.diffuse.run(k.diffuse_inputs.tensors, k.irradiance, error);
         k.model.diffuse.give_buffers(k.model.specular);  // same shapes: no new memory
@@ -197,8 +196,8 @@ bool run_branches(kpcn::Worker& k, const ImageBuf& src, const AovSet& aovs,
     return ok;
 }
 
-bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& options,
-                          ROI roi, int nthreads)
+bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& options, ROI roi,
+                          int nthreads)
 {
     // A SURE probe's result is read for its colour alone (core/attributes.h): then dst is
     // the colour channels, not a copy of every channel of the frame.
@@ -217,8 +216,8 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
     if (!prepare_denoiser_output(dst, src, options.aovs, aovs, "cnn", color_only, nthreads))
         return false;
     trace.mark("copy src to dst");
-    const std::vector<int> out_color = color_only ? std::vector<int> { 0, 1, 2 }
-                                                   : aovs.channels(Role::Color);
+    const std::vector<int> out_color =
+        color_only ? std::vector<int> { 0, 1, 2 } : aovs.channels(Role::Color);
     std::vector<ExtraPlanes> extras;
     if (!color_only && denoises_extras(options.denoise_extras, src)
         && !read_extras(extras, dst, aovs, false, error)) {
@@ -272,7 +271,7 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
     // A band of a larger frame carries the frame's (core/frame_facts.h).
     FrameFacts facts;
     const kpcn::DepthRange depth = frame_facts(facts, src.spec()) && facts.has_depth
-                                       ? kpcn::DepthRange{ facts.depth_lo, facts.depth_span }
+                                       ? kpcn::DepthRange { facts.depth_lo, facts.depth_span }
                                        : kpcn::depth_range(src, aovs);
     const bool split = kpcn::has_split(aovs);
     const ROI where = output_roi(src, roi);
@@ -304,8 +303,8 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
                     error = "cnn: '" + path + "': " + tile_error;
                 return false;
             }
-            recombine(color_frame, frame, output_rect(tile.core, dst, where), tile.window, k,
-                      split, src, aovs, color_channels, extras, converged);
+            recombine(color_frame, frame, output_rect(tile.core, dst, where), tile.window, k, split,
+                      src, aovs, color_channels, extras, converged);
             progress.advance();
             return true;
         };

@@ -131,8 +131,8 @@ bool add_product(const WindowReader& src, const std::vector<std::string> names[3
 
 /// Mean and variance of a feature role; the variance from its variance role, else from the
 /// half buffers ((A − B)² / 4 per pixel), else zero. Missing feature: zero planes.
-void read_feature(const WindowReader& src, const AovSet& aovs, Role base, int channels,
-                  Plane* mean, Plane* variance)
+void read_feature(const WindowReader& src, const AovSet& aovs, Role base, int channels, Plane* mean,
+                  Plane* variance)
 {
     const Role var_role = face_of(base, Face::Variance);
     const Role a_role = face_of(base, Face::HalfA), b_role = face_of(base, Face::HalfB);
@@ -174,11 +174,17 @@ void read_demod(const WindowReader& src, const AovSet& aovs, Plane demod[3])
             demod[c] = src.plane(aovs.channels(Role::Albedo)[c]);
 }
 
-Rect whole_frame(const ImageBuf& src) { return { 0, 0, src.spec().width, src.spec().height }; }
+Rect whole_frame(const ImageBuf& src)
+{
+    return { 0, 0, src.spec().width, src.spec().height };
+}
 
 }  // namespace
 
-bool has_split(const AovSet& aovs) { return cycles_split(aovs) || aovs.has(Role::Diffuse); }
+bool has_split(const AovSet& aovs)
+{
+    return cycles_split(aovs) || aovs.has(Role::Diffuse);
+}
 
 void read_demod(Plane demod[3], const ImageBuf& src, const AovSet& aovs, Rect rect)
 {
@@ -255,8 +261,8 @@ bool read_raw_planes(RawPlanes& raw, const ImageBuf& src, const AovSet& aovs, st
             if (diffuse_var_complete)
                 raw.diffuse_var[c] = var[c];
         }
-        specular_var_complete = aovs.has(Role::Specular)
-                                && read_pass(reader, aovs.names(Role::Specular), mean, var);
+        specular_var_complete =
+            aovs.has(Role::Specular) && read_pass(reader, aovs.names(Role::Specular), mean, var);
         if (specular_var_complete)
             for (int c = 0; c < 3; ++c)
                 raw.specular_var[c] = var[c];
@@ -278,8 +284,8 @@ bool read_raw_planes(RawPlanes& raw, const ImageBuf& src, const AovSet& aovs, st
     }
 
     // Features (§5.1): albedo (DiffCol when there is no feature albedo), normal, depth.
-    const Role albedo = aovs.has(Role::Albedo) || !aovs.has(Role::DiffuseColor) ? Role::Albedo
-                                                                                 : Role::DiffuseColor;
+    const Role albedo =
+        aovs.has(Role::Albedo) || !aovs.has(Role::DiffuseColor) ? Role::Albedo : Role::DiffuseColor;
     if (albedo == Role::DiffuseColor) {
         for (int c = 0; c < 3; ++c) {
             raw.albedo[c] = raw.demod[c];
@@ -313,9 +319,8 @@ DepthRange depth_range(const ImageBuf& src, const AovSet& aovs)
     const int channel = aovs.channels(Role::Depth)[0];
     float lo = INFINITY, hi = -INFINITY;
     for (int y = 0; y < src.spec().height; y += kBandRows) {
-        const WindowReader band(src, { 0, y, src.spec().width,
-                                       std::min(y + kBandRows, src.spec().height) },
-                                false);
+        const WindowReader band(
+            src, { 0, y, src.spec().width, std::min(y + kBandRows, src.spec().height) }, false);
         const DepthRange r = depth_range(band.plane(channel));
         lo = std::min(lo, r.lo);
         hi = std::max(hi, r.hi);
@@ -328,8 +333,8 @@ void drop_outliers(RawPlanes& raw, const DroppedOutliers& outliers)
     const Rect& r = raw.rect;
     const uint32_t width = uint32_t(raw.frame_width);
     // The outliers of the rows of raw.rect, those of its columns taken.
-    auto k = std::lower_bound(outliers.pixels.begin(), outliers.pixels.end(),
-                              uint32_t(r.y0) * width);
+    auto k =
+        std::lower_bound(outliers.pixels.begin(), outliers.pixels.end(), uint32_t(r.y0) * width);
     const auto end = std::lower_bound(k, outliers.pixels.end(), uint32_t(r.y1) * width);
     for (; k != end; ++k) {
         const int x = int(*k % width), y = int(*k / width);

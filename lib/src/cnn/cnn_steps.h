@@ -19,16 +19,16 @@ namespace kpcn {
 
 constexpr const char* kInputLayout = "kpcn-cpu-1";  // model.py INPUT_LAYOUT
 constexpr int kInputChannels = 34;
-constexpr float kAlbedoEpsilon = 0.00316f;          // §4.3
-constexpr float kInputLimit = 1e3f;                 // network inputs clamped to +-this
-constexpr int kKernel = 5;                          // each reconstruction step is 5×5
+constexpr float kAlbedoEpsilon = 0.00316f;  // §4.3
+constexpr float kInputLimit = 1e3f;         // network inputs clamped to +-this
+constexpr int kKernel = 5;                  // each reconstruction step is 5×5
 
 /// What the op reads, one plane per channel, sanitized (finite), on a rectangle of the frame
 /// (a network tile's window, or the whole frame). Depth is unscaled until scale_depth().
 /// Without a split, diffuse is zero and specular is the colour.
 struct RawPlanes {
     bool split = false;
-    Rect rect;                             // where the planes lie in the frame
+    Rect rect;  // where the planes lie in the frame
     int frame_width = 0, frame_height = 0;
     Plane color[3], color_var[3];
     Plane diffuse[3], diffuse_var[3];
@@ -43,8 +43,8 @@ struct RawPlanes {
 /// frame). Component variances: the delta method over the passes, Var[C (D + I)] ~ C² (Var D
 /// + Var I) + (D + I)² Var C, passes taken as independent; where a pass has no variance
 /// channel, the colour's variance.
-bool read_raw_planes(RawPlanes& raw, const ImageBuf& src, const AovSet& aovs,
-                     std::string& error, Rect rect = {});
+bool read_raw_planes(RawPlanes& raw, const ImageBuf& src, const AovSet& aovs, std::string& error,
+                     Rect rect = {});
 /// Whether the render has the diffuse/specular split of §4.3 (Blender's diffuse passes, or
 /// the generic preset's diffuse role): then eq. 4 adds two branches, else the specular
 /// branch denoises the colour alone.
@@ -63,7 +63,10 @@ DepthRange depth_range(const ImageBuf& src, const AovSet& aovs);
 DepthRange depth_range(const Plane& depth);
 /// Depth to [0, 1] by the frame's range (its variance by the same factor²).
 void scale_depth(RawPlanes& raw, const DepthRange& range);
-inline void scale_depth(RawPlanes& raw) { scale_depth(raw, depth_range(raw.depth)); }
+inline void scale_depth(RawPlanes& raw)
+{
+    scale_depth(raw, depth_range(raw.depth));
+}
 
 enum class Branch { diffuse, specular };
 
@@ -72,11 +75,9 @@ enum class Branch { diffuse, specular };
 class OutputFrame {
 public:
     explicit OutputFrame(ImageBuf& dst)
-        : base_(static_cast<char*>(dst.localpixels())),
-          pixel_bytes_(size_t(dst.pixel_stride())),
+        : base_(static_cast<char*>(dst.localpixels())), pixel_bytes_(size_t(dst.pixel_stride())),
           row_bytes_(size_t(dst.scanline_stride()))
-    {
-    }
+    { }
     bool valid() const { return base_ != nullptr; }
     /// The channels of pixel (x, y), counted from the data window's corner.
     float* pixel(int x, int y)
@@ -110,8 +111,8 @@ Rect inputs_rect(const Rect& window, int frame_width, int frame_height);
 /// `window` of the frame extended as nn::run_tiled extends it (rows and columns past the
 /// frame repeat its last), from raw planes covering inputs_rect(window). The tensors' storage
 /// is reused.
-void branch_inputs(const RawPlanes& raw, Branch branch, const Rect& window,
-                   nn::Tensor& features, nn::Tensor& image);
+void branch_inputs(const RawPlanes& raw, Branch branch, const Rect& window, nn::Tensor& features,
+                   nn::Tensor& image);
 /// The same on the whole frame of `raw` (the bench's and the tests' whole-frame inputs).
 void branch_inputs(const RawPlanes& raw, Branch branch, nn::Tensor& features, nn::Tensor& image);
 
@@ -129,21 +130,20 @@ struct BranchInputs {
 /// each strip read once for both and computed in cache, threaded; the extras' parts
 /// appended to the images (extras_kernels.h). The tensors' storage is reused.
 bool tile_inputs(const ImageBuf& src, const AovSet& aovs, const DepthRange& depth,
-                 const std::vector<ExtraPlanes>& extras, const Rect& window,
-                 BranchInputs* diffuse, BranchInputs& specular, std::string& error,
+                 const std::vector<ExtraPlanes>& extras, const Rect& window, BranchInputs* diffuse,
+                 BranchInputs& specular, std::string& error,
                  const DroppedOutliers* outliers = nullptr);
 
 /// The two branch networks of a weights file ("diffuse.*", "specular.*" tensors).
 struct Model {
-    nn::Net diffuse{ "kpcn.diffuse" }, specular{ "kpcn.specular" };
+    nn::Net diffuse { "kpcn.diffuse" }, specular { "kpcn.specular" };
 };
 /// Builds both networks with the widths found in the file and loads them; errors name the
 /// file and the tensor. `image_channels`: channels the kernels filter (3, more with extras).
-bool load_model(Model& model, const std::string& path, std::string& error,
-                int image_channels = 3);
+bool load_model(Model& model, const std::string& path, std::string& error, int image_channels = 3);
 /// One branch's network (exposed for the benchmark's FLOP count and the tests).
-nn::Net build_branch(const std::string& prefix, int width1, int width2, int width3,
-                     int iterations, int image_channels = 3);
+nn::Net build_branch(const std::string& prefix, int width1, int width2, int width3, int iterations,
+                     int image_channels = 3);
 
 }  // namespace kpcn
 }  // namespace mcdn

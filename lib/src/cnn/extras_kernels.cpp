@@ -18,8 +18,9 @@ float diffuse_fraction(const RawPlanes& raw, int c, size_t i)
 
 }  // namespace
 
-void add_extra_parts(nn::Tensor& image, const RawPlanes& raw, const std::vector<ExtraPlanes>& extras,
-                     Branch branch, const Rect& window, int first, int last)
+void add_extra_parts(nn::Tensor& image, const RawPlanes& raw,
+                     const std::vector<ExtraPlanes>& extras, Branch branch, const Rect& window,
+                     int first, int last)
 {
     for (int wy = first; wy < last; ++wy)
         for (int wx = 0; wx < image.width; ++wx) {

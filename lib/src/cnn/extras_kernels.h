@@ -19,8 +19,9 @@ namespace kpcn {
 /// 3 × (2 + extras) channels in all): the parts the branch's kernels filter for the extras,
 /// the colour's part, then each extra's (3 channels each; the diffuse parts demodulated).
 /// `raw` covers inputs_rect of those rows; the extras' planes are the whole frame's.
-void add_extra_parts(nn::Tensor& image, const RawPlanes& raw, const std::vector<ExtraPlanes>& extras,
-                     Branch branch, const Rect& window, int first, int last);
+void add_extra_parts(nn::Tensor& image, const RawPlanes& raw,
+                     const std::vector<ExtraPlanes>& extras, Branch branch, const Rect& window,
+                     int first, int last);
 
 /// One branch's result on a tile: its denoised component on the tile's output rectangle
 /// (3 planes, in the beauty's units) and the filtered image of the tile's window, whose

@@ -19,8 +19,8 @@ nn::Net build_branch(const std::string& prefix, int w1, int w2, int w3, int iter
     Value image = net.input("image", image_channels);
     Value e1 = net.conv(features, p + "enc1", w1, 3);
     Value e2 = net.conv(net.conv(net.max_pool2(e1), p + "enc2a", w2, 3), p + "enc2b", w2, 3);
-    Value b = net.conv(net.conv(net.max_pool2(e2), p + "bottleneck_a", w3, 3),
-                       p + "bottleneck_b", w3, 3);
+    Value b =
+        net.conv(net.conv(net.max_pool2(e2), p + "bottleneck_a", w3, 3), p + "bottleneck_b", w3, 3);
     Value d2 = net.conv(net.concat({ net.upsample2(b), e2 }), p + "dec2", w2, 3);
     Value d1 = net.conv(net.concat({ net.upsample2(d2), e1 }), p + "dec1", w1, 3);
     const int taps = kKernel * kKernel;
@@ -59,14 +59,16 @@ bool load_model(Model& model, const std::string& path, std::string& error, int i
 {
     nn::Weights weights;
     if (!nn::read_weights(path, weights, error)) {
-        error = "cnn: " + error + " (train and export with training/cnn, or pass --cnn:weights=FILE)";
+        error =
+            "cnn: " + error + " (train and export with training/cnn, or pass --cnn:weights=FILE)";
         return false;
     }
     const std::string tag = OIIO::Strutil::fmt::format("\"input_layout\": \"{}\"", kInputLayout);
     if (weights.metadata.find(tag) == std::string::npos) {
         error = OIIO::Strutil::fmt::format(
             "cnn: '{}' is not a KPCN model of input layout '{}' (its metadata lacks {}): "
-            "export it with training/cnn/export.py", path, kInputLayout, tag);
+            "export it with training/cnn/export.py",
+            path, kInputLayout, tag);
         return false;
     }
     for (const char* branch : { "diffuse", "specular" }) {
@@ -79,7 +81,8 @@ bool load_model(Model& model, const std::string& path, std::string& error, int i
         if (w1 <= 0 || w2 <= 0 || w3 <= 0 || head <= 0 || head % taps) {
             error = OIIO::Strutil::fmt::format(
                 "cnn: '{}': tensors {}enc1/enc2a/bottleneck_a/kernels.weight missing or "
-                "malformed (kernels.weight needs a multiple of {} outputs)", path, p, taps);
+                "malformed (kernels.weight needs a multiple of {} outputs)",
+                path, p, taps);
             return false;
         }
         nn::Net& net = std::string(branch) == "diffuse" ? model.diffuse : model.specular;

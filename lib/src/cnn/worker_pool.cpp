@@ -16,7 +16,7 @@ namespace {
 /// Which weights a worker holds: a rewritten file (a new training step) is another key.
 std::string key_of(const std::string& path, int image_channels)
 {
-    struct stat st {};
+    struct stat st { };
     long long size = -1, modified_ns = -1;
     if (::stat(path.c_str(), &st) == 0) {
         size = st.st_size;
@@ -41,7 +41,8 @@ std::unique_ptr<Worker> take_worker(const std::string& path, int image_channels,
     {
         std::lock_guard<std::mutex> lock(pool_mutex);
         auto& pool = idle_workers();
-        auto it = std::find_if(pool.begin(), pool.end(), [&](const auto& w) { return w->weights_key == key; });
+        auto it = std::find_if(pool.begin(), pool.end(),
+                               [&](const auto& w) { return w->weights_key == key; });
         if (it != pool.end()) {
             std::unique_ptr<Worker> worker = std::move(*it);
             pool.erase(it);
@@ -76,6 +77,9 @@ void release_workers()
 
 }  // namespace kpcn
 
-void release_cnn_workers() { kpcn::release_workers(); }
+void release_cnn_workers()
+{
+    kpcn::release_workers();
+}
 
 }  // namespace mcdn

@@ -25,7 +25,8 @@ struct Worker {
 /// An idle worker of an earlier call for the same weights file (same path, size and
 /// modification time) and `image_channels`, else a new one loaded from the file; null with
 /// `error` set when it cannot be loaded.
-std::unique_ptr<Worker> take_worker(const std::string& path, int image_channels, std::string& error);
+std::unique_ptr<Worker> take_worker(const std::string& path, int image_channels,
+                                    std::string& error);
 
 /// Keeps `worker` for later calls (as many as the machine has hardware threads; others are
 /// freed).

@@ -54,8 +54,7 @@ std::vector<ColorGroup> color_groups(const ImageBuf& buf, const AovSet& aovs)
     for (Role r : { Role::Color, Role::ColorA, Role::ColorB, Role::Albedo, Role::AlbedoA,
                     Role::AlbedoB, Role::Diffuse, Role::Specular, Role::DiffuseColor,
                     Role::DiffuseDirect, Role::DiffuseIndirect, Role::GlossyColor,
-                    Role::GlossyDirect, Role::GlossyIndirect, Role::Emission,
-                    Role::Environment })
+                    Role::GlossyDirect, Role::GlossyIndirect, Role::Emission, Role::Environment })
         if (aovs.has(r))
             groups.push_back({ aovs.channels(r), false });
     for (Role r : { Role::ColorVariance, Role::AlbedoVariance })
@@ -63,8 +62,8 @@ std::vector<ColorGroup> color_groups(const ImageBuf& buf, const AovSet& aovs)
             groups.push_back({ aovs.channels(r), true });
     for (const auto& extra : aovs.extras())
         if (extra.channels.size() == 3)
-            for (const auto* face : { &extra.channels, &extra.half_a, &extra.half_b,
-                                      &extra.variance })
+            for (const auto* face :
+                 { &extra.channels, &extra.half_a, &extra.half_b, &extra.variance })
                 if (!face->empty())
                     groups.push_back({ *face, face == &extra.variance });
     for (const auto& extra : aovs.extras())
@@ -112,9 +111,11 @@ struct Primaries {
 };
 constexpr Primaries kPrimaries[] = {
     { "lin_rec709", "Rec.709", { 0.64f, 0.33f, 0.30f, 0.60f, 0.15f, 0.06f, 0.3127f, 0.3290f } },
-    { "acescg", "ACES AP1",
+    { "acescg",
+      "ACES AP1",
       { 0.713f, 0.293f, 0.165f, 0.830f, 0.128f, 0.044f, 0.32168f, 0.33767f } },
-    { "aces2065_1", "ACES AP0",
+    { "aces2065_1",
+      "ACES AP0",
       { 0.7347f, 0.2653f, 0.0f, 1.0f, 0.0001f, -0.077f, 0.32168f, 0.33767f } },
 };
 
@@ -153,7 +154,8 @@ bool input_colorspace(std::string& name, std::string& why, const AovSpec& aovs,
     if (!tagged.empty() && !says_only_linear(tagged)) {
         if (!known(tagged)) {
             error = format("the file says oiio:ColorSpace '{}', which the OCIO config {} does "
-                           "not know: give --aov:colorspace=NAME", tagged, ocio_config_path());
+                           "not know: give --aov:colorspace=NAME",
+                           tagged, ocio_config_path());
             return false;
         }
         name = known(tagged)->getName();
@@ -229,14 +231,15 @@ bool linear_transform(std::array<double, 9>& m, const std::string& from, const s
     float zero[3] = { 0, 0, 0 };
     cpu->applyRGB(zero);
     if (std::fabs(zero[0]) + std::fabs(zero[1]) + std::fabs(zero[2]) > 1e-6) {
-        error = format("the conversion from '{}' to '{}' has an offset: not scene-linear", from, to);
+        error =
+            format("the conversion from '{}' to '{}' has an offset: not scene-linear", from, to);
         return false;
     }
     return true;
 }
 
 bool convert_color_channels(ImageBuf& buf, const AovSet& aovs, const std::string& from,
-                             const std::string& to, std::string& error)
+                            const std::string& to, std::string& error)
 {
     if (from == to)
         return true;
@@ -260,7 +263,8 @@ bool convert_color_channels(ImageBuf& buf, const AovSet& aovs, const std::string
             float* px = pixels + p * nch;
             double in[3] = { px[c[0]], px[c[1]], px[c[2]] };
             for (int i = 0; i < 3; ++i)
-                px[c[i]] = sanitize(float(w[i * 3] * in[0] + w[i * 3 + 1] * in[1] + w[i * 3 + 2] * in[2]));
+                px[c[i]] =
+                    sanitize(float(w[i * 3] * in[0] + w[i * 3 + 1] * in[1] + w[i * 3 + 2] * in[2]));
         }
     }
     return true;

@@ -86,10 +86,10 @@ bool read_extras(std::vector<ExtraPlanes>& extras, const ImageBuf& src, const Ao
                     continue;
                 }
                 const Plane color = read_plane(src, aovs.channels(Role::Color)[c]);
-                planes.half_a[c] = borrowed_half(
-                    planes.mean[c], color, read_plane(src, aovs.channels(Role::ColorA)[c]));
-                planes.half_b[c] = borrowed_half(
-                    planes.mean[c], color, read_plane(src, aovs.channels(Role::ColorB)[c]));
+                planes.half_a[c] = borrowed_half(planes.mean[c], color,
+                                                 read_plane(src, aovs.channels(Role::ColorA)[c]));
+                planes.half_b[c] = borrowed_half(planes.mean[c], color,
+                                                 read_plane(src, aovs.channels(Role::ColorB)[c]));
             }
         }
         extras.push_back(std::move(planes));

@@ -14,7 +14,7 @@ namespace mcdn {
 namespace Strutil = OIIO::Strutil;
 
 void add_color_sums(ColorSums part[3], const OIIO::ImageBuf& src, const int color[3],
-                     const int variance[3])
+                    const int variance[3])
 {
     const OIIO::ROI whole = src.roi();
     const int rows_per_read = std::max(1, int((int64_t(1) << 20) / std::max(1, whole.width())));
@@ -90,7 +90,8 @@ Autoexposure::Autoexposure(int width, int height)
 {
     m_bin_of_x.resize(size_t(std::max(width, 0)));
     for (int b = 0; b < m_bins_x; ++b)
-        for (int x = int(int64_t(b) * width / m_bins_x); x < int(int64_t(b + 1) * width / m_bins_x); ++x)
+        for (int x = int(int64_t(b) * width / m_bins_x); x < int(int64_t(b + 1) * width / m_bins_x);
+             ++x)
             m_bin_of_x[size_t(x)] = b;
     m_sums.assign(size_t(m_bins_x), 0.0);
 }
@@ -102,8 +103,8 @@ void Autoexposure::end_row(int y)
         return;
     const int rows = end - int(int64_t(m_bin_row) * m_height / m_bins_y);
     for (int b = 0; b < m_bins_x; ++b) {
-        const int columns = int(int64_t(b + 1) * m_width / m_bins_x)
-                            - int(int64_t(b) * m_width / m_bins_x);
+        const int columns =
+            int(int64_t(b + 1) * m_width / m_bins_x) - int(int64_t(b) * m_width / m_bins_x);
         const double mean = m_sums[size_t(b)] / (double(rows) * columns);
         if (mean > 1e-8) {
             m_log_sum += std::log2(mean);
@@ -125,8 +126,8 @@ void Autoexposure::add_rows(const OIIO::ImageBuf& rows, const int color[3], int 
     std::vector<float> row(size_t(spec.width) * 3);
     for (int y = 0; y < spec.height; ++y) {
         for (int c = 0; c < 3; ++c)
-            rows.get_pixels(OIIO::ROI(spec.x, spec.x + spec.width, spec.y + y, spec.y + y + 1,
-                                      0, 1, color[c], color[c] + 1),
+            rows.get_pixels(OIIO::ROI(spec.x, spec.x + spec.width, spec.y + y, spec.y + y + 1, 0, 1,
+                                      color[c], color[c] + 1),
                             OIIO::TypeDesc::FLOAT, row.data() + c, 3 * sizeof(float));
         add_rows(first_row + y, first_row + y + 1,
                  [&](int x, int, int c) { return row[size_t(x) * 3 + size_t(c)]; });
@@ -143,8 +144,8 @@ float autoexposure(const OIIO::ImageBuf& src, const int color[3])
 void set_frame_facts(OIIO::ImageSpec& spec, const FrameFacts& f)
 {
     // One line per value; channel names (which may hold spaces) last on their line.
-    std::string text = Strutil::fmt::format("rows {} {}\ncolour {} {} {} {} {}\n", f.ybegin,
-                                            f.yend, hex(f.color.sum_abs), hex(f.color.sum_sd),
+    std::string text = Strutil::fmt::format("rows {} {}\ncolour {} {} {} {} {}\n", f.ybegin, f.yend,
+                                            hex(f.color.sum_abs), hex(f.color.sum_sd),
                                             hex(f.color.sum), hex(f.color.sum2), f.color.n);
     if (f.has_depth)
         text += Strutil::fmt::format("depth {} {}\n", hex(f.depth_lo), hex(f.depth_span));
@@ -168,13 +169,15 @@ bool frame_facts(FrameFacts& f, const OIIO::ImageSpec& spec)
         const std::vector<std::string> w = Strutil::splits(line, " ");
         if (w.empty())
             continue;
-        auto number = [&](size_t i) { return i < w.size() ? std::strtod(w[i].c_str(), nullptr) : 0.0; };
+        auto number = [&](size_t i) {
+            return i < w.size() ? std::strtod(w[i].c_str(), nullptr) : 0.0;
+        };
         if (w[0] == "rows") {
             f.ybegin = int(number(1));
             f.yend = int(number(2));
         } else if (w[0] == "colour") {
             f.color = { number(1), number(2), number(3), number(4),
-                         w.size() > 5 ? std::strtoull(w[5].c_str(), nullptr, 10) : 0 };
+                        w.size() > 5 ? std::strtoull(w[5].c_str(), nullptr, 10) : 0 };
         } else if (w[0] == "depth") {
             f.has_depth = true;
             f.depth_lo = float(number(1));

@@ -22,8 +22,8 @@ constexpr const char* kFrameFactsAttribute = "mcdn:frame";
 /// order, then the three added (combined()), whatever reads the rows — the whole frame, or
 /// a chain's light pass a band at a time — so the doubles are the same.
 struct ColorSums {
-    double sum_abs = 0;  // |x|
-    double sum_sd = 0;   // sqrt of the variance of the mean (sanitized): the probe's scale
+    double sum_abs = 0;        // |x|
+    double sum_sd = 0;         // sqrt of the variance of the mean (sanitized): the probe's scale
     double sum = 0, sum2 = 0;  // x and x² (the t-test's image variance)
     uint64_t n = 0;
 };
@@ -34,7 +34,7 @@ ColorSums color_sums(const OIIO::ImageBuf& src, const int color[3], const int va
 /// Adds src's rows to each channel's sums (part[c]: colour channel c), for a frame read in
 /// bands of rows top to bottom; combined() then gives colour_sums of the whole.
 void add_color_sums(ColorSums part[3], const OIIO::ImageBuf& src, const int color[3],
-                     const int variance[3]);
+                    const int variance[3]);
 ColorSums combined(const ColorSums part[3]);
 
 /// eps such that eps * mean(sqrt(Var)) = relative * mean|x| (b = sqrt(Var) n): SURE's probe
@@ -79,9 +79,9 @@ template <class Rgb> void Autoexposure::add_rows(int y0, int y1, Rgb rgb)
 {
     for (int y = y0; y < y1; ++y) {
         for (int x = 0; x < m_width; ++x)
-            m_sums[size_t(m_bin_of_x[size_t(x)])]
-                += 0.212671f * clamped(rgb(x, y, 0)) + 0.715160f * clamped(rgb(x, y, 1))
-                   + 0.072169f * clamped(rgb(x, y, 2));
+            m_sums[size_t(m_bin_of_x[size_t(x)])] += 0.212671f * clamped(rgb(x, y, 0))
+                                                     + 0.715160f * clamped(rgb(x, y, 1))
+                                                     + 0.072169f * clamped(rgb(x, y, 2));
         end_row(y);
     }
 }

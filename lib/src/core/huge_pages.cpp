@@ -17,7 +17,8 @@ void advise_huge_pages(void* data, size_t bytes)
     const uintptr_t first = (reinterpret_cast<uintptr_t>(data) + huge - 1) / huge * huge;
     const uintptr_t last = (reinterpret_cast<uintptr_t>(data) + bytes) / huge * huge;
     if (last > first)
-        madvise(reinterpret_cast<void*>(first), last - first, MADV_HUGEPAGE);  // errors are harmless
+        madvise(reinterpret_cast<void*>(first), last - first,
+                MADV_HUGEPAGE);  // errors are harmless
 #else
     (void)data;
     (void)bytes;

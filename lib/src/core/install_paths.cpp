@@ -7,16 +7,22 @@
 #include <filesystem>
 
 #if !defined(MCDN_LIB_TO_DATA) || !defined(MCDN_VERSION)
-#error "MCDN_LIB_TO_DATA (the data folder relative to the library's) and MCDN_VERSION: CMake"
+#    error "MCDN_LIB_TO_DATA (the data folder relative to the library's) and MCDN_VERSION: CMake"
 #endif
 
 namespace mcdn {
 
 namespace fs = std::filesystem;
 
-const char* version() { return MCDN_VERSION; }
+const char* version()
+{
+    return MCDN_VERSION;
+}
 
-std::string software_name() { return std::string("mcdenoise ") + version(); }
+std::string software_name()
+{
+    return std::string("mcdenoise ") + version();
+}
 
 namespace {
 
@@ -25,7 +31,7 @@ namespace {
 // finds the data installed beside the real one.
 fs::path library_file()
 {
-    Dl_info info{};
+    Dl_info info {};
     if (!dladdr(reinterpret_cast<void*>(&library_file), &info) || !info.dli_fname)
         return {};
     std::error_code ec;

@@ -73,8 +73,8 @@ bool prepare_op(ImageBuf& dst, const ImageBuf& src, const AovSpec& spec, AovSet&
     if (!room.empty()) {
         dst = copy_with_channels(src, OIIO::Strutil::splits(room, "\n"), {}, nthreads);
         if (!dst.localpixels()) {
-            dst.errorfmt("{}: out of memory for a copy of the input with {} more channels",
-                         op, OIIO::Strutil::splits(room, "\n").size());
+            dst.errorfmt("{}: out of memory for a copy of the input with {} more channels", op,
+                         OIIO::Strutil::splits(room, "\n").size());
             return false;
         }
         dst.specmod().erase_attribute(kOutputRoomAttribute);
@@ -114,8 +114,8 @@ ROI output_roi(const ImageBuf& src, ROI roi)
     return roi.defined() ? OIIO::roi_intersection(roi, all) : all;
 }
 
-bool prepare_denoiser_output(ImageBuf& dst, const ImageBuf& src, const AovSpec& spec,
-                             AovSet& aovs, const char* op, bool color_only, int nthreads)
+bool prepare_denoiser_output(ImageBuf& dst, const ImageBuf& src, const AovSpec& spec, AovSet& aovs,
+                             const char* op, bool color_only, int nthreads)
 {
     std::string error;
     if (color_only) {
@@ -125,9 +125,10 @@ bool prepare_denoiser_output(ImageBuf& dst, const ImageBuf& src, const AovSpec& 
             return false;
         }
         const std::vector<int>& c = aovs.channels(Role::Color);
-        dst = OIIO::ImageBufAlgo::channels(src, 3, c, {}, { src.spec().channel_name(c[0]),
-                                                             src.spec().channel_name(c[1]),
-                                                             src.spec().channel_name(c[2]) });
+        dst = OIIO::ImageBufAlgo::channels(src, 3, c, {},
+                                           { src.spec().channel_name(c[0]),
+                                             src.spec().channel_name(c[1]),
+                                             src.spec().channel_name(c[2]) });
         if (dst.has_error() || !dst.localpixels()) {
             dst.errorfmt("{}: could not make the probe's colour frame", op);
             return false;

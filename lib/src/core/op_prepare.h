@@ -26,8 +26,8 @@ bool prepare_op(ImageBuf& dst, const ImageBuf& src, const AovSpec& spec, AovSet&
 /// dst as a denoiser of the colour writes it, `aovs` resolved on src and holding the
 /// colour: a copy of src (prepare_op), or for a SURE probe's colour-only result
 /// (core/attributes.h kColourOnlyAttribute) its colour channels alone. Errors on dst.
-bool prepare_denoiser_output(ImageBuf& dst, const ImageBuf& src, const AovSpec& spec,
-                             AovSet& aovs, const char* op, bool color_only, int nthreads);
+bool prepare_denoiser_output(ImageBuf& dst, const ImageBuf& src, const AovSpec& spec, AovSet& aovs,
+                             const char* op, bool color_only, int nthreads);
 
 /// mcdn::check_threads for an op: on failure an error on dst naming `op`.
 bool check_op_threads(ImageBuf& dst, int nthreads, const char* op);

@@ -12,7 +12,8 @@ std::vector<Rect> make_tiles(int width, int height, int tile_size)
     std::vector<Rect> tiles;
     for (int y = 0; y < height; y += tile_size)
         for (int x = 0; x < width; x += tile_size)
-            tiles.push_back({ x, y, std::min(x + tile_size, width), std::min(y + tile_size, height) });
+            tiles.push_back(
+                { x, y, std::min(x + tile_size, width), std::min(y + tile_size, height) });
     return tiles;
 }
 
@@ -27,12 +28,13 @@ void parallel_for_index(int n, int nthreads, const std::function<void(int)>& bod
     }
     tbb::task_arena arena(nthreads > 0 ? nthreads : tbb::task_arena::automatic);
     arena.execute([&] {
-        tbb::parallel_for(tbb::blocked_range<int>(0, n, 1),
-                          [&](const tbb::blocked_range<int>& r) {
-                              for (int i = r.begin(); i != r.end(); ++i)
-                                  body(i);
-                          },
-                          tbb::simple_partitioner());
+        tbb::parallel_for(
+            tbb::blocked_range<int>(0, n, 1),
+            [&](const tbb::blocked_range<int>& r) {
+                for (int i = r.begin(); i != r.end(); ++i)
+                    body(i);
+            },
+            tbb::simple_partitioner());
     });
 }
 
@@ -129,8 +131,10 @@ const float* float_frame_pixels(const OIIO::ImageBuf& frame)
 Plane read_plane(const OIIO::ImageBuf& src, int channel, bool is_variance)
 {
     const OIIO::ImageSpec& spec = src.spec();
-    return read_rows(src, channel, OIIO::ROI(spec.x, spec.x + spec.width, spec.y, spec.y + spec.height,
-                                             spec.z, spec.z + 1), is_variance);
+    return read_rows(
+        src, channel,
+        OIIO::ROI(spec.x, spec.x + spec.width, spec.y, spec.y + spec.height, spec.z, spec.z + 1),
+        is_variance);
 }
 
 void write_plane(OIIO::ImageBuf& dst, int channel, const Plane& plane, OIIO::ROI roi)

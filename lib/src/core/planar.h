@@ -20,7 +20,7 @@ struct Plane {
     std::vector<float> px;
 
     Plane() = default;
-    Plane(int w, int h, float fill = 0.0f) : width(w), height(h), px(size_t(w) * h, fill) {}
+    Plane(int w, int h, float fill = 0.0f) : width(w), height(h), px(size_t(w) * h, fill) { }
     float* data() { return px.data(); }
     const float* data() const { return px.data(); }
     float* row(int y) { return px.data() + size_t(y) * width; }
@@ -73,7 +73,8 @@ const float* float_frame_pixels(const OIIO::ImageBuf& frame);
 Plane read_plane(const OIIO::ImageBuf& src, int channel, bool is_variance = false);
 /// The same for the rows `rows` of the data window only (a band, without copying the band):
 /// a plane of the rows' size.
-Plane read_rows(const OIIO::ImageBuf& src, int channel, const OIIO::ROI& rows, bool is_variance = false);
+Plane read_rows(const OIIO::ImageBuf& src, int channel, const OIIO::ROI& rows,
+                bool is_variance = false);
 /// Writes a plane into channel `channel` of `dst` (same data window), inside `roi` only.
 void write_plane(OIIO::ImageBuf& dst, int channel, const Plane& plane, OIIO::ROI roi);
 

@@ -12,8 +12,7 @@ class ProgressCounter {
 public:
     ProgressCounter(const ProgressCallback& callback, std::string stage, int total)
         : m_callback(callback), m_stage(std::move(stage)), m_total(total > 0 ? total : 1)
-    {
-    }
+    { }
     /// One more unit done (thread-safe); the callback hears of each new whole percent.
     void advance(int units = 1)
     {

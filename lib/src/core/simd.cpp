@@ -17,8 +17,9 @@ Isa detect_isa()
         __builtin_cpu_init();
         if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma"))
             best = Isa::Avx2;
-        if (best == Isa::Avx2 && __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl")
-            && __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512dq"))
+        if (best == Isa::Avx2 && __builtin_cpu_supports("avx512f")
+            && __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512bw")
+            && __builtin_cpu_supports("avx512dq"))
             best = Isa::Avx512;
 #endif
         if (const char* env = std::getenv("MCDN_ISA")) {
@@ -44,8 +45,8 @@ FlushDenormals::~FlushDenormals()
     _mm_setcsr(m_saved);
 }
 #else
-FlushDenormals::FlushDenormals() {}
-FlushDenormals::~FlushDenormals() {}
+FlushDenormals::FlushDenormals() { }
+FlushDenormals::~FlushDenormals() { }
 #endif
 
 const char* isa_name(Isa isa)

@@ -7,7 +7,9 @@
 
 #if defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__))
 #    define MCDN_X86_DISPATCH 1
-#    define MCDN_TARGET_AVX512 __attribute__((target("avx512f,avx512vl,avx512bw,avx512dq,avx2,fma,prefer-vector-width=512")))
+#    define MCDN_TARGET_AVX512                                                                     \
+        __attribute__((                                                                            \
+            target("avx512f,avx512vl,avx512bw,avx512dq,avx2,fma,prefer-vector-width=512")))
 #    define MCDN_TARGET_AVX2 __attribute__((target("avx2,fma")))
 #else
 #    define MCDN_X86_DISPATCH 0
@@ -70,9 +72,18 @@ typedef float vfloat16 __attribute__((vector_size(64), aligned(4), may_alias));
 typedef int32_t vint16 __attribute__((vector_size(64), aligned(4), may_alias));
 constexpr int kLanes = 16;
 
-MCDN_INLINE vfloat16 load16(const float* p) { return *reinterpret_cast<const vfloat16*>(p); }
-MCDN_INLINE void store16(float* p, vfloat16 v) { *reinterpret_cast<vfloat16*>(p) = v; }
-MCDN_INLINE vfloat16 splat16(float v) { return vfloat16 {} + v; }
+MCDN_INLINE vfloat16 load16(const float* p)
+{
+    return *reinterpret_cast<const vfloat16*>(p);
+}
+MCDN_INLINE void store16(float* p, vfloat16 v)
+{
+    *reinterpret_cast<vfloat16*>(p) = v;
+}
+MCDN_INLINE vfloat16 splat16(float v)
+{
+    return vfloat16 {} + v;
+}
 
 /// exp_neg on 16 lanes.
 MCDN_INLINE vfloat16 exp_neg16(vfloat16 d)

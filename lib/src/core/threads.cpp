@@ -18,8 +18,8 @@ namespace {
 
 std::string range_error(const std::string& typed)
 {
-    return OIIO::Strutil::fmt::format(
-        "threads={}: needs a whole number from 0 (all cores) to {}", typed, kMaxThreads);
+    return OIIO::Strutil::fmt::format("threads={}: needs a whole number from 0 (all cores) to {}",
+                                      typed, kMaxThreads);
 }
 
 }  // namespace

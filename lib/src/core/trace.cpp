@@ -32,8 +32,7 @@ double resident_gb()
 }  // namespace
 
 StageTrace::StageTrace(const char* op)
-    : m_op(op), m_on(std::getenv("MCDN_TRACE") != nullptr),
-      m_last(std::chrono::steady_clock::now())
+    : m_op(op), m_on(std::getenv("MCDN_TRACE") != nullptr), m_last(std::chrono::steady_clock::now())
 {
     if (m_on)
         m_last_cpu = process_cpu_seconds();
@@ -44,9 +43,9 @@ void StageTrace::mark(const char* stage)
     auto now = std::chrono::steady_clock::now();
     if (m_on) {
         double cpu = process_cpu_seconds();
-        std::fprintf(stderr, "%s: %-28s %7.3f s wall %7.3f s CPU %6.2f GB resident\n", m_op,
-                     stage, std::chrono::duration<double>(now - m_last).count(),
-                     cpu - m_last_cpu, resident_gb());
+        std::fprintf(stderr, "%s: %-28s %7.3f s wall %7.3f s CPU %6.2f GB resident\n", m_op, stage,
+                     std::chrono::duration<double>(now - m_last).count(), cpu - m_last_cpu,
+                     resident_gb());
         m_last_cpu = cpu;
     }
     m_last = now;

@@ -81,8 +81,8 @@ Plane frame_weight(const ColorPlanes& own, const ColorPlanes& other,
                 }
                 const float vp = own.variance[c].px[i], vq = vv.px[i];
                 const float diff = own.mean[c].px[i] - v.px[i];
-                const float d = (diff * diff - (vp + std::min(vp, vq)))
-                                / (nlm::kEpsilon + k2 * (vp + vq));
+                const float d =
+                    (diff * diff - (vp + std::min(vp, vq))) / (nlm::kEpsilon + k2 * (vp + vq));
                 term.px[i] = std::min(d, nlm::kDistanceClamp);
             }
         });
@@ -129,8 +129,8 @@ void light_channels(const AovSet& aovs, const ImageSpec& spec, std::set<int>& me
         means.erase(c);
 }
 
-bool combine_in_working_space(ImageBuf& dst, const ImageBuf& src,
-                              const CombineFramesOptions& o, ROI roi, int nthreads)
+bool combine_in_working_space(ImageBuf& dst, const ImageBuf& src, const CombineFramesOptions& o,
+                              ROI roi, int nthreads)
 {
     const char* op = "frames";
     AovSet aovs;
@@ -215,14 +215,13 @@ bool combine_frames(ImageBuf& dst, const ImageBuf& src, const CombineFramesOptio
     if (!check_op_threads(dst, nthreads, "frames"))
         return false;
     if (options.patch_radius < 0 || !(options.k > 0)) {
-        dst.errorfmt("frames: patch must be >= 0 and k > 0 (patch {}, k {})",
-                     options.patch_radius, options.k);
+        dst.errorfmt("frames: patch must be >= 0 and k > 0 (patch {}, k {})", options.patch_radius,
+                     options.k);
         return false;
     }
     return run_in_working_space(dst, src, options.aovs, "frames",
                                 [&](ImageBuf& d, const ImageBuf& s) {
-                                    return combine_in_working_space(d, s, options, roi,
-                                                                    nthreads);
+                                    return combine_in_working_space(d, s, options, roi, nthreads);
                                 });
 }
 

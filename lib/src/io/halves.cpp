@@ -33,8 +33,7 @@ constexpr float kPixelRatio = 0.25f;
 
 }  // namespace
 
-bool check_halves(ImageBuf& merged, const AovSet& aovs, int& repaired_tiles,
-                  std::string& error)
+bool check_halves(ImageBuf& merged, const AovSet& aovs, int& repaired_tiles, std::string& error)
 {
     repaired_tiles = 0;
     const std::vector<int>& mean = aovs.channels(Role::Color);
@@ -89,15 +88,15 @@ bool check_halves(ImageBuf& merged, const AovSet& aovs, int& repaired_tiles,
         for (const InputFile& f : merged_input_files(spec))
             if (f.kind == InputKind::HalfA || f.kind == InputKind::HalfB)
                 files.push_back(f.path);
-        const std::string halves = files.empty() ? std::string("the half buffers")
-                                                 : OIIO::Strutil::join(files, " and ");
-        error = format("{}: the halves' mean is not the render: in {} of {} tiles of rows "
-                       "{}-{} the colour ('{}', ...) differs from (A+B)/2 by more than {} "
-                       "times its {} (up to {:.3g}; halves of this render give 0): give the "
-                       "half buffers of this render",
-                       halves, failed, ntiles, spec.y, spec.y + height - 1,
-                       spec.channelnames[mean[0]], kTileRatio,
-                       var.empty() ? "noise ((A-B)/2)^2" : "variance", worst);
+        const std::string halves =
+            files.empty() ? std::string("the half buffers") : OIIO::Strutil::join(files, " and ");
+        error =
+            format("{}: the halves' mean is not the render: in {} of {} tiles of rows "
+                   "{}-{} the colour ('{}', ...) differs from (A+B)/2 by more than {} "
+                   "times its {} (up to {:.3g}; halves of this render give 0): give the "
+                   "half buffers of this render",
+                   halves, failed, ntiles, spec.y, spec.y + height - 1, spec.channelnames[mean[0]],
+                   kTileRatio, var.empty() ? "noise ((A-B)/2)^2" : "variance", worst);
         return false;
     }
     // The tiles that fail: their halves become the render (A = B = the mean), so that no

@@ -47,8 +47,7 @@ void copy_channels(ImageBuf& dst, int first, const ImageBuf& src);
 // not (a PNG renamed var.exr, a layer without Combined.B) would be ignored and the stages
 // would run without it. Only the channel names are looked at; `halves` false skips the half
 // files (validate.cpp).
-bool check_color_faces(const ImageSpec& spec, const AovSet& aovs, bool halves,
-                        std::string& error);
+bool check_color_faces(const ImageSpec& spec, const AovSet& aovs, bool halves, std::string& error);
 
 // The variance and half-buffer channels `selection` keeps of a merged buffer's full list of
 // names (`spec`, before any pixel is read) (selection.cpp).

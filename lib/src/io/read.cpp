@@ -27,7 +27,7 @@ namespace mcdn {
 using OIIO::ImageInput;
 using OIIO::TypeDesc;
 namespace Filesystem = OIIO::Filesystem;
-namespace Strutil    = OIIO::Strutil;
+namespace Strutil = OIIO::Strutil;
 using Strutil::fmt::format;
 
 void copy_channels(ImageBuf& dst, int first, const ImageBuf& src)
@@ -109,8 +109,7 @@ bool read_layout(FileLayout& layout, const std::string& path, const std::string&
             continue;  // -i:part=NAME reads that part alone
         // A recipe read through the mcdn format plugin opens as a placeholder that carries
         // its error (OIIO's procedural inputs cannot fail to open): that error is the file's.
-        if (const std::string failed = spec.get_string_attribute("mcdn:error");
-            !failed.empty()) {
+        if (const std::string failed = spec.get_string_attribute("mcdn:error"); !failed.empty()) {
             error = format("{}: {}", path, failed);
             return false;
         }
@@ -119,9 +118,9 @@ bool read_layout(FileLayout& layout, const std::string& path, const std::string&
             return false;
         }
         if (!layout.parts.empty() && !same_window(spec.roi(), layout.parts[0].roi())) {
-            error = format("{}: part {} has data window {}, part {} has {}", path, s,
-                           roi_text(spec.roi()), layout.subimages[0],
-                           roi_text(layout.parts[0].roi()));
+            error =
+                format("{}: part {} has data window {}, part {} has {}", path, s,
+                       roi_text(spec.roi()), layout.subimages[0], roi_text(layout.parts[0].roi()));
             return false;
         }
         spec.set_format(TypeDesc::FLOAT);
@@ -214,8 +213,8 @@ bool read_pixels_into(ImageBuf& dst, int first, const FileLayout& layout, ImageI
                       const std::vector<bool>& keep, int y0, int y1, std::string& error)
 {
     auto failed = [&] {
-        error = format("{}: cannot read pixels (truncated or corrupt, or out of memory?): {}", layout.path,
-                       one_line(in.geterror()));
+        error = format("{}: cannot read pixels (truncated or corrupt, or out of memory?): {}",
+                       layout.path, one_line(in.geterror()));
         return false;
     };
     const int total = dst.nchannels();
@@ -253,12 +252,12 @@ bool read_pixels_into(ImageBuf& dst, int first, const FileLayout& layout, ImageI
         for (int y = first_row; y < y1; y += band) {
             const int end = std::min({ part.y + part.height, last_row, y + band });
             rows.resize(size_t(end - y) * part.width * n);
-            const bool read
-                = tiled ? in.read_tiles(layout.subimages[s], 0, part.x, part.x + part.width, y,
-                                        end, part.z, part.z + std::max(part.depth, 1), 0, n,
-                                        TypeDesc::FLOAT, rows.data())
-                        : in.read_scanlines(layout.subimages[s], 0, y, end, part.z, 0, n,
-                                            TypeDesc::FLOAT, rows.data());
+            const bool read =
+                tiled ? in.read_tiles(layout.subimages[s], 0, part.x, part.x + part.width, y, end,
+                                      part.z, part.z + std::max(part.depth, 1), 0, n,
+                                      TypeDesc::FLOAT, rows.data())
+                      : in.read_scanlines(layout.subimages[s], 0, y, end, part.z, 0, n,
+                                          TypeDesc::FLOAT, rows.data());
             if (!read)
                 return failed();
             for (int row = std::max(y, y0); row < std::min(end, y1); ++row)
@@ -370,7 +369,8 @@ bool InputRows::open(const std::vector<InputFile>& inputs, const InputSelection&
         bool is_dir = Filesystem::is_directory(input.path);
         if (is_dir && input.kind != InputKind::Mean) {
             error = format("{}: a Tungsten buffer directory holds every face itself; give it "
-                           "as a plain -i", input.path);
+                           "as a plain -i",
+                           input.path);
             return false;
         }
         if (is_dir) {
@@ -385,8 +385,8 @@ bool InputRows::open(const std::vector<InputFile>& inputs, const InputSelection&
         }
         const ROI window = layouts[i].parts[0].roi(), first_window = layouts[0].parts[0].roi();
         if (!same_window(window, first_window)) {
-            error = format("{}: data window {} differs from {}'s {}", input.path,
-                           roi_text(window), inputs[0].path, roi_text(first_window));
+            error = format("{}: data window {} differs from {}'s {}", input.path, roi_text(window),
+                           inputs[0].path, roi_text(first_window));
             return false;
         }
         for (const auto& ch : layouts[i].names) {
@@ -468,8 +468,8 @@ bool InputRows::read(ImageBuf& dst, int ybegin, int yend, std::string& error,
     }
     Files& f = *m_files;
     if (ybegin < m_spec.y || yend > m_spec.y + m_spec.height || ybegin >= yend) {
-        error = format("InputRows::read: rows [{}, {}) outside the frame's [{}, {})", ybegin,
-                       yend, m_spec.y, m_spec.y + m_spec.height);
+        error = format("InputRows::read: rows [{}, {}) outside the frame's [{}, {})", ybegin, yend,
+                       m_spec.y, m_spec.y + m_spec.height);
         return false;
     }
     ImageSpec spec = m_spec;
@@ -511,8 +511,7 @@ bool InputRows::read(ImageBuf& dst, int ybegin, int yend, std::string& error,
         // stay beside the band through the stages. Headers are read again for each band.
         std::unique_ptr<ImageInput> in = open_for_pixels(f.layouts[i]);
         if (!in) {
-            error = format("{}: cannot read: {}", f.layouts[i].path,
-                           one_line(OIIO::geterror()));
+            error = format("{}: cannot read: {}", f.layouts[i].path, one_line(OIIO::geterror()));
             return false;
         }
         const ImageSpec& part = f.layouts[i].parts[0];
@@ -520,8 +519,8 @@ bool InputRows::read(ImageBuf& dst, int ybegin, int yend, std::string& error,
         if (now.width != part.width || now.height != part.height || now.x != part.x
             || now.y != part.y || now.channelnames != part.channelnames) {
             error = format("{}: the file changed while it was read (it is now {}x{}, {} "
-                           "channel(s))", f.layouts[i].path, now.width, now.height,
-                           now.nchannels);
+                           "channel(s))",
+                           f.layouts[i].path, now.width, now.height, now.nchannels);
             return false;
         }
         if (!read_pixels_into(out, first, f.layouts[i], *in, f.keep[i], ybegin, yend, error))

@@ -73,8 +73,8 @@ void remove_stale_temporaries(const std::string& path)
         const bool ours = *end == '-' && owner == end + 1;
         bool stale = false;
         if (ours)
-            stale = pid > 0 && pid != long(::getpid()) && ::kill(pid_t(pid), 0) != 0
-                    && errno == ESRCH;
+            stale =
+                pid > 0 && pid != long(::getpid()) && ::kill(pid_t(pid), 0) != 0 && errno == ESRCH;
         else {
             const auto written = fs::last_write_time(entry.path(), ec);
             stale = !ec && fs::file_time_type::clock::now() - written > kStaleTemporaryAge;
@@ -114,9 +114,8 @@ const std::string& temporary_owner()
         ::gethostname(host, sizeof(host) - 1);
         std::string name;
         for (const char* c = host; *c; ++c)
-            name += std::isalnum(static_cast<unsigned char>(*c)) || *c == '.' || *c == '_'
-                        ? *c
-                        : '_';
+            name +=
+                std::isalnum(static_cast<unsigned char>(*c)) || *c == '.' || *c == '_' ? *c : '_';
         // "pid:[4026531836]": the namespace's inode, the same for every process in it.
         char link[64] = {};
         std::string ns = "0";
@@ -142,8 +141,7 @@ std::string temporary_for(const std::string& path)
 {
     static std::atomic<int> counter { 0 };
     remove_stale_temporaries(path);
-    return format("{}{}-{}-{}", temporary_prefix(path), ::getpid(), counter++,
-                  temporary_owner());
+    return format("{}{}-{}-{}", temporary_prefix(path), ::getpid(), counter++, temporary_owner());
 }
 
 bool put_in_place(const std::string& tmp, const std::string& path, std::string& error)

@@ -22,10 +22,8 @@ bool read_tungsten_directory(ImageBuf& dst, const std::string& dir)
         std::vector<std::string> channels;
     };
     const Buffer buffers[] = {
-        { "color", { "R", "G", "B" } },
-        { "albedo", { "albedo.R", "albedo.G", "albedo.B" } },
-        { "normal", { "N.X", "N.Y", "N.Z" } },
-        { "depth", { "Z" } },
+        { "color", { "R", "G", "B" } },        { "albedo", { "albedo.R", "albedo.G", "albedo.B" } },
+        { "normal", { "N.X", "N.Y", "N.Z" } }, { "depth", { "Z" } },
         { "visibility", { "visibility" } },
     };
     const std::pair<const char*, InputKind> faces[] = {
@@ -59,8 +57,8 @@ bool read_tungsten_directory(ImageBuf& dst, const std::string& dir)
                 return false;
             }
             if (!pieces.empty() && !same_window(piece.roi(), pieces[0].roi())) {
-                dst.errorfmt("{}: size {} differs from color.pfm's {}", file,
-                             roi_text(piece.roi()), roi_text(pieces[0].roi()));
+                dst.errorfmt("{}: size {} differs from color.pfm's {}", file, roi_text(piece.roi()),
+                             roi_text(pieces[0].roi()));
                 return false;
             }
             pieces.push_back(OIIO::ImageBufAlgo::channels(piece, n, {}));

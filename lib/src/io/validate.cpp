@@ -17,8 +17,7 @@ static_assert(kHugeValue == kMaxMagnitude,
 using OIIO::TypeDesc;
 using OIIO::Strutil::fmt::format;
 
-bool check_color_faces(const ImageSpec& spec, const AovSet& aovs, bool halves,
-                        std::string& error)
+bool check_color_faces(const ImageSpec& spec, const AovSet& aovs, bool halves, std::string& error)
 {
     for (const InputFile& file : merged_input_files(spec)) {
         if (file.kind == InputKind::Mean || (!halves && file.kind != InputKind::Variance))
@@ -50,9 +49,8 @@ bool validate_inputs(const ImageBuf& merged, const AovSet& aovs, std::string& er
     if (!check_color_faces(spec, aovs, spec.get_int_attribute(kHalvesUnread) != 1, error))
         return false;
     auto is_variance = [](Role r) {
-        return r == Role::ColorVariance || r == Role::AlbedoVariance
-               || r == Role::NormalVariance || r == Role::DepthVariance
-               || r == Role::VisibilityVariance;
+        return r == Role::ColorVariance || r == Role::AlbedoVariance || r == Role::NormalVariance
+               || r == Role::DepthVariance || r == Role::VisibilityVariance;
     };
     auto nan_allowed = [&](Role r) { return is_variance(r) && r != Role::ColorVariance; };
     auto problem_of = [&](Role role, float v) -> const char* {
@@ -88,8 +86,7 @@ bool validate_inputs(const ImageBuf& merged, const AovSet& aovs, std::string& er
     const std::vector<int>& normal = aovs.channels(Role::Normal);
     for (size_t p = 0; p < npixels && clean && normal.size() == 3; ++p) {
         const float* px = pixels + p * nch;
-        const float length = std::sqrt(px[normal[0]] * px[normal[0]]
-                                       + px[normal[1]] * px[normal[1]]
+        const float length = std::sqrt(px[normal[0]] * px[normal[0]] + px[normal[1]] * px[normal[1]]
                                        + px[normal[2]] * px[normal[2]]);
         if (length > kMaxNormalLength) {
             int x = spec.x + int(p % spec.width), y = spec.y + int(p / spec.width);
@@ -115,8 +112,8 @@ bool validate_inputs(const ImageBuf& merged, const AovSet& aovs, std::string& er
                 int x = spec.x + int(p % spec.width), y = spec.y + int(p / spec.width);
                 error = format("{}: channel '{}' (role {}) has {} at pixel ({}, {}): "
                                "fix the render or drop the pass",
-                               channel_source(spec, spec.channelnames[c]),
-                               spec.channelnames[c], role_name(role), problem, x, y);
+                               channel_source(spec, spec.channelnames[c]), spec.channelnames[c],
+                               role_name(role), problem, x, y);
                 return false;
             }
         }

@@ -35,7 +35,7 @@ namespace mcdn {
 using OIIO::ImageOutput;
 using OIIO::TypeDesc;
 namespace Filesystem = OIIO::Filesystem;
-namespace Strutil    = OIIO::Strutil;
+namespace Strutil = OIIO::Strutil;
 using Strutil::fmt::format;
 
 namespace {
@@ -75,7 +75,6 @@ bool same_file(const std::string& a, const std::string& b)
 
 }  // namespace
 
-
 bool check_output_path(const std::string& path, const std::vector<std::string>& inputs,
                        std::string& error)
 {
@@ -86,7 +85,8 @@ bool check_output_path(const std::string& path, const std::vector<std::string>& 
     for (const auto& input : inputs)
         if (!input.empty() && same_file(path, input)) {
             error = format("{}: the output is also an input ({}): refusing to replace it; "
-                           "write to another name", path, input);
+                           "write to another name",
+                           path, input);
             return false;
         }
     std::error_code ec;
@@ -103,8 +103,8 @@ bool check_output_path(const std::string& path, const std::vector<std::string>& 
         return false;
     }
     if (::access(dir.c_str(), W_OK | X_OK) != 0) {
-        error = format("{}: cannot write in folder {} ({})", path, dir.string(),
-                       std::strerror(errno));
+        error =
+            format("{}: cannot write in folder {} ({})", path, dir.string(), std::strerror(errno));
         return false;
     }
     if (fs::exists(status) && ::access(path.c_str(), W_OK) != 0) {
@@ -127,7 +127,7 @@ bool check_compression(const std::string& compression, std::string& error)
 {
     if (compression.empty())  // formats without compression (the heatmap's PNG)
         return true;
-    static const std::vector<std::string> names = { "none", "rle", "zips", "zip", "piz",
+    static const std::vector<std::string> names = { "none",  "rle", "zips", "zip",  "piz",
                                                     "pxr24", "b44", "b44a", "dwaa", "dwab" };
     std::string name = compression, level;
     if (size_t colon = compression.find(':'); colon != std::string::npos) {
@@ -136,14 +136,13 @@ bool check_compression(const std::string& compression, std::string& error)
     }
     bool leveled = name == "zip" || name == "zips" || name == "dwaa" || name == "dwab";
     bool ok = std::find(names.begin(), names.end(), name) != names.end()
-              && (level.empty() || (leveled && Strutil::string_is_int(level)
-                                    && Strutil::stoi(level) >= 0));
+              && (level.empty()
+                  || (leveled && Strutil::string_is_int(level) && Strutil::stoi(level) >= 0));
     if (!ok)
         error = format("compression={} is not one of {} (zip, zips, dwaa and dwab take :LEVEL)",
                        compression, Strutil::join(names, ", "));
     return ok;
 }
-
 
 namespace {
 
@@ -182,7 +181,8 @@ struct ValueCounts {
             if (nan[c] || inf[c])
                 warnings.push_back(format("{}: channel {} has {} NaN and {} Inf values, written "
                                           "as they came in (no stage reads it; --fixnan "
-                                          "repairs)", path, names[c], nan[c], inf[c]));
+                                          "repairs)",
+                                          path, names[c], nan[c], inf[c]));
             if (clamped[c])
                 warnings.push_back(format("{}: channel {}: {} values beyond half's range "
                                           "clamped to +-65504 (datatype=float keeps them)",
@@ -190,7 +190,6 @@ struct ValueCounts {
         }
     }
 };
-
 
 // What write_image and RowWriter write: the file's spec (its channels in `order` of the
 // image's), and for a multi-part render (an EXR only) its parts.
@@ -265,8 +264,8 @@ bool output_layout(OutputLayout& layout, const ImageSpec& in_spec, const std::st
     // without --tile does.
     spec.tile_width = spec.tile_height = 0;
     spec.tile_depth = 1;
-    for (const char* name : { "openexr:levelmode", "openexr:roundingmode", "textureformat",
-                              "wrapmodes" })
+    for (const char* name :
+         { "openexr:levelmode", "openexr:roundingmode", "textureformat", "wrapmodes" })
         spec.erase_attribute(name);
     spec.attribute("compression", options.compression);
     if (!options.software.empty()) {
@@ -281,7 +280,7 @@ bool output_layout(OutputLayout& layout, const ImageSpec& in_spec, const std::st
                        (history.empty() ? "" : history + "\n") + options.history);
     }
     spec.alpha_channel = spec.channelindex("A");
-    spec.z_channel     = spec.channelindex("Z");
+    spec.z_channel = spec.channelindex("Z");
     return true;
 }
 
@@ -347,8 +346,7 @@ bool write_image(const ImageBuf& src, const std::string& path, const WriteOption
     }
     const OIIO::stride_t pixel = OIIO::stride_t(out.nchannels()) * sizeof(float);
     const float* pixels = static_cast<const float*>(out.localpixels());
-    bool ok = output->supports("multiimage")
-              && output->open(tmp, int(specs.size()), specs.data());
+    bool ok = output->supports("multiimage") && output->open(tmp, int(specs.size()), specs.data());
     for (size_t p = 0; ok && p < specs.size(); ++p)
         ok = (p == 0 || output->open(tmp, specs[p], ImageOutput::AppendSubimage))
              && output->write_image(TypeDesc::FLOAT, pixels + first_channel[p], pixel,
@@ -391,8 +389,7 @@ bool RowWriter::open(const ImageSpec& image, const std::string& path, const Writ
     if (!output_layout(m->layout, image, path, options, error))
         return false;
     if (!m->layout.parts.empty()) {
-        error = format("{}: a multi-part image is written whole (write_image), not in rows",
-                       path);
+        error = format("{}: a multi-part image is written whole (write_image), not in rows", path);
         return false;
     }
     m->output = ImageOutput::create(path);
@@ -437,8 +434,8 @@ bool RowWriter::write_rows(const ImageBuf& band, const ROI& own, std::string& er
     // multiples of 32 (zip's blocks are 16 rows, piz's and dwaa's 32; OpenEXR keeps a partly
     // filled block of dwab's 256 rows until the next call completes it).
     const size_t row_bytes = size_t(own.width()) * nch * sizeof(float);
-    const int kChunkRows = std::clamp(int(((size_t(16) << 20) / std::max<size_t>(row_bytes, 1)
-                                           + 31) / 32 * 32), 32, 256);
+    const int kChunkRows = std::clamp(
+        int(((size_t(16) << 20) / std::max<size_t>(row_bytes, 1) + 31) / 32 * 32), 32, 256);
     const ImageSpec& in = band.spec();
     const float* pixels = float_frame_pixels(band);
     for (int y0 = own.ybegin; y0 < own.yend; y0 += kChunkRows) {
@@ -451,17 +448,20 @@ bool RowWriter::write_rows(const ImageBuf& band, const ROI& own, std::string& er
             // One pass over the rows (a channel at a time would stride through all of them
             // once per channel).
             const int bch = in.nchannels;
-            tbb::parallel_for(tbb::blocked_range<int>(chunk.ybegin, chunk.yend),
-                              [&](const tbb::blocked_range<int>& b) {
-                for (int y = b.begin(); y != b.end(); ++y) {
-                    const float* src = pixels + (size_t(y - in.y) * in.width
-                                                 + size_t(chunk.xbegin - in.x)) * bch;
-                    float* dst = m->rows.data() + size_t(y - chunk.ybegin) * chunk.width() * nch;
-                    for (int x = 0; x < chunk.width(); ++x)
-                        for (int c = 0; c < nch; ++c)
-                            dst[size_t(x) * nch + c] = src[size_t(x) * bch + from[c]];
-                }
-            });
+            tbb::parallel_for(
+                tbb::blocked_range<int>(chunk.ybegin, chunk.yend),
+                [&](const tbb::blocked_range<int>& b) {
+                    for (int y = b.begin(); y != b.end(); ++y) {
+                        const float* src =
+                            pixels
+                            + (size_t(y - in.y) * in.width + size_t(chunk.xbegin - in.x)) * bch;
+                        float* dst =
+                            m->rows.data() + size_t(y - chunk.ybegin) * chunk.width() * nch;
+                        for (int x = 0; x < chunk.width(); ++x)
+                            for (int c = 0; c < nch; ++c)
+                                dst[size_t(x) * nch + c] = src[size_t(x) * bch + from[c]];
+                    }
+                });
         } else {
             for (int c = 0; c < nch; ++c) {
                 ROI one = chunk;
@@ -489,8 +489,7 @@ bool RowWriter::close(std::string& error, std::vector<std::string>* warnings)
 {
     const ImageSpec& spec = m->layout.spec;
     if (!m->output || m->next_row != spec.y + spec.height) {
-        error = format("{}: closed after row {} of {}", m->path, m->next_row,
-                       spec.y + spec.height);
+        error = format("{}: closed after row {} of {}", m->path, m->next_row, spec.y + spec.height);
         return false;
     }
     const bool ok = m->output->close();
@@ -505,6 +504,5 @@ bool RowWriter::close(std::string& error, std::vector<std::string>* warnings)
         m->counts.warn(m->path, spec.channelnames, *warnings);
     return put_in_place(m->tmp, m->path, error);
 }
-
 
 }  // namespace mcdn

@@ -45,8 +45,8 @@ bool gather(Planes& planes, const ImageBuf& image, const ImageBuf& reference,
 {
     const ImageSpec &is = image.spec(), &rs = reference.spec();
     if (is.width != rs.width || is.height != rs.height) {
-        error = format("metrics: image is {}x{} but the reference is {}x{}", is.width,
-                       is.height, rs.width, rs.height);
+        error = format("metrics: image is {}x{} but the reference is {}x{}", is.width, is.height,
+                       rs.width, rs.height);
         return false;
     }
     if (options.image_channels.size() != options.reference_channels.size()
@@ -78,15 +78,16 @@ bool gather(Planes& planes, const ImageBuf& image, const ImageBuf& reference,
         planes.image.push_back(plane(image, roi, ic));
         planes.reference.push_back(plane(reference, ref_roi, rc));
         for (const auto* p : { &planes.image.back(), &planes.reference.back() }) {
-            auto bad = std::find_if(p->begin(), p->end(), [](float v) { return !std::isfinite(v); });
+            auto bad =
+                std::find_if(p->begin(), p->end(), [](float v) { return !std::isfinite(v); });
             if (bad != p->end()) {
                 size_t k = size_t(bad - p->begin());
                 const ImageSpec& s = p == &planes.image.back() ? is : rs;
                 int c = p == &planes.image.back() ? ic : rc;
-                error = format("metrics: {} channel '{}' is not finite at pixel ({}, {})",
-                               p == &planes.image.back() ? "image" : "reference",
-                               s.channel_name(c), roi.xbegin + int(k % roi.width()),
-                               roi.ybegin + int(k / roi.width()));
+                error =
+                    format("metrics: {} channel '{}' is not finite at pixel ({}, {})",
+                           p == &planes.image.back() ? "image" : "reference", s.channel_name(c),
+                           roi.xbegin + int(k % roi.width()), roi.ybegin + int(k / roi.width()));
                 return false;
             }
         }
@@ -110,7 +111,8 @@ std::vector<double> per_pixel(const Planes& planes, ErrorKind kind, const Metric
             case ErrorKind::AbsoluteError: e = std::fabs(d); break;
             case ErrorKind::RelMSE: e = d * d / (double(r[p]) * r[p] + o.relmse_epsilon); break;
             case ErrorKind::SMAPE:
-                e = std::fabs(d) / (std::fabs(double(x[p])) + std::fabs(double(r[p])) + o.smape_epsilon);
+                e = std::fabs(d)
+                    / (std::fabs(double(x[p])) + std::fabs(double(r[p])) + o.smape_epsilon);
                 break;
             }
             map[p] += e / double(nc);
@@ -242,8 +244,7 @@ bool sample(const std::vector<float>& plane, int w, int h, double x, double y, d
 
 // The variance of that sample for a plane of independent values of variance `var`: the
 // squared weights times the variances.
-bool sample_variance(const std::vector<float>& var, int w, int h, double x, double y,
-                     double& value)
+bool sample_variance(const std::vector<float>& var, int w, int h, double x, double y, double& value)
 {
     size_t at[4];
     double fx, fy;
@@ -251,8 +252,8 @@ bool sample_variance(const std::vector<float>& var, int w, int h, double x, doub
         return false;
     auto v = [&](int i) { return std::max(0.0, double(var[at[i]])); };
     const double gx = 1 - fx, gy = 1 - fy;
-    value = gy * gy * (gx * gx * v(0) + fx * fx * v(1))
-            + fy * fy * (gx * gx * v(2) + fx * fx * v(3));
+    value =
+        gy * gy * (gx * gx * v(0) + fx * fx * v(1)) + fy * fy * (gx * gx * v(2) + fx * fx * v(3));
     return true;
 }
 
@@ -268,8 +269,8 @@ bool motion_planes(std::vector<float>& mx, std::vector<float>& my, const ImageBu
     if (ms.width != w || ms.height != h || o.motion_x < 0 || o.motion_y < 0
         || std::max(o.motion_x, o.motion_y) >= ms.nchannels) {
         error = format("metrics: the motion vectors ({}x{}, {} channels) do not match the "
-                       "{}x{} frame or channels {}, {}", ms.width, ms.height, ms.nchannels, w,
-                       h, o.motion_x, o.motion_y);
+                       "{}x{} frame or channels {}, {}",
+                       ms.width, ms.height, ms.nchannels, w, h, o.motion_x, o.motion_y);
         return false;
     }
     mx = plane(*motion, motion->roi(), o.motion_x);
@@ -308,7 +309,7 @@ bool gather_frames(Planes& now, Planes& before, std::vector<float>& mx, std::vec
 // order: the mean over channels of a squared term, plain into `squared` and over
 // r_t(p)^2 + epsilon into `relative`. term(c, p, px, py, value) sets channel c's term; false
 // outside frame t-1.
-template<class Term>
+template <class Term>
 void warped_means(int w, int h, const std::vector<std::vector<float>>& r,
                   const std::vector<float>& mx, const std::vector<float>& my,
                   const TemporalOptions& o, std::vector<double>& squared,
@@ -340,8 +341,8 @@ void warped_means(int w, int h, const std::vector<std::vector<float>>& r,
 
 bool compute_temporal_metrics(TemporalMetrics& m, const ImageBuf& image, const ImageBuf& previous,
                               const ImageBuf& reference, const ImageBuf& previous_reference,
-                              const ImageBuf* motion, const TemporalOptions& o,
-                              std::string& error, int nthreads)
+                              const ImageBuf* motion, const TemporalOptions& o, std::string& error,
+                              int nthreads)
 {
     Planes now, before;
     std::vector<float> mx, my;
@@ -375,8 +376,8 @@ bool compute_temporal_metrics(TemporalMetrics& m, const ImageBuf& image, const I
 }
 
 bool compute_reference_noise(ReferenceNoise& result, const ImageBuf& reference,
-                             const ImageBuf& variance, const MetricsOptions& o,
-                             std::string& error, ROI roi, int nthreads)
+                             const ImageBuf& variance, const MetricsOptions& o, std::string& error,
+                             ROI roi, int nthreads)
 {
     MetricsOptions both = o;
     both.image_channels = o.reference_channels;
@@ -450,8 +451,8 @@ bool error_map(ImageBuf& dst, const ImageBuf& image, const ImageBuf& reference,
     return true;
 }
 
-bool heatmap(ImageBuf& dst, const ImageBuf& error, double log10_min, double log10_max,
-             ROI roi, int nthreads)
+bool heatmap(ImageBuf& dst, const ImageBuf& error, double log10_min, double log10_max, ROI roi,
+             int nthreads)
 {
     if (!(log10_max > log10_min)) {
         dst.errorfmt("heatmap: range [{}, {}] is empty", log10_min, log10_max);

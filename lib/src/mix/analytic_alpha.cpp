@@ -9,8 +9,7 @@ namespace mcdn {
 
 Plane box_mean(const Plane& in, int radius)
 {
-    return separable_window_sum(in, std::vector<double>(size_t(2 * radius + 1), 1.0), radius,
-                                true);
+    return separable_window_sum(in, std::vector<double>(size_t(2 * radius + 1), 1.0), radius, true);
 }
 
 void analytic_alpha(Plane alpha[3], const MixInputs& in, int radius)

@@ -30,7 +30,8 @@ std::string needs_sure(const char* missing)
 {
     return OIIO::Strutil::fmt::format(
         "mix mixes the render with a denoiser by the error --sure estimates: run --sure "
-        "before it (--cnn --sure --mix, or --denoise); the input has no '{}'", missing);
+        "before it (--cnn --sure --mix, or --denoise); the input has no '{}'",
+        missing);
 }
 
 // The channels sure wrote, by name; a missing one is an error that says to run --sure.
@@ -57,8 +58,7 @@ bool find_mix_channels(MixChannels& ch, const ImageSpec& spec, const AovSet& aov
     return true;
 }
 
-MixInputs read_mix_inputs(const ImageBuf& src, const MixChannels& ch, const ROI& rows,
-                          int nthreads)
+MixInputs read_mix_inputs(const ImageBuf& src, const MixChannels& ch, const ROI& rows, int nthreads)
 {
     MixInputs in;
     const int* channels[6] = { ch.y, ch.variance, ch.x, ch.sure, ch.divergence, ch.residual };
@@ -118,7 +118,8 @@ bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options, ROI roi,
 
     const ROI where = output_roi(src, roi);
     const int radius = mix_radius(options, use_net ? &net : nullptr);
-    const std::vector<Band> bands = plan_bands(src.roi(), radius, is_frame_band(src.spec()) ? 0 : options.band_pixels);
+    const std::vector<Band> bands =
+        plan_bands(src.roi(), radius, is_frame_band(src.spec()) ? 0 : options.band_pixels);
     // In place, one band reads all it needs before it writes; a band's halo would read rows
     // the band above has written.
     if (&dst == &src && bands.size() > 1) {
@@ -152,8 +153,8 @@ bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options, ROI roi,
             if (!all_x) {
                 z[c] = Plane(in.x[c].width, in.x[c].height);
                 for (size_t i = 0; i < z[c].size(); ++i)
-                    z[c].px[i] = sanitize(in.x[c].px[i]
-                                          + alpha[c].px[i] * (in.y[c].px[i] - in.x[c].px[i]));
+                    z[c].px[i] =
+                        sanitize(in.x[c].px[i] + alpha[c].px[i] * (in.y[c].px[i] - in.x[c].px[i]));
                 pass_through_converged(z[c], in.x[c], passed);
             }
             out_channels.push_back(channels.y[c]);
@@ -169,10 +170,12 @@ bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options, ROI roi,
             if (extra.channels.size() != 3)
                 continue;
             for (int c = 0; c < 3; ++c) {
-                const int noisy = src.spec().channelindex(sure_channels::noisy_extra(extra.names[c]));
+                const int noisy =
+                    src.spec().channelindex(sure_channels::noisy_extra(extra.names[c]));
                 if (noisy < 0)
                     break;
-                Plane x = read_rows(src, noisy, band.cut), y = read_rows(src, extra.channels[c], band.cut);
+                Plane x = read_rows(src, noisy, band.cut),
+                      y = read_rows(src, extra.channels[c], band.cut);
                 for (size_t i = 0; i < x.size(); ++i)
                     x.px[i] = sanitize(x.px[i] + alpha[c].px[i] * (y.px[i] - x.px[i]));
                 write_rows(dst, extra.channels[c], x, band_y, own);
@@ -190,8 +193,8 @@ int receptive_radius(const MixOptions& options, const std::string& denoiser)
         return mix_radius(options, nullptr);
     nn::Net net;
     std::string error;
-    const std::string path = options.weights.empty() ? default_mix_weights(denoiser)
-                                                     : options.weights;
+    const std::string path =
+        options.weights.empty() ? default_mix_weights(denoiser) : options.weights;
     return load_mix_net(net, path, error) ? mix_radius(options, &net) : -1;
 }
 

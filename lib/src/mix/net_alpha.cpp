@@ -26,7 +26,10 @@ constexpr const char* kInputLayout = "pd-mix-1";  // model.py INPUT_LAYOUT
 constexpr int kInputs = 18, kFeatures = 48;
 constexpr float kFActEpsilon = 1e-6f;  // eq. 19
 
-float signed_log1p(float v) { return std::copysign(std::log1p(std::fabs(v)), v); }
+float signed_log1p(float v)
+{
+    return std::copysign(std::log1p(std::fabs(v)), v);
+}
 
 }  // namespace
 
@@ -58,7 +61,8 @@ bool load_mix_net(nn::Net& net, const std::string& path, std::string& error)
     if (weights.metadata.find(tag) == std::string::npos) {
         error = OIIO::Strutil::fmt::format(
             "mix: '{}' is not a mixing network of input layout '{}' (its metadata lacks {}): "
-            "export it with training/mix/export.py", path, kInputLayout, tag);
+            "export it with training/mix/export.py",
+            path, kInputLayout, tag);
         return false;
     }
     if (!net.load(weights, error)) {
@@ -75,24 +79,24 @@ void net_features(const MixInputs& in, const Rect& window, nn::Tensor& f)
     // Threaded over rows (18 log/atan per pixel).
     tbb::parallel_for(tbb::blocked_range<int>(window.y0, window.y1),
                       [&](const tbb::blocked_range<int>& rows) {
-        for (int wy = rows.begin(); wy < rows.end(); ++wy) {
-            const size_t row = size_t(std::min(wy, h - 1)) * w;
-            float* px = f.pixel(wy - window.y0, 0);
-            for (int wx = window.x0; wx < window.x1; ++wx, px += kInputs) {
-                const size_t i = row + size_t(std::min(wx, w - 1));
-                for (int c = 0; c < 3; ++c) {
-                    const float y = in.y[c].px[i];
-                    const float scale = 1.0f / (y * y + float(kRelMseOffset));
-                    px[0 + c] = signed_log1p(in.x[c].px[i]);
-                    px[3 + c] = signed_log1p(y);
-                    px[6 + c] = std::atan(in.variance[c].px[i] * scale);
-                    px[9 + c] = std::atan(in.sure[c].px[i] * scale);
-                    px[12 + c] = std::atan(in.divergence[c].px[i] * scale);
-                    px[15 + c] = std::atan(in.residual[c].px[i] * scale);
-                }
-            }
-        }
-    });
+                          for (int wy = rows.begin(); wy < rows.end(); ++wy) {
+                              const size_t row = size_t(std::min(wy, h - 1)) * w;
+                              float* px = f.pixel(wy - window.y0, 0);
+                              for (int wx = window.x0; wx < window.x1; ++wx, px += kInputs) {
+                                  const size_t i = row + size_t(std::min(wx, w - 1));
+                                  for (int c = 0; c < 3; ++c) {
+                                      const float y = in.y[c].px[i];
+                                      const float scale = 1.0f / (y * y + float(kRelMseOffset));
+                                      px[0 + c] = signed_log1p(in.x[c].px[i]);
+                                      px[3 + c] = signed_log1p(y);
+                                      px[6 + c] = std::atan(in.variance[c].px[i] * scale);
+                                      px[9 + c] = std::atan(in.sure[c].px[i] * scale);
+                                      px[12 + c] = std::atan(in.divergence[c].px[i] * scale);
+                                      px[15 + c] = std::atan(in.residual[c].px[i] * scale);
+                                  }
+                              }
+                          }
+                      });
 }
 
 nn::Tensor net_features(const MixInputs& in)

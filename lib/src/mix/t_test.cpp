@@ -67,9 +67,8 @@ std::vector<size_t> highest_variance_neighbour(const Plane& variance, int radius
 float t_test_sigma(const OIIO::ImageBuf& src, const int x_channels[3], float scale)
 {
     FrameFacts facts;  // a band of a larger frame: the frame's sigma_s
-    return t_test_sigma(frame_facts(facts, src.spec()) ? facts.color
-                                                       : color_sums(src, x_channels, nullptr),
-                        scale);
+    return t_test_sigma(
+        frame_facts(facts, src.spec()) ? facts.color : color_sums(src, x_channels, nullptr), scale);
 }
 
 void t_test_bound(Plane& alpha, const Plane& x, const Plane& y, const Plane& variance,
@@ -81,7 +80,8 @@ void t_test_bound(Plane& alpha, const Plane& x, const Plane& y, const Plane& var
     for (int i = -r; i <= r; ++i) {
         // The 2D kernel of eq. 15 is the product of these; its 1/(sigma sqrt(2 pi)) factor
         // is split as a square root per axis, and squared for the variance sum.
-        double k = std::exp(-0.5 * i * i / (sigma * sigma)) / std::sqrt(sigma * std::sqrt(2 * M_PI));
+        double k =
+            std::exp(-0.5 * i * i / (sigma * sigma)) / std::sqrt(sigma * std::sqrt(2 * M_PI));
         kappa[i + r] = k;
         kappa2[i + r] = k * k;
     }

@@ -40,41 +40,42 @@ template <class Row> void for_rows(int height, Row row)
 
 }  // namespace
 
-Plane separable_window_sum(const Plane& in, const std::vector<double>& taps, int radius,
-                           bool mean)
+Plane separable_window_sum(const Plane& in, const std::vector<double>& taps, int radius, bool mean)
 {
     const int w = in.width, h = in.height;
     Plane rows(w, h), out(w, h);
     for_rows(h, [&](int y) {
         thread_local std::vector<double> sum;
         const float* line = in.row(y);
-        window_line(w, taps, radius, mean, [line](int x) { return double(line[x]); }, sum,
-                    rows.px.data() + size_t(y) * w, 1);
+        window_line(
+            w, taps, radius, mean, [line](int x) { return double(line[x]); }, sum,
+            rows.px.data() + size_t(y) * w, 1);
     });
     // Columns: blocks of whole columns, each a pass down them, summed across the block's
     // pixels at once (row by row: contiguous reads).
     constexpr int kBlock = 256;
     tbb::parallel_for(tbb::blocked_range<int>(0, (w + kBlock - 1) / kBlock),
                       [&](const tbb::blocked_range<int>& b) {
-        std::vector<double> sum;
-        for (int block = b.begin(); block != b.end(); ++block) {
-            const int x0 = block * kBlock, n = std::min(kBlock, w - x0);
-            for (int y = 0; y < h; ++y) {
-                sum.assign(size_t(n), 0.0);
-                const int first = std::max(0, y - radius), last = std::min(h - 1, y + radius);
-                for (int j = first; j <= last; ++j) {
-                    const double t = taps[size_t(j - y + radius)];
-                    const float* line = rows.row(j) + x0;
-                    for (int k = 0; k < n; ++k)
-                        sum[size_t(k)] += t * double(line[k]);
-                }
-                float* o = out.row(y) + x0;
-                const double count = last - first + 1;
-                for (int k = 0; k < n; ++k)
-                    o[k] = float(mean ? sum[size_t(k)] / count : sum[size_t(k)]);
-            }
-        }
-    });
+                          std::vector<double> sum;
+                          for (int block = b.begin(); block != b.end(); ++block) {
+                              const int x0 = block * kBlock, n = std::min(kBlock, w - x0);
+                              for (int y = 0; y < h; ++y) {
+                                  sum.assign(size_t(n), 0.0);
+                                  const int first = std::max(0, y - radius),
+                                            last = std::min(h - 1, y + radius);
+                                  for (int j = first; j <= last; ++j) {
+                                      const double t = taps[size_t(j - y + radius)];
+                                      const float* line = rows.row(j) + x0;
+                                      for (int k = 0; k < n; ++k)
+                                          sum[size_t(k)] += t * double(line[k]);
+                                  }
+                                  float* o = out.row(y) + x0;
+                                  const double count = last - first + 1;
+                                  for (int k = 0; k < n; ++k)
+                                      o[k] = float(mean ? sum[size_t(k)] / count : sum[size_t(k)]);
+                              }
+                          }
+                      });
     return out;
 }
 

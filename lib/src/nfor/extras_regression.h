@@ -25,8 +25,7 @@ public:
 
     /// §5.2: each extra's halves fitted by the beauty's first-pass regressions (their
     /// guides, variances, features and bandwidths; only the image differs).
-    void first_pass(const RegressionInputs& first_a, const RegressionInputs& first_b,
-                    int nthreads);
+    void first_pass(const RegressionInputs& first_a, const RegressionInputs& first_b, int nthreads);
     /// §5.2 without half buffers: each extra itself fitted by the beauty's regression of the
     /// render (nfor's one-buffer path).
     void first_pass_one_buffer(const RegressionInputs& first, int nthreads);

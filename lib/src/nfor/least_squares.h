@@ -41,7 +41,7 @@ MCDN_INLINE vdouble8 rsqrt8(vdouble8 x)
 /// columns, then the 3 colours). Writes beta (D×3, row r = i·3 + c) to `B`; lanes >= `lanes`
 /// and non-finite coefficients get 0. Column order matters: [1, dx, dy, features...] drops
 /// features before the plane. DT is D when known at compile time, else 0 (D at run time).
-template<int DT>
+template <int DT>
 MCDN_INLINE void solve_normal_equations16(int D, const vfloat16* G, vfloat16* B, int lanes)
 {
     constexpr int DM = DT > 0 ? DT : 16;
@@ -100,7 +100,8 @@ MCDN_INLINE void solve_normal_equations16(int D, const vfloat16* G, vfloat16* B,
                 for (int l = 0; l < 8; ++l) {
                     float b = float(beta[l]);
                     // Finite (NaN fails both) and a lane of the group.
-                    B[i * 3 + c][8 * h + l] = (b > -3e38f && b < 3e38f && 8 * h + l < lanes) ? b : 0.0f;
+                    B[i * 3 + c][8 * h + l] =
+                        (b > -3e38f && b < 3e38f && 8 * h + l < lanes) ? b : 0.0f;
                 }
             }
     }

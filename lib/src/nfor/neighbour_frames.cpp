@@ -77,7 +77,7 @@ const Plane* face(const ColorPlanes& c, Face f, int channel)
 {
     return f == Face::HalfA   ? &c.half_a[channel]
            : f == Face::HalfB ? &c.half_b[channel]
-                                       : &c.mean[channel];
+                              : &c.mean[channel];
 }
 
 const Plane* face(const FeaturePlanes& p, Face f)
@@ -93,9 +93,9 @@ bool read_neighbour_frames(std::vector<NeighbourFrame>& frames, const ImageBuf& 
                            const NeighbourReading& reading, int nthreads, std::string& error)
 {
     std::vector<AlignedFrame> aligned;
-    const std::vector<Role> required
-        = reading.halves ? std::vector<Role> { Role::Color, Role::ColorA, Role::ColorB }
-                         : std::vector<Role> { Role::Color, Role::ColorVariance };
+    const std::vector<Role> required =
+        reading.halves ? std::vector<Role> { Role::Color, Role::ColorA, Role::ColorB }
+                       : std::vector<Role> { Role::Color, Role::ColorVariance };
     if (!align_neighbours(aligned, src, *reading.aovs, *reading.spec, previous, next, required,
                           error))
         return false;
@@ -116,8 +116,7 @@ bool read_neighbour_frames(std::vector<NeighbourFrame>& frames, const ImageBuf& 
 }
 
 void add_neighbour_frames(RegressionInputs& in, const std::vector<NeighbourFrame>& frames,
-                          Face image, Face guide, Face features,
-                          const Plane& zero_offset)
+                          Face image, Face guide, Face features, const Plane& zero_offset)
 {
     if (frames.empty())
         return;

@@ -47,8 +47,8 @@ bool check_options(ImageBuf& dst, const NforOptions& o)
               && o.map_k > 0 && o.second_k > 0 && o.variance_scale > 0;
     if (!ok)
         dst.errorfmt("nfor: window and patch radii must be >= 0 and every k > 0 (window {}, "
-                     "patch {}, k {} and {})", o.window_radius, o.patch_radius,
-                     o.candidate_k[0], o.candidate_k[1]);
+                     "patch {}, k {} and {})",
+                     o.window_radius, o.patch_radius, o.candidate_k[0], o.candidate_k[1]);
     return ok;
 }
 
@@ -61,7 +61,7 @@ OutlierRule outlier_rule(const NforOptions& o, const ColorSums& frame)
 /// What the op reads from src before anything is written (dst may be src).
 struct NforInputs {
     AovSet aovs;
-    bool halves = false;  // else the one-buffer path: the render and its variance only
+    bool halves = false;       // else the one-buffer path: the render and its variance only
     bool prefiltered = false;  // the prefilter op ran already (mcdn:prefiltered)
     bool means_later = false;  // the features' means are read after §5.2 (read_inputs)
     ColorPlanes color;
@@ -77,8 +77,8 @@ bool read_inputs(NforInputs& in, ImageBuf& dst, const ImageBuf& src, const NforO
     std::vector<FeatureChannel>& feature_channels = in.feature_channels;
     if (!resolve_aovs(in.aovs, options.aovs, src.spec(), error)
         || !in.aovs.require({ Role::Color }, src.spec(), error)
-        || !find_feature_channels(feature_channels, in.aovs, src.spec(), options.extra_features,
-                                  op, error)) {
+        || !find_feature_channels(feature_channels, in.aovs, src.spec(), options.extra_features, op,
+                                  error)) {
         dst.errorfmt("{}: {}", op, error);
         return false;
     }
@@ -89,29 +89,30 @@ bool read_inputs(NforInputs& in, ImageBuf& dst, const ImageBuf& src, const NforO
         for (FeatureChannel& f : feature_channels)
             f.half_a = f.half_b = -1;
     if (!in.halves && !in.aovs.has(Role::ColorVariance)) {
-        dst.errorfmt("nfor needs two half buffers or the colour's variance, and {} has "
-                     "neither: render two half buffers (each the mean of half the samples: "
-                     "-i:as=halfA, -i:as=halfB) or the variance (the renderer's variance "
-                     "AOV, or -i:as=variance FILE), or use a stage that needs none "
-                     "(--denoise, --cnn); roles color_a, color_b, color_variance (preset '{}')",
-                     channel_source(src.spec(), src.spec().channel_name(
-                                                    in.aovs.channels(Role::Color)[0])),
-                     in.aovs.preset());
+        dst.errorfmt(
+            "nfor needs two half buffers or the colour's variance, and {} has "
+            "neither: render two half buffers (each the mean of half the samples: "
+            "-i:as=halfA, -i:as=halfB) or the variance (the renderer's variance "
+            "AOV, or -i:as=variance FILE), or use a stage that needs none "
+            "(--denoise, --cnn); roles color_a, color_b, color_variance (preset '{}')",
+            channel_source(src.spec(), src.spec().channel_name(in.aovs.channels(Role::Color)[0])),
+            in.aovs.preset());
         return false;
     }
     // Cross-frame, the frame offset is one more feature.
     const int max_features = kMaxRegressionFeatures - (options.cross_frame() ? 1 : 0);
     if (int(feature_channels.size()) > max_features) {
         dst.errorfmt("nfor: {} feature channels, at most {} are supported{}; drop extra "
-                     "features", feature_channels.size(), max_features,
+                     "features",
+                     feature_channels.size(), max_features,
                      options.cross_frame() ? " cross-frame" : "");
         return false;
     }
     if (options.cross_frame() && !in.aovs.has(Role::Motion)) {
-        dst.errorfmt("nfor: cross-frame needs motion vectors and {} has none: render the "
-                     "Vector pass (Blender) or name them (--aov motion=X,Y,Z,W)",
-                     channel_source(src.spec(), src.spec().channel_name(
-                                                    in.aovs.channels(Role::Color)[0])));
+        dst.errorfmt(
+            "nfor: cross-frame needs motion vectors and {} has none: render the "
+            "Vector pass (Blender) or name them (--aov motion=X,Y,Z,W)",
+            channel_source(src.spec(), src.spec().channel_name(in.aovs.channels(Role::Color)[0])));
         return false;
     }
     for (Role role : { Role::Color, Role::ColorA, Role::ColorB, Role::ColorVariance })
@@ -152,10 +153,9 @@ void prefilter_features(std::vector<FeaturePlanes>& features, const NforOptions&
         f.variance = Plane();
 }
 
-
 /// The nfor.mse.*, nfor.selection.* and nfor.fallback channels, when asked for.
-bool write_maps(ImageBuf& dst, Selected& selected, const NforOptions& options,
-                const Plane& like, ROI roi)
+bool write_maps(ImageBuf& dst, Selected& selected, const NforOptions& options, const Plane& like,
+                ROI roi)
 {
     std::vector<std::string> names;
     if (!selected.mse.empty())
@@ -182,8 +182,7 @@ bool write_maps(ImageBuf& dst, Selected& selected, const NforOptions& options,
     for (int c = 0; c < int(selected.selection.size()); ++c, ++n)
         write_plane(dst, new_index[n], selected.selection[c], roi);
     if (options.output_fallback)
-        write_plane(dst, new_index[n], tile_flags(selected.fallback, like.width, like.height),
-                    roi);
+        write_plane(dst, new_index[n], tile_flags(selected.fallback, like.width, like.height), roi);
     return true;
 }
 
@@ -251,8 +250,7 @@ bool write_result(ImageBuf& dst, const NforInputs& in, const std::vector<Plane>&
     if (!write_maps(dst, selected, options, in.color.mean[0], roi))
         return false;
     if (selected.fallback.any()) {
-        dst.specmod().attribute(kDenoiserTilesAttribute,
-                                encode_converged_tiles(selected.fallback));
+        dst.specmod().attribute(kDenoiserTilesAttribute, encode_converged_tiles(selected.fallback));
         dst.specmod().attribute(kNforFallbackCountAttribute, selected.fallback.count());
     } else {
         dst.specmod().erase_attribute(kDenoiserTilesAttribute);
@@ -265,8 +263,8 @@ bool write_result(ImageBuf& dst, const NforInputs& in, const std::vector<Plane>&
     return true;
 }
 
-bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions& options,
-                           ROI roi, int nthreads, ProgressCounter& progress)
+bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions& options, ROI roi,
+                           int nthreads, ProgressCounter& progress)
 {
     if (!check_options(dst, options))
         return false;
@@ -276,8 +274,8 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
         return false;
     ColorPlanes& color = in.color;
     // mcdn/skip.h: converged tiles pass through every stage below; constant features go.
-    const ConvergedTiles converged = converged_tiles_of(src, color.mean, color.variance,
-                                                        options.skip);
+    const ConvergedTiles converged =
+        converged_tiles_of(src, color.mean, color.variance, options.skip);
     // The frame's colour (of a band's frame: core/frame_facts.h), before anything changes it.
     FrameFacts facts;
     ProbeIndex probe_index;
@@ -290,8 +288,7 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     // (outliers/outliers.h).
     OutlierPixels outliers;
     if (options.outliers != NforOptions::Outliers::Off)
-        outliers = take_out_outliers(color.mean, color.variance,
-                                     in.halves ? color.half_a : nullptr,
+        outliers = take_out_outliers(color.mean, color.variance, in.halves ? color.half_a : nullptr,
                                      in.halves ? color.half_b : nullptr, in.extras, converged,
                                      outlier_rule(options, probe_index.color), nthreads);
     // Extra AOVs go through the beauty's filters stage by stage (nfor/extras_regression.h).
@@ -312,18 +309,17 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     }
     progress.advance();
     std::vector<Plane> mse[2];
-    FirstPass pass = in.halves ? first_pass(color, in.features, neighbours, extras, options,
-                                            converged, nthreads)
-                               : first_pass_one_buffer(color, in.features, neighbours, extras,
-                                                       options, converged, nthreads, mse,
-                                                       probe_index);
+    FirstPass pass =
+        in.halves ? first_pass(color, in.features, neighbours, extras, options, converged, nthreads)
+                  : first_pass_one_buffer(color, in.features, neighbours, extras, options,
+                                          converged, nthreads, mse, probe_index);
     neighbours.clear();
     if (in.halves)
         two_buffer_mse(mse, color, pass);
     trace.mark("first pass regressions (5.2)");
     progress.advance();
-    Selected selected = select_bandwidths(src, color, mse, pass, extras, options, converged,
-                                          nthreads);
+    Selected selected =
+        select_bandwidths(src, color, mse, pass, extras, options, converged, nthreads);
     trace.mark("MSE + selection maps (5.3)");
     progress.advance();
     std::vector<Plane> denoised;
@@ -365,10 +361,10 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
 int receptive_radius(const NforOptions& o, bool prefiltered)
 {
     const PrefilterOptions& p = o.prefilter;
-    int prefilter = prefiltered || !o.prefilter_features
-                        ? 0
-                        : p.window_radius + p.patch_radius + p.second_window_radius
-                              + p.second_patch_radius;
+    int prefilter =
+        prefiltered || !o.prefilter_features
+            ? 0
+            : p.window_radius + p.patch_radius + p.second_window_radius + p.second_patch_radius;
     // Outliers are decided on the 5×5 neighbourhood of the input (outliers/outliers.h).
     const int outliers = o.outliers != NforOptions::Outliers::Off ? OutlierRule::radius : 0;
     return outliers + prefilter + 2 * o.window_radius + o.patch_radius
@@ -384,9 +380,8 @@ bool nfor(ImageBuf& dst, const ImageBuf& src, const NforOptions& options, ROI ro
     const int radius = receptive_radius(options, prefiltered);
     // A chain's band (core/frame_facts.h) runs whole.
     // Cross-frame, the neighbours are aligned to the whole frame.
-    const int64_t band_pixels = is_frame_band(src.spec()) || options.cross_frame()
-                                    ? 0
-                                    : options.band_pixels;
+    const int64_t band_pixels =
+        is_frame_band(src.spec()) || options.cross_frame() ? 0 : options.band_pixels;
     // Four steps a band: §5.1, §5.2, §5.3, §5.4.
     ProgressCounter progress(options.progress, "nfor",
                              4 * band_count(src.roi(), radius, band_pixels));

@@ -22,7 +22,6 @@ constexpr uint64_t kNforProbeSeed = 0x6e666f72;  // "nfor": the one-buffer SURE 
 
 }  // namespace
 
-
 namespace {
 
 /// The first pass's regression settings (§5.2, both candidate bandwidths); the caller says
@@ -83,12 +82,10 @@ FirstPass first_pass(const ColorPlanes& color, std::vector<FeaturePlanes>& featu
         first_b.features.push_back(&f.half_a);
     }
     // §8: the neighbouring frames' windows join every fit.
-    const Plane zero_offset = neighbours.empty() ? Plane()
-                                                 : Plane(color.mean[0].width, color.mean[0].height);
-    add_neighbour_frames(first_a, neighbours, Face::HalfA, Face::HalfB,
-                         Face::HalfB, zero_offset);
-    add_neighbour_frames(first_b, neighbours, Face::HalfB, Face::HalfA,
-                         Face::HalfA, zero_offset);
+    const Plane zero_offset =
+        neighbours.empty() ? Plane() : Plane(color.mean[0].width, color.mean[0].height);
+    add_neighbour_frames(first_a, neighbours, Face::HalfA, Face::HalfB, Face::HalfB, zero_offset);
+    add_neighbour_frames(first_b, neighbours, Face::HalfB, Face::HalfA, Face::HalfA, zero_offset);
     FirstPass pass;
     take_candidates(pass.fit_a, collaborative_regression(first_a, nthreads));
     take_candidates(pass.fit_b, collaborative_regression(first_b, nthreads));
@@ -113,27 +110,25 @@ void two_buffer_mse(std::vector<Plane> mse[2], ColorPlanes& color, const FirstPa
     }
 }
 
-
 /// Without half buffers (a renderer's colour and its variance, as Arnold and RenderMan
 /// write them), §5.2 fits the render itself with its own weights and the mean features for
 /// both candidates, and once more probed by eps b, b = sqrt(Var) n (n standard normal, from
 /// the pixel's index: the same for any thread count), so that §5.3 can pick by SURE
 /// (PD §2.3) instead of the two-buffer estimate. fit_b stays empty.
 FirstPass first_pass_one_buffer(const ColorPlanes& color, std::vector<FeaturePlanes>& features,
-                                const std::vector<NeighbourFrame>& neighbours,
-                                ExtraAovs& extras, const NforOptions& options,
-                                const ConvergedTiles& converged, int nthreads,
-                                std::vector<Plane> mse[2], const ProbeIndex& probe_index)
+                                const std::vector<NeighbourFrame>& neighbours, ExtraAovs& extras,
+                                const NforOptions& options, const ConvergedTiles& converged,
+                                int nthreads, std::vector<Plane> mse[2],
+                                const ProbeIndex& probe_index)
 {
     RegressionInputs first = first_pass_settings(options, converged);
     for (const FeaturePlanes& f : features)
         first.features.push_back(&f.mean);
     // §8: the neighbouring frames' windows join every fit, unprobed (SURE's divergence is
     // this frame's).
-    const Plane zero_offset = neighbours.empty() ? Plane()
-                                                 : Plane(color.mean[0].width, color.mean[0].height);
-    add_neighbour_frames(first, neighbours, Face::Mean, Face::Mean,
-                         Face::Mean, zero_offset);
+    const Plane zero_offset =
+        neighbours.empty() ? Plane() : Plane(color.mean[0].width, color.mean[0].height);
+    add_neighbour_frames(first, neighbours, Face::Mean, Face::Mean, Face::Mean, zero_offset);
     const double eps = relative_probe_step(probe_index.color, 1e-3);
     Plane probe[3], probed[3];
     for (int c = 0; c < 3; ++c) {
@@ -162,7 +157,6 @@ FirstPass first_pass_one_buffer(const ColorPlanes& color, std::vector<FeaturePla
     return pass;
 }
 
-
 /// §5.3: each candidate's MSE estimate NL-means filtered on the mean colour; the lower one
 /// picked per pixel; that selection map filtered the same way and the candidates blended
 /// with it (both halves' fits, or the render's alone on the one-buffer path). Consumes the
@@ -181,16 +175,16 @@ Selected select_bandwidths(const ImageBuf& src, ColorPlanes& color, std::vector<
     for (int j = 0; j < 2; ++j)
         for (int c = 0; c < 3; ++c)
             noisy.push_back(&mse[j][c]);
-    std::vector<Plane> filtered_mse = nl_means(noisy, map_guide, map_variance, map_params,
-                                               nthreads, &converged);
+    std::vector<Plane> filtered_mse =
+        nl_means(noisy, map_guide, map_variance, map_params, nthreads, &converged);
     // The safety net's map (skip/worse_tiles.h): the one attached to src (a probe of sure's)
     // when it has one of the frame's size; else decided on the estimates as they were,
     // before the map filter spread a garbage pixel's estimate over its window, so those
     // are kept until the blend.
     Selected out;
     const int w = color.mean[0].width, h = color.mean[0].height;
-    const bool decide = options.fallback
-                        && !attached_tiles(out.fallback, src, kDenoiserTilesAttribute, w, h);
+    const bool decide =
+        options.fallback && !attached_tiles(out.fallback, src, kDenoiserTilesAttribute, w, h);
     if (!decide)
         for (int j = 0; j < 2; ++j)
             mse[j].clear();
@@ -224,8 +218,8 @@ Selected select_bandwidths(const ImageBuf& src, ColorPlanes& color, std::vector<
         }
     }
     if (decide) {
-        out.fallback = tiles_worse_than_render(mse[0].data(), color.variance, out.combined,
-                                               converged);
+        out.fallback =
+            tiles_worse_than_render(mse[0].data(), color.variance, out.combined, converged);
         for (int j = 0; j < 2; ++j)
             mse[j].clear();
     }

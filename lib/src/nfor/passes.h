@@ -53,10 +53,10 @@ void two_buffer_mse(std::vector<Plane> mse[2], ColorPlanes& color, const FirstPa
 /// The one-buffer first pass (no half buffers): the render fitted with its own weights, and
 /// once more probed, so that §5.3 picks by SURE (PD §2.3); `mse` the candidates' SURE.
 FirstPass first_pass_one_buffer(const ColorPlanes& color, std::vector<FeaturePlanes>& features,
-                                const std::vector<NeighbourFrame>& neighbours,
-                                ExtraAovs& extras, const NforOptions& options,
-                                const ConvergedTiles& converged, int nthreads,
-                                std::vector<Plane> mse[2], const ProbeIndex& probe_index);
+                                const std::vector<NeighbourFrame>& neighbours, ExtraAovs& extras,
+                                const NforOptions& options, const ConvergedTiles& converged,
+                                int nthreads, std::vector<Plane> mse[2],
+                                const ProbeIndex& probe_index);
 
 /// §5.3: the MSE estimates filtered, the lower picked per pixel, the selection filtered and
 /// the candidates blended with it; the safety net's tiles.

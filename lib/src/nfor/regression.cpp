@@ -29,11 +29,13 @@ void tile_any_baseline(const RegressionInputs& i, Rect t, TileScratch& s, TileRe
     regression_tile_impl<0>(i, t, s, r);
 }
 #if MCDN_X86_DISPATCH
-MCDN_TARGET_AVX2 void tile_any_avx2(const RegressionInputs& i, Rect t, TileScratch& s, TileResult& r)
+MCDN_TARGET_AVX2 void tile_any_avx2(const RegressionInputs& i, Rect t, TileScratch& s,
+                                    TileResult& r)
 {
     regression_tile_impl<0>(i, t, s, r);
 }
-MCDN_TARGET_AVX512 void tile_any_avx512(const RegressionInputs& i, Rect t, TileScratch& s, TileResult& r)
+MCDN_TARGET_AVX512 void tile_any_avx512(const RegressionInputs& i, Rect t, TileScratch& s,
+                                        TileResult& r)
 {
     regression_tile_impl<0>(i, t, s, r);
 }

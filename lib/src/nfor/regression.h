@@ -55,7 +55,8 @@ constexpr int kMaxRegressionFrames = 9;
 
 /// Returns the three filtered colour planes of each bandwidth. Deterministic for any thread
 /// count.
-std::vector<std::vector<Plane>> collaborative_regression(const RegressionInputs& inputs, int nthreads);
+std::vector<std::vector<Plane>> collaborative_regression(const RegressionInputs& inputs,
+                                                         int nthreads);
 
 /// Floating-point operations of one collaborative_regression per pixel (for the benchmark's
 /// FLOP rate): weights, normal equations, solve and collaborative evaluation.

@@ -7,7 +7,7 @@ namespace mcdn {
 namespace regression_detail {
 
 #if MCDN_X86_DISPATCH
-template<int D>
+template <int D>
 MCDN_TARGET_AVX2 void tile_avx2(const RegressionInputs& i, Rect t, TileScratch& s, TileResult& r)
 {
     regression_tile_impl<D>(i, t, s, r);
@@ -15,10 +15,14 @@ MCDN_TARGET_AVX2 void tile_avx2(const RegressionInputs& i, Rect t, TileScratch& 
 
 TileKernel unrolled_kernel_avx2(int num_features)
 {
-    return select_unrolled(num_features, [](auto d) -> TileKernel { return tile_avx2<decltype(d)::value>; });
+    return select_unrolled(num_features,
+                           [](auto d) -> TileKernel { return tile_avx2<decltype(d)::value>; });
 }
 #else
-TileKernel unrolled_kernel_avx2(int) { return nullptr; }
+TileKernel unrolled_kernel_avx2(int)
+{
+    return nullptr;
+}
 #endif
 
 }  // namespace regression_detail

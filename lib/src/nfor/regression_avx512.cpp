@@ -7,18 +7,23 @@ namespace mcdn {
 namespace regression_detail {
 
 #if MCDN_X86_DISPATCH
-template<int D>
-MCDN_TARGET_AVX512 void tile_avx512(const RegressionInputs& i, Rect t, TileScratch& s, TileResult& r)
+template <int D>
+MCDN_TARGET_AVX512 void tile_avx512(const RegressionInputs& i, Rect t, TileScratch& s,
+                                    TileResult& r)
 {
     regression_tile_impl<D>(i, t, s, r);
 }
 
 TileKernel unrolled_kernel_avx512(int num_features)
 {
-    return select_unrolled(num_features, [](auto d) -> TileKernel { return tile_avx512<decltype(d)::value>; });
+    return select_unrolled(num_features,
+                           [](auto d) -> TileKernel { return tile_avx512<decltype(d)::value>; });
 }
 #else
-TileKernel unrolled_kernel_avx512(int) { return nullptr; }
+TileKernel unrolled_kernel_avx512(int)
+{
+    return nullptr;
+}
 #endif
 
 }  // namespace regression_detail

@@ -26,25 +26,29 @@ struct TileScratch {
     nlm::DistanceScratch distance;
     // Per frame (this one, then RegressionInputs::other_frames): guide and variance, 3 each.
     std::vector<nlm::LocalPlane> guide, variance;
-    std::vector<float> dist;      // [T*T] largest channel distance of one offset
-    std::vector<float> weights;   // per frame, per stored bandwidth [row][offset][T]
-    std::vector<float> row_weights;  // per frame a derived bandwidth's weights of one row [offset][T]
-    std::vector<float> local;     // per frame features then colour on the tile grown by R, 0 outside
-    std::vector<float> normal;    // accumulators [entry][L]
-    std::vector<float> beta;      // [D*3][L]
+    std::vector<float> dist;     // [T*T] largest channel distance of one offset
+    std::vector<float> weights;  // per frame, per stored bandwidth [row][offset][T]
+    std::vector<float>
+        row_weights;            // per frame a derived bandwidth's weights of one row [offset][T]
+    std::vector<float> local;   // per frame features then colour on the tile grown by R, 0 outside
+    std::vector<float> normal;  // accumulators [entry][L]
+    std::vector<float> beta;    // [D*3][L]
 };
 
 struct TileResult {
-    Rect area;                    // tile grown by R, clipped to the image
+    Rect area;                       // tile grown by R, clipped to the image
     int origin_x = 0, origin_y = 0;  // image position of the local buffers' (0, 0)
     int stride = 0;
-    std::vector<float> sum;       // per bandwidth: 3 colour planes, the weight plane
+    std::vector<float> sum;  // per bandwidth: 3 colour planes, the weight plane
 };
 
 // The accumulators: the upper triangle of the extended product [x y]^T W [x y] restricted to
 // rows i < D (design) and columns j in [i, D + 3) (design, then the 3 colours): X^T W X and
 // X^T W Y. Row i starts at row_offset(D, i).
-constexpr int row_offset(int D, int i) { return i * (D + 3) - i * (i - 1) / 2; }
+constexpr int row_offset(int D, int i)
+{
+    return i * (D + 3) - i * (i - 1) / 2;
+}
 constexpr int kMaxLiveAccumulators = 24;
 /// End of the register-blocked pass that starts at row i0: as many rows as fit.
 constexpr int pass_end(int D, int i0)
@@ -56,17 +60,17 @@ constexpr int pass_end(int D, int i0)
 }
 
 struct GroupInputs {
-    const float* weights;        // weight of offset o for lane l: weights[o * T + l]
-    const float* const* feat;    // local feature planes
-    const float* const* color;   // local colour planes
-    size_t centre;               // local index of lane 0's pixel
+    const float* weights;       // weight of offset o for lane l: weights[o * T + l]
+    const float* const* feat;   // local feature planes
+    const float* const* color;  // local colour planes
+    size_t centre;              // local index of lane 0's pixel
     int stride, R;
-    const vfloat16* fp;          // centre features of the 16 pixels
+    const vfloat16* fp;  // centre features of the 16 pixels
 };
 
 /// One pass over the window: rows [I0, I1) of the accumulators, kept in registers; `add`:
 /// added to G (another frame's window), else G is set.
-template<int D, int I0, int I1>
+template <int D, int I0, int I1>
 MCDN_INLINE void accumulate_pass(const GroupInputs& g, bool add, vfloat16* G)
 {
     constexpr int E = D + 3;
@@ -111,7 +115,7 @@ MCDN_INLINE void accumulate_pass(const GroupInputs& g, bool add, vfloat16* G)
         G[row_offset(D, I0) + e] = acc[e];
 }
 
-template<int D, int I0>
+template <int D, int I0>
 MCDN_INLINE void accumulate_normal_equations(const GroupInputs& g, bool add, vfloat16* G)
 {
     if constexpr (I0 < D) {
@@ -124,7 +128,7 @@ MCDN_INLINE void accumulate_normal_equations(const GroupInputs& g, bool add, vfl
 /// The same sums for a design size known only at run time: the accumulators stay in memory
 /// (L1), slower than the register-blocked passes; for the uncommon sizes.
 MCDN_INLINE void accumulate_normal_equations_any(const GroupInputs& g, int D, int NA, bool add,
-                                                vfloat16* G)
+                                                 vfloat16* G)
 {
     const int E = D + 3;
     if (!add)
@@ -156,7 +160,7 @@ MCDN_INLINE void accumulate_normal_equations_any(const GroupInputs& g, int D, in
 }
 
 /// DT: the design size when known at compile time (unrolled kernels), 0 for any size.
-template<int DT>
+template <int DT>
 MCDN_INLINE void regression_tile_impl(const RegressionInputs& in, Rect tile, TileScratch& s,
                                       TileResult& result)
 {
@@ -224,32 +228,32 @@ MCDN_INLINE void regression_tile_impl(const RegressionInputs& in, Rect tile, Til
             s.variance[3 * f + c].load(frame_variance(f, c)->data(), width, height, garea);
         }
     for (int f = 0; f < NFR; ++f) {
-    for (int dy = -R, o = 0; dy <= R; ++dy) {
-        for (int dx = -R; dx <= R; ++dx, ++o) {
-            float* d = s.dist.data();
-            std::fill(d, d + size_t(T) * T, inf);
-            for (int c = 0; c < 3; ++c)
-                nlm::patch_distance_between(d, T, s.guide[c], s.variance[c], s.guide[3 * f + c],
-                                            s.variance[3 * f + c], width, height, tile, dx, dy,
-                                            F, 1.0f, in.variance_scale, c > 0, s.distance);
-            for (int j = 0; j < NK; ++j) {
-                if (source[j] >= 0)
-                    continue;
-                float* wj = stored_weights(f, j) + size_t(o) * T;
-                const vfloat16 k = splat16(inv_k2[j]);
-                for (int y = 0; y < th; ++y)
-                    for (int i = 0; i < T; i += kLanes)
-                        store16(wj + size_t(y) * noff * T + i,
-                                nlm::distance_weight(load16(d + y * T + i) * k));
-                if (f == 0 && dx == 0 && dy == 0)
+        for (int dy = -R, o = 0; dy <= R; ++dy) {
+            for (int dx = -R; dx <= R; ++dx, ++o) {
+                float* d = s.dist.data();
+                std::fill(d, d + size_t(T) * T, inf);
+                for (int c = 0; c < 3; ++c)
+                    nlm::patch_distance_between(d, T, s.guide[c], s.variance[c], s.guide[3 * f + c],
+                                                s.variance[3 * f + c], width, height, tile, dx, dy,
+                                                F, 1.0f, in.variance_scale, c > 0, s.distance);
+                for (int j = 0; j < NK; ++j) {
+                    if (source[j] >= 0)
+                        continue;
+                    float* wj = stored_weights(f, j) + size_t(o) * T;
+                    const vfloat16 k = splat16(inv_k2[j]);
                     for (int y = 0; y < th; ++y)
-                        for (int x = 0; x < tw; ++x) {
-                            float& w = wj[size_t(y) * noff * T + x];
-                            w = std::max(w, nlm::kMinCenterWeight);
-                        }
+                        for (int i = 0; i < T; i += kLanes)
+                            store16(wj + size_t(y) * noff * T + i,
+                                    nlm::distance_weight(load16(d + y * T + i) * k));
+                    if (f == 0 && dx == 0 && dy == 0)
+                        for (int y = 0; y < th; ++y)
+                            for (int x = 0; x < tw; ++x) {
+                                float& w = wj[size_t(y) * noff * T + x];
+                                w = std::max(w, nlm::kMinCenterWeight);
+                            }
+                }
             }
         }
-    }
     }
 
     // Local copies of the features and the colour on the tile grown by R (+ one lane row of
@@ -264,8 +268,7 @@ MCDN_INLINE void regression_tile_impl(const RegressionInputs& in, Rect tile, Til
             float* dst = s.local.data() + plane * ((NF + 3) * f + c);
             for (int y = std::max(oy, 0); y < std::min(oy + P, height); ++y) {
                 int x0 = std::max(ox, 0), x1 = std::min(ox + P, width);
-                std::copy(src.row(y) + x0, src.row(y) + x1,
-                          dst + size_t(y - oy) * PS + (x0 - ox));
+                std::copy(src.row(y) + x0, src.row(y) + x1, dst + size_t(y - oy) * PS + (x0 - ox));
             }
         }
     const float* feat_of[kMaxRegressionFrames][NFM];
@@ -291,75 +294,77 @@ MCDN_INLINE void regression_tile_impl(const RegressionInputs& in, Rect tile, Til
     vfloat16* B = reinterpret_cast<vfloat16*>(s.beta.data());
 
     for (int kj = 0; kj < NK; ++kj) {
-    float* acc_color[3];
-    for (int c = 0; c < 3; ++c)
-        acc_color[c] = result.sum.data() + plane * (4 * kj + c);
-    float* acc_weight = result.sum.data() + plane * (4 * kj + 3);
-    const int stored = source[kj] < 0 ? kj : source[kj];
-    for (int ty = 0; ty < th; ++ty) {
-        const float* row_weights[kMaxRegressionFrames];
-        for (int f = 0; f < NFR; ++f) {
-            row_weights[f] = stored_weights(f, stored) + size_t(ty) * noff * T;
-            if (source[kj] >= 0) {
-                // w^4 = exp(-4 d²); 0 where exp_neg16 would flush exp(-4 d²) (4 d² >= 80), so
-                // no denormals. The centre weight is max(1, kMinCenterWeight)^4 = 1 (d²(p, p) <= 0).
-                const vfloat16 zero = {}, cutoff = splat16(2.0611536e-9f);  // exp(-20)
-                float* derived = s.row_weights.data() + size_t(f) * noff * T;
-                for (size_t i = 0; i < size_t(noff) * T; i += kLanes) {
-                    vfloat16 w = load16(row_weights[f] + i), w2 = w * w;
-                    store16(derived + i, w > cutoff ? w2 * w2 : zero);
-                }
-                row_weights[f] = derived;
-            }
-        }
-        for (int tx = 0; tx < tw; tx += L) {
-            const float* weights = row_weights[0] + tx;
-            // Centre features of the 16 pixels.
-            const size_t centre = size_t(ty + R) * PS + (tx + R);
-            vfloat16 fp[NFM];
-            for (int k = 0; k < NF; ++k)
-                fp[k] = load16(feat[k] + centre);
-
-            // 2. Normal equations X^T W X and X^T W y, summed over the window of every frame
-            // (float: the design is centred on the pixel, so the sums do not cancel
-            // catastrophically).
+        float* acc_color[3];
+        for (int c = 0; c < 3; ++c)
+            acc_color[c] = result.sum.data() + plane * (4 * kj + c);
+        float* acc_weight = result.sum.data() + plane * (4 * kj + 3);
+        const int stored = source[kj] < 0 ? kj : source[kj];
+        for (int ty = 0; ty < th; ++ty) {
+            const float* row_weights[kMaxRegressionFrames];
             for (int f = 0; f < NFR; ++f) {
-                const GroupInputs group { row_weights[f] + tx, feat_of[f], color_of[f], centre,
-                                          PS, R, fp };
-                if constexpr (DT > 0)
-                    accumulate_normal_equations<DT, 0>(group, f > 0, G);
-                else
-                    accumulate_normal_equations_any(group, D, NA, f > 0, G);
-            }
-
-            // Solve the 16 systems (double, 8 lanes at a time).
-            solve_normal_equations16<DT>(D, G, B, std::min(L, tw - tx));
-
-            // 3. Collaborative filtering: evaluate each fit over its window of this frame.
-            const float* w_ptr = weights;
-            for (int dy = -R; dy <= R; ++dy) {
-                vfloat16 base[3];
-                for (int c = 0; c < 3; ++c)
-                    base[c] = B[c] + B[6 + c] * float(dy);
-                const size_t qrow = centre + ptrdiff_t(dy) * PS;
-                for (int dx = -R; dx <= R; ++dx, w_ptr += T) {
-                    const vfloat16 w = load16(w_ptr);
-                    const size_t q = qrow + dx;
-                    vfloat16 y[3];
-                    for (int c = 0; c < 3; ++c)
-                        y[c] = base[c] + B[3 + c] * float(dx);
-                    for (int k = 0; k < NF; ++k) {
-                        vfloat16 xk = load16(feat[k] + q) - fp[k];
-                        for (int c = 0; c < 3; ++c)
-                            y[c] += B[(3 + k) * 3 + c] * xk;
+                row_weights[f] = stored_weights(f, stored) + size_t(ty) * noff * T;
+                if (source[kj] >= 0) {
+                    // w^4 = exp(-4 d²); 0 where exp_neg16 would flush exp(-4 d²) (4 d² >= 80), so
+                    // no denormals. The centre weight is max(1, kMinCenterWeight)^4 = 1 (d²(p, p)
+                    // <= 0).
+                    const vfloat16 zero = {}, cutoff = splat16(2.0611536e-9f);  // exp(-20)
+                    float* derived = s.row_weights.data() + size_t(f) * noff * T;
+                    for (size_t i = 0; i < size_t(noff) * T; i += kLanes) {
+                        vfloat16 w = load16(row_weights[f] + i), w2 = w * w;
+                        store16(derived + i, w > cutoff ? w2 * w2 : zero);
                     }
+                    row_weights[f] = derived;
+                }
+            }
+            for (int tx = 0; tx < tw; tx += L) {
+                const float* weights = row_weights[0] + tx;
+                // Centre features of the 16 pixels.
+                const size_t centre = size_t(ty + R) * PS + (tx + R);
+                vfloat16 fp[NFM];
+                for (int k = 0; k < NF; ++k)
+                    fp[k] = load16(feat[k] + centre);
+
+                // 2. Normal equations X^T W X and X^T W y, summed over the window of every frame
+                // (float: the design is centred on the pixel, so the sums do not cancel
+                // catastrophically).
+                for (int f = 0; f < NFR; ++f) {
+                    const GroupInputs group {
+                        row_weights[f] + tx, feat_of[f], color_of[f], centre, PS, R, fp
+                    };
+                    if constexpr (DT > 0)
+                        accumulate_normal_equations<DT, 0>(group, f > 0, G);
+                    else
+                        accumulate_normal_equations_any(group, D, NA, f > 0, G);
+                }
+
+                // Solve the 16 systems (double, 8 lanes at a time).
+                solve_normal_equations16<DT>(D, G, B, std::min(L, tw - tx));
+
+                // 3. Collaborative filtering: evaluate each fit over its window of this frame.
+                const float* w_ptr = weights;
+                for (int dy = -R; dy <= R; ++dy) {
+                    vfloat16 base[3];
                     for (int c = 0; c < 3; ++c)
-                        store16(acc_color[c] + q, load16(acc_color[c] + q) + w * y[c]);
-                    store16(acc_weight + q, load16(acc_weight + q) + w);
+                        base[c] = B[c] + B[6 + c] * float(dy);
+                    const size_t qrow = centre + ptrdiff_t(dy) * PS;
+                    for (int dx = -R; dx <= R; ++dx, w_ptr += T) {
+                        const vfloat16 w = load16(w_ptr);
+                        const size_t q = qrow + dx;
+                        vfloat16 y[3];
+                        for (int c = 0; c < 3; ++c)
+                            y[c] = base[c] + B[3 + c] * float(dx);
+                        for (int k = 0; k < NF; ++k) {
+                            vfloat16 xk = load16(feat[k] + q) - fp[k];
+                            for (int c = 0; c < 3; ++c)
+                                y[c] += B[(3 + k) * 3 + c] * xk;
+                        }
+                        for (int c = 0; c < 3; ++c)
+                            store16(acc_color[c] + q, load16(acc_color[c] + q) + w * y[c]);
+                        store16(acc_weight + q, load16(acc_weight + q) + w);
+                    }
                 }
             }
         }
-    }
     }
 }
 
@@ -372,8 +377,7 @@ TileKernel unrolled_kernel_avx512(int num_features);
 
 /// Number of features with an unrolled kernel: the presets' 7 (albedo, normal, depth) and
 /// 8 (+ visibility), and 6 (a feature missing).
-template<class F>
-TileKernel select_unrolled(int nf, F kernel_for)
+template <class F> TileKernel select_unrolled(int nf, F kernel_for)
 {
     switch (nf) {
     case 6: return kernel_for(std::integral_constant<int, 9> {});

@@ -99,10 +99,19 @@ MCDN_INLINE void filter_tile_impl(const FilterJob& job, Rect tile, FilterScratch
 }
 
 #if MCDN_X86_DISPATCH
-MCDN_TARGET_AVX512 void filter_tile_avx512(const FilterJob& j, Rect t, FilterScratch& s) { filter_tile_impl(j, t, s); }
-MCDN_TARGET_AVX2 void filter_tile_avx2(const FilterJob& j, Rect t, FilterScratch& s) { filter_tile_impl(j, t, s); }
+MCDN_TARGET_AVX512 void filter_tile_avx512(const FilterJob& j, Rect t, FilterScratch& s)
+{
+    filter_tile_impl(j, t, s);
+}
+MCDN_TARGET_AVX2 void filter_tile_avx2(const FilterJob& j, Rect t, FilterScratch& s)
+{
+    filter_tile_impl(j, t, s);
+}
 #endif
-void filter_tile_baseline(const FilterJob& j, Rect t, FilterScratch& s) { filter_tile_impl(j, t, s); }
+void filter_tile_baseline(const FilterJob& j, Rect t, FilterScratch& s)
+{
+    filter_tile_impl(j, t, s);
+}
 
 }  // namespace
 

@@ -21,10 +21,10 @@ namespace mcdn {
 struct ConvergedTiles;
 
 struct NlMeansParams {
-    int patch_radius = 3;        // F: patch (2F+1)²
-    int window_radius = 5;       // R: search window (2R+1)²
-    float k = 0.5f;              // bandwidth
-    float variance_scale = 1.0f; // variance of the guide = variance plane × this
+    int patch_radius = 3;         // F: patch (2F+1)²
+    int window_radius = 5;        // R: search window (2R+1)²
+    float k = 0.5f;               // bandwidth
+    float variance_scale = 1.0f;  // variance of the guide = variance plane × this
 };
 
 namespace nlm {
@@ -53,10 +53,16 @@ struct LocalPlane {
                 std::copy(src + size_t(y) * width + cx0, src + size_t(y) * width + cx1,
                           px.data() + size_t(y - y0) * stride + (cx0 - x0));
     }
-    const float* at(int x, int y) const { return px.data() + ptrdiff_t(y - y0) * stride + (x - x0); }
+    const float* at(int x, int y) const
+    {
+        return px.data() + ptrdiff_t(y - y0) * stride + (x - x0);
+    }
 };
 
-MCDN_INLINE int round_up_lanes(int n) { return (n + kLanes - 1) / kLanes * kLanes; }
+MCDN_INLINE int round_up_lanes(int n)
+{
+    return (n + kLanes - 1) / kLanes * kLanes;
+}
 
 /// The area a tile's LocalPlane of the guide (and its variance) must cover for
 /// patch_distance with window radius R and patch radius F.
@@ -126,7 +132,7 @@ MCDN_INLINE void column_sums_row(float* out, const float* top, int bws, int n)
 /// r, written to out + r * out_stride), N rows each: every buffer row is loaded once for
 /// all the sums it enters, and every sum still adds its rows top to bottom (the same
 /// result as column_sums_row, with ~3x fewer loads for 7-row sums).
-template<int N>
+template <int N>
 MCDN_INLINE void column_sums_block(float* out, size_t out_stride, const float* top, int bws)
 {
     for (int i = 0; i < bws; i += kLanes) {
@@ -159,11 +165,11 @@ MCDN_INLINE void column_sums_block(float* out, size_t out_stride, const float* t
 /// FT: the patch radius when known at compile time (sums unrolled), 0 for any.
 /// `guide_q` and `variance_q` hold the neighbours q: another frame aligned to this one (a
 /// spatio-temporal window, NFOR §8), or `guide` and `variance` themselves.
-template<int FT>
+template <int FT>
 MCDN_INLINE void patch_distance_impl(float* out, int stride, const LocalPlane& guide,
                                      const LocalPlane& variance, const LocalPlane& guide_q,
-                                     const LocalPlane& variance_q, int width, int height,
-                                     Rect tile, int dx, int dy, int patch_radius, float k,
+                                     const LocalPlane& variance_q, int width, int height, Rect tile,
+                                     int dx, int dy, int patch_radius, float k,
                                      float variance_scale, bool take_max, DistanceScratch& scratch)
 {
     const int F = FT > 0 ? FT : patch_radius;
@@ -171,8 +177,10 @@ MCDN_INLINE void patch_distance_impl(float* out, int stride, const LocalPlane& g
     const int bw = tile.width() + 2 * F;
     const int bws = round_up_lanes(bw);
     // Pixels p of the patches with p and p + delta inside the image.
-    const int qx0 = std::max(bx0, std::max(0, -dx)), qx1 = std::min(tile.x1 + F, std::min(width, width - dx));
-    const int qy0 = std::max(by0, std::max(0, -dy)), qy1 = std::min(tile.y1 + F, std::min(height, height - dy));
+    const int qx0 = std::max(bx0, std::max(0, -dx)),
+              qx1 = std::min(tile.x1 + F, std::min(width, width - dx));
+    const int qy0 = std::max(by0, std::max(0, -dy)),
+              qy1 = std::min(tile.y1 + F, std::min(height, height - dy));
     // Pixels p of the tile whose neighbour p + delta is inside the image.
     const int vx0 = std::max(tile.x0, -dx), vx1 = std::min(tile.x1, width - dx);
     const int vy0 = std::max(tile.y0, -dy), vy1 = std::min(tile.y1, height - dy);
@@ -303,8 +311,8 @@ MCDN_INLINE void patch_distance(float* out, int stride, const LocalPlane& guide,
                                 int dx, int dy, int patch_radius, float k, float variance_scale,
                                 bool take_max, DistanceScratch& scratch)
 {
-    patch_distance_between(out, stride, guide, variance, guide, variance, width, height, tile,
-                           dx, dy, patch_radius, k, variance_scale, take_max, scratch);
+    patch_distance_between(out, stride, guide, variance, guide, variance, width, height, tile, dx,
+                           dy, patch_radius, k, variance_scale, take_max, scratch);
 }
 
 }  // namespace nlm

@@ -17,7 +17,10 @@ namespace ops {
 
 namespace {
 
-int round_up16(int n) { return (n + kLanes - 1) / kLanes * kLanes; }
+int round_up16(int n)
+{
+    return (n + kLanes - 1) / kLanes * kLanes;
+}
 
 /// The image as one plane per channel, `pad` replicated pixels around it, rows of
 /// `stride` floats (room for a last vector that reads past the right border).
@@ -73,15 +76,21 @@ struct Job {
 
 /// Lane j of the first row of a swap_blocks pair: a[j], or b[j − d] where bit d of j is
 /// set (lanes of b count from 16); of the second row: a[j + d], or b[j] where it is set.
-constexpr int low_lane(int j, int d) { return j & d ? 16 + j - d : j; }
-constexpr int high_lane(int j, int d) { return j & d ? 16 + j : j + d; }
+constexpr int low_lane(int j, int d)
+{
+    return j & d ? 16 + j - d : j;
+}
+constexpr int high_lane(int j, int d)
+{
+    return j & d ? 16 + j : j + d;
+}
 
 /// One round of a 16×16 transpose in registers: for each pair of rows (i, i + d) with bit
 /// d of i clear, the off-diagonal blocks of size d trade places.
 template <int d> MCDN_INLINE void swap_blocks(vfloat16 r[kLanes])
 {
-#define MCDN_LANES(f)                                                                          \
-    f(0, d), f(1, d), f(2, d), f(3, d), f(4, d), f(5, d), f(6, d), f(7, d), f(8, d), f(9, d),  \
+#define MCDN_LANES(f)                                                                              \
+    f(0, d), f(1, d), f(2, d), f(3, d), f(4, d), f(5, d), f(6, d), f(7, d), f(8, d), f(9, d),      \
         f(10, d), f(11, d), f(12, d), f(13, d), f(14, d), f(15, d)
     for (int i = 0; i < kLanes; ++i)
         if (!(i & d)) {
@@ -95,7 +104,8 @@ template <int d> MCDN_INLINE void swap_blocks(vfloat16 r[kLanes])
 /// Row y of `features` (channels a multiple of 16) channel-major into `out` (rows of
 /// lanes_width, zero past `width`), 16 pixels × 16 channels at a time: four rounds of
 /// swap_blocks (8, 4, 2, 1) instead of 256 scalar moves.
-MCDN_INLINE void transpose_row(const Tensor& features, int y, int width, int lanes_width, float* out)
+MCDN_INLINE void transpose_row(const Tensor& features, int y, int width, int lanes_width,
+                               float* out)
 {
     for (int x = 0; x < lanes_width; x += kLanes)
         for (int k0 = 0; k0 < features.channels; k0 += kLanes) {
@@ -187,7 +197,8 @@ MCDN_INLINE void row_impl(const Job& job, int y, RowScratch& s)
             for (int dy = 0; dy < kernel; ++dy) {
                 const float* row = job.planes->row(c, y + dy) + x;
                 for (int dx = 0; dx < kernel; ++dx)
-                    sum += load16(&s.weights[size_t(dy * kernel + dx) * lanes_width + x]) * load16(row + dx);
+                    sum += load16(&s.weights[size_t(dy * kernel + dx) * lanes_width + x])
+                           * load16(row + dx);
             }
             store16(&s.sums[size_t(c) * lanes_width + x], sum);
         }
@@ -200,10 +211,18 @@ MCDN_INLINE void row_impl(const Job& job, int y, RowScratch& s)
     }
 }
 
-MCDN_TARGET_AVX512 void row_avx512(const Job& job, int y, RowScratch& s) { row_impl(job, y, s); }
-MCDN_TARGET_AVX2 void row_avx2(const Job& job, int y, RowScratch& s) { row_impl(job, y, s); }
-void row_baseline(const Job& job, int y, RowScratch& s) { row_impl(job, y, s); }
-
+MCDN_TARGET_AVX512 void row_avx512(const Job& job, int y, RowScratch& s)
+{
+    row_impl(job, y, s);
+}
+MCDN_TARGET_AVX2 void row_avx2(const Job& job, int y, RowScratch& s)
+{
+    row_impl(job, y, s);
+}
+void row_baseline(const Job& job, int y, RowScratch& s)
+{
+    row_impl(job, y, s);
+}
 
 /// out from `image` and the logits `job` names: the image padded once, then the rows of
 /// out, each computed by one thread.
@@ -228,8 +247,8 @@ void run_rows(Job job, const Tensor& image, Tensor& out)
 void apply_kernel(const Tensor& logits, int first_channel, const Tensor& image, int kernel,
                   Tensor& out)
 {
-    run_rows({ &logits, first_channel, nullptr, nullptr, nullptr, nullptr, kernel, nullptr },
-             image, out);
+    run_rows({ &logits, first_channel, nullptr, nullptr, nullptr, nullptr, kernel, nullptr }, image,
+             out);
 }
 
 void apply_kernel_head(const Tensor& features, const float* head_weights, const float* head_bias,

@@ -10,7 +10,7 @@
 namespace mcdn {
 namespace nn {
 
-Net::Net(std::string name) : name_(std::move(name)) {}
+Net::Net(std::string name) : name_(std::move(name)) { }
 Net::~Net() = default;
 Net::Net(Net&&) noexcept = default;
 Net& Net::operator=(Net&&) noexcept = default;
@@ -117,8 +117,8 @@ Value Net::concat(const std::vector<Value>& values)
             return v;
         const Node& in = nodes_[v.id];
         if (in.scale != nodes_[values[0].id].scale)
-            fail("concat of values at different scales (1/" + std::to_string(in.scale)
-                 + " and 1/" + std::to_string(nodes_[values[0].id].scale) + ")");
+            fail("concat of values at different scales (1/" + std::to_string(in.scale) + " and 1/"
+                 + std::to_string(nodes_[values[0].id].scale) + ")");
         node.inputs.push_back(v.id);
         node.channels += in.channels;
         node.scale = in.scale;
@@ -209,9 +209,9 @@ const NamedTensor* find_tensor(const Weights& weights, const std::string& net_na
     const std::string file = weights.path.empty() ? "weights" : weights.path;
     const NamedTensor* tensor = weights.find(name);
     if (!tensor) {
-        error = file + ": tensor '" + name + "' is missing, the network '" + net_name
-                + "' expects " + shape_string(shape) + " (the file has "
-                + std::to_string(weights.tensors.size()) + " tensors: is it for this network?)";
+        error = file + ": tensor '" + name + "' is missing, the network '" + net_name + "' expects "
+                + shape_string(shape) + " (the file has " + std::to_string(weights.tensors.size())
+                + " tensors: is it for this network?)";
         return nullptr;
     }
     if (tensor->shape != shape) {
@@ -241,11 +241,11 @@ bool Net::load(const Weights& weights, std::string& error)
             continue;
         const int in_channels = nodes_[node.inputs[0]].channels;
         const std::string weight_name = node.name + ".weight", bias_name = node.name + ".bias";
-        const NamedTensor* w = find_tensor(weights, name_, weight_name,
-                                           { node.channels, in_channels, node.kernel, node.kernel },
-                                           error);
-        const NamedTensor* b = w ? find_tensor(weights, name_, bias_name, { node.channels }, error)
-                                 : nullptr;
+        const NamedTensor* w =
+            find_tensor(weights, name_, weight_name,
+                        { node.channels, in_channels, node.kernel, node.kernel }, error);
+        const NamedTensor* b =
+            w ? find_tensor(weights, name_, bias_name, { node.channels }, error) : nullptr;
         if (!b)
             return false;
         weights_[id] = w->values;
@@ -256,8 +256,8 @@ bool Net::load(const Weights& weights, std::string& error)
     // Like torch's strict load_state_dict: a tensor nobody reads means another architecture.
     for (const NamedTensor& t : weights.tensors)
         if (std::find(used.begin(), used.end(), t.name) == used.end()) {
-            error = (weights.path.empty() ? "weights" : weights.path) + ": tensor '" + t.name
-                    + "' " + shape_string(t.shape) + " is not used by the network '" + name_
+            error = (weights.path.empty() ? "weights" : weights.path) + ": tensor '" + t.name + "' "
+                    + shape_string(t.shape) + " is not used by the network '" + name_
                     + "' (is the file for another architecture?)";
             return false;
         }

@@ -13,7 +13,8 @@ namespace {
 bool reads(const std::vector<Net::Node>& nodes, int v, int first, int last)
 {
     for (int id = first; id < last; ++id)
-        if (std::find(nodes[id].inputs.begin(), nodes[id].inputs.end(), v) != nodes[id].inputs.end())
+        if (std::find(nodes[id].inputs.begin(), nodes[id].inputs.end(), v)
+            != nodes[id].inputs.end())
             return true;
     return false;
 }
@@ -70,11 +71,12 @@ Schedule make_schedule(const std::vector<Net::Node>& nodes, const std::vector<in
         ++readers[id];
     }
     for (int id = 0; fuse && id < count; ++id) {
-        if (nodes[id].op == Net::Op::slice && readers[id] > 0 && readers[id] == kernel_readers[id]) {
+        if (nodes[id].op == Net::Op::slice && readers[id] > 0
+            && readers[id] == kernel_readers[id]) {
             const int source = nodes[id].inputs[0];
             schedule.view_of[id] = source;
-            schedule.last_reader[source] = std::max(schedule.last_reader[source],
-                                                    schedule.last_reader[id]);
+            schedule.last_reader[source] =
+                std::max(schedule.last_reader[source], schedule.last_reader[id]);
         }
         if (nodes[id].op != Net::Op::add)
             continue;
@@ -97,8 +99,8 @@ Schedule make_schedule(const std::vector<Net::Node>& nodes, const std::vector<in
             && readers[id] > 0 && readers[id] == view_readers[id]) {
             schedule.fused_head[id] = 1;
             const int features = node.inputs[0];  // read by every apply_kernel instead
-            schedule.last_reader[features] = std::max(schedule.last_reader[features],
-                                                      schedule.last_reader[id]);
+            schedule.last_reader[features] =
+                std::max(schedule.last_reader[features], schedule.last_reader[id]);
         }
     }
     for (int conv = 0; conv < count; ++conv) {
@@ -114,7 +116,6 @@ Schedule make_schedule(const std::vector<Net::Node>& nodes, const std::vector<in
             schedule.free_after[schedule.last_reader[id]].push_back(id);
     return schedule;
 }
-
 
 }  // namespace
 
@@ -147,9 +148,18 @@ std::vector<Step> plan_steps(const std::vector<Net::Node>& nodes, const std::vec
             step.other = schedule.summed_conv[id];
             steps.push_back(step);
             break;
-        case Net::Op::max_pool2: step.kind = Step::Kind::max_pool2; steps.push_back(step); break;
-        case Net::Op::upsample2: step.kind = Step::Kind::upsample2; steps.push_back(step); break;
-        case Net::Op::concat: step.kind = Step::Kind::concat; steps.push_back(step); break;
+        case Net::Op::max_pool2:
+            step.kind = Step::Kind::max_pool2;
+            steps.push_back(step);
+            break;
+        case Net::Op::upsample2:
+            step.kind = Step::Kind::upsample2;
+            steps.push_back(step);
+            break;
+        case Net::Op::concat:
+            step.kind = Step::Kind::concat;
+            steps.push_back(step);
+            break;
         case Net::Op::slice:
             step.kind = schedule.view_of[id] >= 0 ? Step::Kind::view : Step::Kind::slice;
             step.other = schedule.view_of[id];

@@ -13,25 +13,27 @@ namespace nn {
 /// One node of the network as it runs.
 struct Step {
     enum class Kind {
-        conv,               ///< a convolution into fresh storage
-        conv_sum,           ///< a convolution summed into its residual (the add that follows
-                            ///< it fused: oneDNN's sum post-op), into a copy of the residual
-                            ///< or, `in_place`, into the residual's own storage
-        take,               ///< the add a conv_sum made: the conv's result, handed on
-        add,                ///< a + b, then the activation
-        max_pool2, upsample2, concat,
+        conv,      ///< a convolution into fresh storage
+        conv_sum,  ///< a convolution summed into its residual (the add that follows
+                   ///< it fused: oneDNN's sum post-op), into a copy of the residual
+                   ///< or, `in_place`, into the residual's own storage
+        take,      ///< the add a conv_sum made: the conv's result, handed on
+        add,       ///< a + b, then the activation
+        max_pool2,
+        upsample2,
+        concat,
         slice,              ///< channels copied out
         view,               ///< channels read where they are (by apply_kernel)
         apply_kernel,       ///< kernels from logits (a value, or a view of one)
         apply_kernel_head,  ///< kernels whose logits the fused 1×1 conv `head` makes per tap
     };
     Kind kind = Kind::conv;
-    int id = -1;              ///< the node it computes
-    int other = -1;           ///< conv_sum: the residual; take: the conv; view: the sliced
-                              ///< value; apply_kernel_head: the 1×1 conv
-    bool in_place = false;    ///< conv_sum: into the residual's storage
+    int id = -1;            ///< the node it computes
+    int other = -1;         ///< conv_sum: the residual; take: the conv; view: the sliced
+                            ///< value; apply_kernel_head: the 1×1 conv
+    bool in_place = false;  ///< conv_sum: into the residual's storage
     Activation after_sum = Activation::none;  ///< conv_sum: the fused add's activation
-    int first_channel = 0;    ///< apply_kernel(_head): the logits' first channel in `other`
+    int first_channel = 0;        ///< apply_kernel(_head): the logits' first channel in `other`
     std::vector<int> free_after;  ///< values whose storage is free once this step has run
 };
 

@@ -36,7 +36,6 @@ void give_back(std::vector<std::vector<float>>& spare, Tensor& t)
     t = Tensor();
 }
 
-
 /// The values of one run: owned[id] holds what node id computed (or nothing: an input, a
 /// view), value[id] where its values are.
 struct Values {
@@ -48,8 +47,8 @@ struct Values {
     /// owned[id] with storage for node's values, reshaped by the op that fills it.
     Tensor& fresh(int id, const Net::Node& node)
     {
-        owned[size_t(id)].data = take_storage(
-            spare, size_t(height / node.scale) * (width / node.scale) * node.channels);
+        owned[size_t(id)].data =
+            take_storage(spare, size_t(height / node.scale) * (width / node.scale) * node.channels);
         return owned[size_t(id)];
     }
 };
@@ -115,14 +114,12 @@ void run_step(const Step& step, const std::vector<Net::Node>& nodes, NetState& s
         fast ? ops::slice(in(0), node.first_channel, node.channels, out)
              : reference::slice(in(0), node.first_channel, node.channels, out);
         break;
-    case Step::Kind::view:
-        v.value[size_t(step.id)] = v.value[size_t(step.other)];
-        return;
+    case Step::Kind::view: v.value[size_t(step.id)] = v.value[size_t(step.other)]; return;
     case Step::Kind::apply_kernel:
         v.fresh(step.id, node);
         if (fast)
-            ops::apply_kernel(*v.value[size_t(step.other)], step.first_channel, in(1),
-                              node.kernel, out);
+            ops::apply_kernel(*v.value[size_t(step.other)], step.first_channel, in(1), node.kernel,
+                              out);
         else
             reference::apply_kernel(in(0), in(1), node.kernel, out);
         break;
@@ -130,11 +127,9 @@ void run_step(const Step& step, const std::vector<Net::Node>& nodes, NetState& s
         v.fresh(step.id, node);
         const int head = step.other;
         const Tensor& features = *v.value[size_t(nodes[size_t(head)].inputs[0])];
-        ops::apply_kernel_head(features,
-                               weights[size_t(head)].data()
-                                   + size_t(step.first_channel) * features.channels,
-                               biases[size_t(head)].data() + step.first_channel, in(1),
-                               node.kernel, out);
+        ops::apply_kernel_head(
+            features, weights[size_t(head)].data() + size_t(step.first_channel) * features.channels,
+            biases[size_t(head)].data() + step.first_channel, in(1), node.kernel, out);
         break;
     }
     }
@@ -148,11 +143,11 @@ void Net::make_state()
     state_ = std::make_unique<NetState>();
     for (size_t id = 0; id < nodes_.size(); ++id)
         if (nodes_[id].op == Op::conv)
-            state_->convs.emplace(
-                std::piecewise_construct, std::forward_as_tuple(int(id)),
-                std::forward_as_tuple(nodes_[nodes_[id].inputs[0]].channels, nodes_[id].channels,
-                                      nodes_[id].kernel, nodes_[id].activation, weights_[id],
-                                      biases_[id]));
+            state_->convs.emplace(std::piecewise_construct, std::forward_as_tuple(int(id)),
+                                  std::forward_as_tuple(nodes_[nodes_[id].inputs[0]].channels,
+                                                        nodes_[id].channels, nodes_[id].kernel,
+                                                        nodes_[id].activation, weights_[id],
+                                                        biases_[id]));
     state_->plan[0] = plan_steps(nodes_, output_ids_, true);
     state_->plan[1] = plan_steps(nodes_, output_ids_, false);
 }
@@ -181,7 +176,8 @@ bool Net::check_inputs(const std::vector<Tensor>& inputs, std::string& error) co
     }
     if (inputs.size() != input_ids_.size() || output_ids_.empty()) {
         error = prefix + "expects " + std::to_string(input_ids_.size()) + " inputs, got "
-                + std::to_string(inputs.size()) + (output_ids_.empty() ? " (and has no output)" : "");
+                + std::to_string(inputs.size())
+                + (output_ids_.empty() ? " (and has no output)" : "");
         return false;
     }
     const int alignment = this->alignment();
@@ -230,12 +226,12 @@ bool Net::run(const std::vector<Tensor>& inputs, std::vector<Tensor>& outputs, s
     }
     for (size_t i = 0; i < output_ids_.size(); ++i) {
         const int id = output_ids_[i];
-        const bool output_again = std::find(output_ids_.begin() + i + 1, output_ids_.end(), id)
-                                  != output_ids_.end();
+        const bool output_again =
+            std::find(output_ids_.begin() + i + 1, output_ids_.end(), id) != output_ids_.end();
         if (v.value[size_t(id)] == &v.owned[size_t(id)] && !output_again)
             outputs.push_back(std::move(v.owned[size_t(id)]));
         else
-            outputs.push_back(*v.value[size_t(id)]);  // an input, or a value output twice
+            outputs.push_back(*v.value[size_t(id)]);        // an input, or a value output twice
         outputs.back().data.resize(outputs.back().size());  // exact, as the caller expects
     }
     for (Tensor& t : v.owned)  // values nobody read

@@ -47,8 +47,8 @@ std::vector<Rect> network_regions(const ConvergedTiles& m, const nn::Net& net, i
                     }
             if (tx1 < 0)
                 continue;
-            const Rect r { std::max(x, tx0 * T), std::max(y, ty0 * T),
-                           std::min(bx1, (tx1 + 1) * T), std::min(by1, (ty1 + 1) * T) };
+            const Rect r { std::max(x, tx0 * T), std::max(y, ty0 * T), std::min(bx1, (tx1 + 1) * T),
+                           std::min(by1, (ty1 + 1) * T) };
             block_regions.push_back(r);
             blocks += window_area(r.x0, r.y0, r.x1, r.y1);
         }

@@ -13,7 +13,6 @@ namespace mcdn {
 /// image, as without skipping) when nothing is converged, when their windows (grown by the
 /// receptive field) come to more than 90% of the whole image's, or when the net's alignment
 /// does not divide the tile size.
-std::vector<Rect> network_regions(const ConvergedTiles& tiles, const nn::Net& net,
-                                        int tile_size);
+std::vector<Rect> network_regions(const ConvergedTiles& tiles, const nn::Net& net, int tile_size);
 
 }  // namespace mcdn

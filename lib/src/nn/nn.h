@@ -128,8 +128,8 @@ public:
         int kernel = 0;           // conv / apply_kernel size k (k × k)
         int first_channel = 0;    // slice
         Activation activation = Activation::none;
-        int scale = 1;            // the result's pixel size in input pixels (1, 2, 4, ...)
-        double radius = 0;        // receptive-field radius in input pixels (halo of tiling)
+        int scale = 1;      // the result's pixel size in input pixels (1, 2, 4, ...)
+        double radius = 0;  // receptive-field radius in input pixels (halo of tiling)
     };
 
     explicit Net(std::string name = "net");
@@ -178,8 +178,8 @@ public:
 
     /// Runs on whole tensors, one per input(), all of one size (a multiple of alignment()):
     /// the steps decided when its state was made (nn/net_plan.h), in order.
-    bool run(const std::vector<Tensor>& inputs, std::vector<Tensor>& outputs,
-             std::string& error, Backend backend = Backend::onednn);
+    bool run(const std::vector<Tensor>& inputs, std::vector<Tensor>& outputs, std::string& error,
+             Backend backend = Backend::onednn);
     /// Hands the buffers this network keeps between runs to `other`, which runs next (the
     /// two branches of KPCN): fresh memory is costly to touch (page faults), reused is not.
     void give_buffers(Net& other);
@@ -250,8 +250,8 @@ bool run_tiled(Net& net, const std::vector<Tensor>& inputs, std::vector<Tensor>&
 /// Makes one tile's inputs, one tensor per input() into `inputs` (reshaped; their storage
 /// is kept from the last tile): the window [x0, x1) × [y0, y1) of the image extended as
 /// above (rows and columns past the image repeat its last ones). False stops the run.
-using TileInputs = std::function<bool(const Rect& window, std::vector<Tensor>& inputs,
-                                      std::string& error)>;
+using TileInputs =
+    std::function<bool(const Rect& window, std::vector<Tensor>& inputs, std::string& error)>;
 
 /// run_tiled on a height × width image whose inputs are made tile by tile: no whole-image
 /// input exists, so memory is bounded by the tile (KPCN's 34 input channels are ~10x its

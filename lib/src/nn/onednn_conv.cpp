@@ -14,8 +14,7 @@ ConvLayer::ConvLayer(int in_channels, int out_channels, int kernel, Activation a
                      const std::vector<float>& weights_oihw, const std::vector<float>& bias)
     : in_channels_(in_channels), out_channels_(out_channels), kernel_(kernel),
       activation_(activation), weights_oihw_(weights_oihw), bias_(bias)
-{
-}
+{ }
 
 ConvLayer::Prepared& ConvLayer::prepare(dnnl::engine& engine, dnnl::stream& stream, int height,
                                         int width, Tail tail)
@@ -27,11 +26,12 @@ ConvLayer::Prepared& ConvLayer::prepare(dnnl::engine& engine, dnnl::stream& stre
     const memory::dim pad = kernel_ / 2;
     const memory::desc src_md({ 1, in_channels_, height, width }, dt::f32, tag::nhwc);
     const memory::desc dst_md({ 1, out_channels_, height, width }, dt::f32, tag::nhwc);
-    const memory::desc weights_md({ out_channels_, in_channels_, kernel_, kernel_ }, dt::f32, tag::any);
+    const memory::desc weights_md({ out_channels_, in_channels_, kernel_, kernel_ }, dt::f32,
+                                  tag::any);
     const memory::desc bias_md({ out_channels_ }, dt::f32, tag::x);
     const dnnl::convolution_forward::desc desc(
-        dnnl::prop_kind::forward_inference, dnnl::algorithm::convolution_direct, src_md,
-        weights_md, bias_md, dst_md, { 1, 1 }, { pad, pad }, { pad, pad });
+        dnnl::prop_kind::forward_inference, dnnl::algorithm::convolution_direct, src_md, weights_md,
+        bias_md, dst_md, { 1, 1 }, { pad, pad }, { pad, pad });
     // Fused post-ops: the output is written once, already activated (and summed).
     dnnl::post_ops post_ops;
     if (activation_ == Activation::relu)
@@ -58,8 +58,9 @@ ConvLayer::Prepared& ConvLayer::prepare(dnnl::engine& engine, dnnl::stream& stre
         weights_by_layout_.emplace_back(pd.weights_desc(), weights);
     }
     last_implementation_ = pd.impl_info_str();
-    return by_size_.emplace(std::make_tuple(height, width, tail),
-                            Prepared { dnnl::convolution_forward(pd), weights })
+    return by_size_
+        .emplace(std::make_tuple(height, width, tail),
+                 Prepared { dnnl::convolution_forward(pd), weights })
         .first->second;
 }
 

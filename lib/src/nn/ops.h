@@ -40,8 +40,8 @@ void apply_kernel_head(const Tensor& features, const float* head_weights, const 
 namespace reference {
 /// k×k convolution, stride 1, zero padding k/2; weights OIHW as in the weights file;
 /// accumulates in double so it is a fair yardstick for oneDNN's float sums.
-void conv(const Tensor& x, const std::vector<float>& weights_oihw,
-          const std::vector<float>& bias, int kernel, Activation activation, Tensor& out);
+void conv(const Tensor& x, const std::vector<float>& weights_oihw, const std::vector<float>& bias,
+          int kernel, Activation activation, Tensor& out);
 void add(const Tensor& a, const Tensor& b, Activation activation, Tensor& out);
 void max_pool2(const Tensor& x, Tensor& out);
 void upsample2(const Tensor& x, Tensor& out);

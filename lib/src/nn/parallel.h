@@ -31,9 +31,8 @@ template <class Block> void parallel_row_blocks(int height, Block block)
     for (int first = 0; first < height; first += rows)
         block(first, std::min(first + rows, height));
 #else
-    tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& r) {
-        block(r.begin(), r.end());
-    });
+    tbb::parallel_for(tbb::blocked_range<int>(0, height),
+                      [&](const tbb::blocked_range<int>& r) { block(r.begin(), r.end()); });
 #endif
 }
 

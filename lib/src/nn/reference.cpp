@@ -14,8 +14,8 @@ static float activate(double v, Activation activation)
     return float(activation == Activation::relu ? std::max(v, 0.0) : v);
 }
 
-void conv(const Tensor& x, const std::vector<float>& weights_oihw,
-          const std::vector<float>& bias, int kernel, Activation activation, Tensor& out)
+void conv(const Tensor& x, const std::vector<float>& weights_oihw, const std::vector<float>& bias,
+          int kernel, Activation activation, Tensor& out)
 {
     const int out_channels = int(bias.size()), in_channels = x.channels, pad = kernel / 2;
     out = Tensor(x.height, x.width, out_channels);
@@ -29,7 +29,9 @@ void conv(const Tensor& x, const std::vector<float>& weights_oihw,
                         if (sy < 0 || sy >= x.height || sx < 0 || sx >= x.width)
                             continue;  // same padding with zeros
                         for (int i = 0; i < in_channels; ++i)
-                            sum += double(weights_oihw[((size_t(o) * in_channels + i) * kernel + ky) * kernel + kx])
+                            sum += double(weights_oihw[((size_t(o) * in_channels + i) * kernel + ky)
+                                                           * kernel
+                                                       + kx])
                                    * x.at(sy, sx, i);
                     }
                 out.at(y, px, o) = activate(sum, activation);
@@ -49,9 +51,9 @@ void max_pool2(const Tensor& x, Tensor& out)
     for (int y = 0; y < out.height; ++y)
         for (int px = 0; px < out.width; ++px)
             for (int c = 0; c < x.channels; ++c)
-                out.at(y, px, c) = std::max({ x.at(2 * y, 2 * px, c), x.at(2 * y, 2 * px + 1, c),
-                                              x.at(2 * y + 1, 2 * px, c),
-                                              x.at(2 * y + 1, 2 * px + 1, c) });
+                out.at(y, px, c) =
+                    std::max({ x.at(2 * y, 2 * px, c), x.at(2 * y, 2 * px + 1, c),
+                               x.at(2 * y + 1, 2 * px, c), x.at(2 * y + 1, 2 * px + 1, c) });
 }
 
 void upsample2(const Tensor& x, Tensor& out)

@@ -20,7 +20,10 @@ namespace nn {
 
 namespace {
 
-int round_up(int value, int multiple) { return (value + multiple - 1) / multiple * multiple; }
+int round_up(int value, int multiple)
+{
+    return (value + multiple - 1) / multiple * multiple;
+}
 
 /// Rows [y0, y1) and columns [x0, x1) of `image` into `window` (its storage reused), where
 /// rows and columns past the image's last one repeat it (the extension of a size to a
@@ -68,7 +71,8 @@ bool plan_tiles(const Net& net, int height, int width, const TileOptions& option
     const int halo = round_up(net.receptive_radius(), alignment);
     const int tile = round_up(std::max(options.tile_size, 1), alignment);
     // The image extended to a multiple of the alignment (last row/column repeated).
-    const int padded_height = round_up(height, alignment), padded_width = round_up(width, alignment);
+    const int padded_height = round_up(height, alignment),
+              padded_width = round_up(width, alignment);
 
     // The output cores: the caller's regions (mcdn/skip.h: only where something is not
     // converged), else a grid of tiles.
@@ -97,9 +101,8 @@ bool plan_tiles(const Net& net, int height, int width, const TileOptions& option
     // Largest first: the buffers of the first run then hold every later tile's values
     // (Net::run reuses them), and nothing is allocated after it.
     auto area = [](const Rect& r) { return (r.y1 - r.y0) * (r.x1 - r.x0); };
-    std::stable_sort(tiles.begin(), tiles.end(), [&](const Tile& a, const Tile& b) {
-        return area(a.window) > area(b.window);
-    });
+    std::stable_sort(tiles.begin(), tiles.end(),
+                     [&](const Tile& a, const Tile& b) { return area(a.window) > area(b.window); });
     return true;
 }
 

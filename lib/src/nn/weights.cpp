@@ -42,7 +42,7 @@ bool host_is_little_endian()
 /// truncated file is reported as "truncated in tensor 'x'".
 class ByteReader {
 public:
-    ByteReader(const std::string& bytes) : bytes_(bytes) {}
+    ByteReader(const std::string& bytes) : bytes_(bytes) { }
     size_t remaining() const { return bytes_.size() - pos_; }
     size_t position() const { return pos_; }
 
@@ -73,15 +73,17 @@ void append(std::string& out, const void* data, size_t n)
 {
     out.append(static_cast<const char*>(data), n);
 }
-void append_u32(std::string& out, uint32_t value) { append(out, &value, 4); }
+void append_u32(std::string& out, uint32_t value)
+{
+    append(out, &value, 4);
+}
 
 }  // namespace
 
 Tensor::Tensor(int height_, int width_, int channels_, float fill)
     : height(height_), width(width_), channels(channels_),
       data(size_t(height_) * width_ * channels_, fill)
-{
-}
+{ }
 
 const NamedTensor* Weights::find(const std::string& name) const
 {
@@ -111,8 +113,8 @@ bool read_weights(const std::string& path, Weights& weights, std::string& error)
     // /proc/self/mem must be an error, not gigabytes read or an exception.
     if (!check_input_file(path, error))
         return false;
-    const std::string not_weights
-        = path + ": not a mcdenoise weights file (it does not start with \"MCDNNWTS\")";
+    const std::string not_weights =
+        path + ": not a mcdenoise weights file (it does not start with \"MCDNNWTS\")";
     std::string bytes;
     {
         const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
@@ -124,8 +126,8 @@ bool read_weights(const std::string& path, Weights& weights, std::string& error)
             return false;
         }
         char magic[8] = {};
-        const bool is_weights = ::read(fd, magic, 8) == 8
-                                && std::memcmp(magic, weights_magic, 8) == 0;
+        const bool is_weights =
+            ::read(fd, magic, 8) == 8 && std::memcmp(magic, weights_magic, 8) == 0;
         if (!is_weights || uint64_t(st.st_size) > max_file_bytes) {
             ::close(fd);
             error = is_weights ? path + ": " + std::to_string(st.st_size)
@@ -177,7 +179,8 @@ bool read_weights(const std::string& path, Weights& weights, std::string& error)
     for (uint32_t t = 0; t < count; ++t) {
         NamedTensor tensor;
         uint32_t name_bytes = 0, rank = 0;
-        const std::string which = "tensor " + std::to_string(t + 1) + " of " + std::to_string(count);
+        const std::string which =
+            "tensor " + std::to_string(t + 1) + " of " + std::to_string(count);
         if (!in.read_u32(name_bytes) || name_bytes > max_name_bytes
             || !in.read_string(tensor.name, name_bytes)) {
             error = path + ": truncated or corrupt in the name of " + which;
@@ -204,9 +207,9 @@ bool read_weights(const std::string& path, Weights& weights, std::string& error)
         }
         // Check the size before allocating: a truncated file must not cost gigabytes.
         if (elements * 4 > in.remaining()) {
-            error = path + ": truncated in the data of " + quoted + " "
-                    + shape_string(tensor.shape) + " (" + std::to_string(elements * 4)
-                    + " bytes needed, " + std::to_string(in.remaining()) + " left)";
+            error = path + ": truncated in the data of " + quoted + " " + shape_string(tensor.shape)
+                    + " (" + std::to_string(elements * 4) + " bytes needed, "
+                    + std::to_string(in.remaining()) + " left)";
             return false;
         }
         tensor.values.resize(elements);
@@ -234,8 +237,8 @@ bool write_weights(const std::string& path, const Weights& weights, std::string&
         for (int d : t.shape)
             elements *= size_t(d);
         if (elements != t.values.size()) {
-            error = path + ": tensor '" + t.name + "' has shape " + shape_string(t.shape)
-                    + " but " + std::to_string(t.values.size()) + " values";
+            error = path + ": tensor '" + t.name + "' has shape " + shape_string(t.shape) + " but "
+                    + std::to_string(t.values.size()) + " values";
             return false;
         }
         append_u32(out, uint32_t(t.name.size()));

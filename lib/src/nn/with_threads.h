@@ -13,8 +13,7 @@ namespace nn {
 /// OpenMP thread count of this thread for oneDNN's convolutions (looked up at run time, as
 /// only oneDNN links OpenMP; absent with a TBB-threaded oneDNN, where the arena suffices).
 /// No result depends on the count: every output value is computed by one thread.
-template <class Body>
-bool with_threads(int nthreads, Body&& body)
+template <class Body> bool with_threads(int nthreads, Body&& body)
 {
     if (nthreads <= 0)
         return body();

@@ -47,8 +47,8 @@ bool cached_weights(std::shared_ptr<const nn::Weights>& weights, const std::stri
 {
     static std::mutex mutex;
     static std::map<std::string, std::pair<std::string, std::shared_ptr<const nn::Weights>>> cache;
-    const std::string stamp = format("{} {}", Filesystem::file_size(path),
-                                     int64_t(Filesystem::last_write_time(path)));
+    const std::string stamp =
+        format("{} {}", Filesystem::file_size(path), int64_t(Filesystem::last_write_time(path)));
     std::lock_guard<std::mutex> lock(mutex);
     auto& entry = cache[path];
     if (entry.second && entry.first == stamp) {
@@ -143,8 +143,8 @@ void write_output(ImageBuf& dst, const int out[3], const nn::Tensor& result, con
 
 // ---- the op ---------------------------------------------------------------------------
 
-bool oidn_in_working_space(ImageBuf& dst, const ImageBuf& src, const OidnOptions& options,
-                           ROI roi, int nthreads)
+bool oidn_in_working_space(ImageBuf& dst, const ImageBuf& src, const OidnOptions& options, ROI roi,
+                           int nthreads)
 {
     // The tiles read the render's colour around them while others write theirs: in place,
     // from a copy.
@@ -217,7 +217,8 @@ bool oidn_in_working_space(ImageBuf& dst, const ImageBuf& src, const OidnOptions
     auto output_rect = [&](const Rect& core) {
         return Rect { std::max(core.x0, where.xbegin - spec.x),
                       std::max(core.y0, where.ybegin - spec.y),
-                      std::min(core.x1, where.xend - spec.x), std::min(core.y1, where.yend - spec.y) };
+                      std::min(core.x1, where.xend - spec.x),
+                      std::min(core.y1, where.yend - spec.y) };
     };
     for (const nn::Tile& tile : planned)
         if (!output_rect(tile.core).empty())
@@ -244,8 +245,8 @@ bool oidn_in_working_space(ImageBuf& dst, const ImageBuf& src, const OidnOptions
                 error = format("oidn: '{}': {}", path, tile_error);
                 return false;
             }
-            write_output(dst, out, results[size_t(worker)][0], tile.window,
-                         output_rect(tile.core), in.exposure, converged);
+            write_output(dst, out, results[size_t(worker)][0], tile.window, output_rect(tile.core),
+                         in.exposure, converged);
             progress.advance();
             return true;
         });
@@ -265,13 +266,13 @@ std::string oidn_weights_dir()
     return install_paths().data_dir + "/oidn";
 }
 
-bool oidn_weights(std::string& path, const OidnOptions& options, bool has_albedo,
-                  bool has_normal, std::string& error)
+bool oidn_weights(std::string& path, const OidnOptions& options, bool has_albedo, bool has_normal,
+                  std::string& error)
 {
     const char* env = std::getenv("MCDN_OIDN_WEIGHTS");
     const std::string given = !options.weights.empty() ? options.weights
-                              : env && *env           ? std::string(env)
-                                                      : oidn_weights_dir();
+                              : env && *env            ? std::string(env)
+                                                       : oidn_weights_dir();
     const std::string model = model_name(has_albedo, has_normal) + ".tza";
     path = Filesystem::is_directory(given) ? given + "/" + model : given;
     if (Filesystem::is_regular(path))

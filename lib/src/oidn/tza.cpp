@@ -22,7 +22,7 @@ constexpr uint8_t kMajorVersion = 2;
 // Little-endian fields out of the file's bytes; the first read past the end fails them all.
 class Fields {
 public:
-    explicit Fields(const std::vector<unsigned char>& bytes) : m_bytes(bytes) {}
+    explicit Fields(const std::vector<unsigned char>& bytes) : m_bytes(bytes) { }
     bool ok() const { return m_ok; }
     void seek(uint64_t at)
     {
@@ -70,8 +70,8 @@ bool read_tza(const std::string& path, nn::Weights& weights, std::string& error)
     in.unsigned_int(1);  // minor version: additions a reader of major 2 may ignore
     const uint64_t table = in.unsigned_int(8);
     if (!in.ok() || magic != kMagic || major != kMajorVersion) {
-        error = format("{}: not an OIDN tensor archive (.tza) of version {}", path,
-                       int(kMajorVersion));
+        error =
+            format("{}: not an OIDN tensor archive (.tza) of version {}", path, int(kMajorVersion));
         return false;
     }
     in.seek(table);

@@ -19,8 +19,7 @@ bool build_unet(nn::Net& net, const nn::Weights& weights, std::string& error)
     };
     const nn::NamedTensor* first = weights.find("enc_conv0.weight");
     if (!first || first->shape.size() != 4) {
-        error = format("{}: no enc_conv0.weight [out, in, 3, 3]: not an OIDN UNet",
-                       weights.path);
+        error = format("{}: no enc_conv0.weight [out, in, 3, 3]: not an OIDN UNet", weights.path);
         return false;
     }
     net = nn::Net("oidn");
@@ -62,7 +61,7 @@ constexpr float kA = 1.41283765e+03f, kB = 1.64593172e+00f, kC = 4.31384981e-01f
                 kG = 9.98620152e-01f;
 constexpr float kY0 = 1.57945760e-06f, kY1 = 3.22087631e-02f;  // where the pieces meet
 constexpr float kX0 = 2.23151711e-03f, kX1 = 3.70974749e-01f;  // the same, encoded
-constexpr float kHdrMax = 65504.0f;  // what encodes to 1
+constexpr float kHdrMax = 65504.0f;                            // what encodes to 1
 
 float pu(float y)
 {
@@ -71,7 +70,7 @@ float pu(float y)
 
 float pu_inverse_raw(float x)
 {
-    return x <= kX0 ? x / kA
+    return x <= kX0   ? x / kA
            : x <= kX1 ? std::pow((x - kD) / kB, 1.0f / kC)
                       : std::exp((x - kG) / kE) - kF;
 }
@@ -80,9 +79,15 @@ const float kNorm = 1.0f / pu(kHdrMax);
 
 }  // namespace
 
-float pu_forward(float y) { return pu(y) * kNorm; }
+float pu_forward(float y)
+{
+    return pu(y) * kNorm;
+}
 
-float pu_inverse(float x) { return pu_inverse_raw(x / kNorm); }
+float pu_inverse(float x)
+{
+    return pu_inverse_raw(x / kNorm);
+}
 
 }  // namespace oidn_net
 }  // namespace mcdn

@@ -18,7 +18,7 @@ std::vector<Band> plan_bands(const ROI& whole, int halo, int64_t band_pixels)
     const int64_t width = std::max<int64_t>(1, whole.width());
     const int height = whole.height();
     if (band_pixels <= 0 || int64_t(whole.npixels()) <= band_pixels)
-        return { Band{ whole, whole.ybegin, whole.yend } };
+        return { Band { whole, whole.ybegin, whole.yend } };
     // Equal bands: as many as band_pixels needs, the rows spread evenly between them.
     // Band starts, cuts and halos are whole converged tiles (mcdn/skip.h), so every band sees
     // the whole frame's tile grid and makes the same skip decisions.
@@ -30,7 +30,7 @@ std::vector<Band> plan_bands(const ROI& whole, int halo, int64_t band_pixels)
     const int rows = round_up((height + nbands - 1) / nbands);
     std::vector<Band> bands;
     for (int y0 = whole.ybegin; y0 < whole.yend; y0 += rows) {
-        Band band{ whole, y0, std::min(y0 + rows, whole.yend) };
+        Band band { whole, y0, std::min(y0 + rows, whole.yend) };
         band.cut.ybegin = std::max(whole.ybegin, y0 - halo);
         band.cut.yend = std::min(whole.yend, band.own_end + halo);
         bands.push_back(band);
@@ -70,18 +70,19 @@ void write_rows(ImageBuf& frame, const std::vector<int>& channels,
     if (roi.xend <= roi.xbegin || roi.yend <= roi.ybegin)
         return;
     const int nch = spec.nchannels, n = int(band_planes.size());
-    tbb::parallel_for(tbb::blocked_range<int>(roi.ybegin, roi.yend),
-                      [&](const tbb::blocked_range<int>& b) {
-        for (int y = b.begin(); y != b.end(); ++y) {
-            float* out = pixels + (size_t(y - spec.y) * spec.width + size_t(roi.xbegin - spec.x)) * nch;
-            for (int p = 0; p < n; ++p) {
-                const float* in = band_planes[p]->row(y - band_y) + (roi.xbegin - spec.x);
-                const int c = channels[p];
-                for (int x = 0; x < roi.width(); ++x)
-                    out[size_t(x) * nch + c] = in[x];
+    tbb::parallel_for(
+        tbb::blocked_range<int>(roi.ybegin, roi.yend), [&](const tbb::blocked_range<int>& b) {
+            for (int y = b.begin(); y != b.end(); ++y) {
+                float* out =
+                    pixels + (size_t(y - spec.y) * spec.width + size_t(roi.xbegin - spec.x)) * nch;
+                for (int p = 0; p < n; ++p) {
+                    const float* in = band_planes[p]->row(y - band_y) + (roi.xbegin - spec.x);
+                    const int c = channels[p];
+                    for (int x = 0; x < roi.width(); ++x)
+                        out[size_t(x) * nch + c] = in[x];
+                }
             }
-        }
-    });
+        });
 }
 
 namespace {

@@ -23,8 +23,8 @@ bool read_motion(FrameMotion& motion, const OIIO::ImageBuf& frame, const AovSet&
     motion.to_previous[1] = read_plane(frame, c[1]);
     motion.to_next[0] = read_plane(frame, c[2]);
     motion.to_next[1] = read_plane(frame, c[3]);
-    for (Plane* p : { &motion.to_previous[0], &motion.to_previous[1], &motion.to_next[0],
-                      &motion.to_next[1] })
+    for (Plane* p :
+         { &motion.to_previous[0], &motion.to_previous[1], &motion.to_next[0], &motion.to_next[1] })
         for (float& v : p->px)
             v = std::isfinite(v) ? v : 0.0f;  // no motion known: the pixel stays
     for (float& v : motion.to_previous[1].px)
@@ -113,7 +113,8 @@ bool align_neighbours(std::vector<AlignedFrame>& frames, const OIIO::ImageBuf& s
                       const std::vector<const OIIO::ImageBuf*>& next,
                       const std::vector<Role>& required, std::string& error)
 {
-    if (previous.size() > size_t(kMaxNeighbourFrames) || next.size() > size_t(kMaxNeighbourFrames)) {
+    if (previous.size() > size_t(kMaxNeighbourFrames)
+        || next.size() > size_t(kMaxNeighbourFrames)) {
         error = OIIO::Strutil::fmt::format(
             "cross-frame takes at most {} frames on each side ({} and {} given)",
             kMaxNeighbourFrames, previous.size(), next.size());
@@ -140,14 +141,14 @@ bool align_neighbours(std::vector<AlignedFrame>& frames, const OIIO::ImageBuf& s
             AlignedFrame f;
             f.offset = backwards ? -int(k + 1) : int(k + 1);
             f.frame = side[k];
-            f.name = f.frame->name().empty() ? std::string("in memory")
-                                             : std::string(f.frame->name());
+            f.name =
+                f.frame->name().empty() ? std::string("in memory") : std::string(f.frame->name());
             const ImageSpec& fs = f.frame->spec();
             const ImageSpec& ss = src.spec();
             if (!holds_rows_of(fs, ss)) {
                 error = f.error(OIIO::Strutil::fmt::format(
-                    "its data window {}x{}+{}+{} does not hold this frame's {}x{}+{}+{}",
-                    fs.width, fs.height, fs.x, fs.y, ss.width, ss.height, ss.x, ss.y));
+                    "its data window {}x{}+{}+{} does not hold this frame's {}x{}+{}+{}", fs.width,
+                    fs.height, fs.x, fs.y, ss.width, ss.height, ss.x, ss.y));
                 return false;
             }
             if (!resolve_aovs(f.aovs, spec, fs, error) || !f.aovs.require(roles, fs, error)
@@ -155,8 +156,8 @@ bool align_neighbours(std::vector<AlignedFrame>& frames, const OIIO::ImageBuf& s
                 error = f.error(error);
                 return false;
             }
-            f.alignment = align_frames(steps, backwards, ss.x - fs.x, ss.y - fs.y, fs.width,
-                                       fs.height);
+            f.alignment =
+                align_frames(steps, backwards, ss.x - fs.x, ss.y - fs.y, fs.width, fs.height);
             if (k + 1 < side.size()) {  // its motion leads to the next one out
                 if (!read_motion(motions[k], *f.frame, f.aovs, error)) {
                     error = f.error(error);

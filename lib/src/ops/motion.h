@@ -54,8 +54,8 @@ Plane warp(const Plane& plane, const FrameAlignment& alignment, float outside);
 /// A neighbouring frame as the cross-frame modes take it: in the working space
 /// (mcdn/color.h), its roles resolved, and where each pixel of this frame is in it.
 struct AlignedFrame {
-    int offset = 0;    // frame number relative to this frame
-    std::string name;  // the file, for messages
+    int offset = 0;                             // frame number relative to this frame
+    std::string name;                           // the file, for messages
     const OIIO::ImageBuf* frame = nullptr;      // the frame itself, or *converted
     std::unique_ptr<OIIO::ImageBuf> converted;  // a copy in the working space, if needed
     AovSet aovs;

@@ -57,9 +57,8 @@ OutlierRule outlier_rule(float sigma, float variance_ratio, float level_ratio,
     rule.sigma = sigma;
     rule.variance_ratio = variance_ratio;
     rule.level_ratio = level_ratio;
-    rule.level_floor = frame.n ? float(OutlierRule::kFloorOfMean * 3.0 * frame.sum_abs
-                                       / double(frame.n))
-                               : 0.0f;
+    rule.level_floor =
+        frame.n ? float(OutlierRule::kFloorOfMean * 3.0 * frame.sum_abs / double(frame.n)) : 0.0f;
     return rule;
 }
 
@@ -81,8 +80,8 @@ OutlierPixels take_out_outliers(Plane mean[3], Plane variance[3], Plane* half_a,
             const float own_variance = sum3(variance, i);
             if (!(own_variance > 0.0f))
                 continue;
-            gather_neighbourhood(x, y, width, height, r,
-                                 [&](size_t j) { return sum3(variance, j); }, scratch);
+            gather_neighbourhood(
+                x, y, width, height, r, [&](size_t j) { return sum3(variance, j); }, scratch);
             if (scratch.empty()
                 || !(own_variance
                      > rule.variance_ratio * *std::min_element(scratch.begin(), scratch.end())))

@@ -66,8 +66,8 @@ OutlierRule outlier_rule(float sigma, float variance_ratio, float level_ratio,
 /// The pixels taken out and what to add back at each, per channel: the beauty's excess and
 /// each extra AOV's share of it.
 struct OutlierPixels {
-    std::vector<uint32_t> pixels;                // plane index, ascending
-    std::vector<std::array<float, 3>> excess;    // per pixel
+    std::vector<uint32_t> pixels;              // plane index, ascending
+    std::vector<std::array<float, 3>> excess;  // per pixel
     /// [extra][pixel]: the part of `excess` that extra held (its share of the beauty).
     std::vector<std::vector<std::array<float, 3>>> extra_excess;
 

@@ -30,8 +30,8 @@ void prefilter_planes(std::vector<FeaturePlanes>& features, const PrefilterOptio
             f.mean.px[p] = 0.5f * (a + b);
             f.variance.px[p] = sanitize_variance(0.25f * (b - a) * (b - a));
         }
-        f.mean = std::move(nl_means({ &f.mean }, { &f.mean }, { &f.variance }, step2, nthreads,
-                                    skip)[0]);
+        f.mean = std::move(
+            nl_means({ &f.mean }, { &f.mean }, { &f.variance }, step2, nthreads, skip)[0]);
     }
 }
 

@@ -16,15 +16,15 @@ namespace mcdn {
 
 namespace {
 
-bool prefilter_in_working_space(ImageBuf& dst, const ImageBuf& src,
-                                const PrefilterOptions& options, ROI roi, int nthreads,
-                                ProgressCounter& progress)
+bool prefilter_in_working_space(ImageBuf& dst, const ImageBuf& src, const PrefilterOptions& options,
+                                ROI roi, int nthreads, ProgressCounter& progress)
 {
     const char* op = "prefilter";
     if (options.window_radius < 0 || options.patch_radius < 0 || options.second_window_radius < 0
         || options.second_patch_radius < 0 || !(options.k > 0) || !(options.second_k > 0)) {
         dst.errorfmt("prefilter: window and patch radii must be >= 0 and k > 0 (got window {}, "
-                     "patch {}, k {})", options.window_radius, options.patch_radius, options.k);
+                     "patch {}, k {})",
+                     options.window_radius, options.patch_radius, options.k);
         return false;
     }
     StageTrace trace(op);
@@ -40,7 +40,8 @@ bool prefilter_in_working_space(ImageBuf& dst, const ImageBuf& src,
     if (channels.empty()) {
         dst.errorfmt("prefilter: no feature channels (albedo, normal, depth, visibility) with "
                      "preset '{}' in the input ({}); check --aov:preset or name them with "
-                     "aov overrides", options.aovs.preset, channel_list(src.spec()));
+                     "aov overrides",
+                     options.aovs.preset, channel_list(src.spec()));
         return false;
     }
     // §5.1 makes each mean from the filtered halves: the means are not read (but where they
@@ -85,7 +86,8 @@ int receptive_radius(const PrefilterOptions& o)
     return o.window_radius + o.patch_radius + o.second_window_radius + o.second_patch_radius;
 }
 
-bool prefilter(ImageBuf& dst, const ImageBuf& src, const PrefilterOptions& options, ROI roi, int nthreads)
+bool prefilter(ImageBuf& dst, const ImageBuf& src, const PrefilterOptions& options, ROI roi,
+               int nthreads)
 {
     if (!check_op_threads(dst, nthreads, "prefilter"))
         return false;
@@ -93,9 +95,10 @@ bool prefilter(ImageBuf& dst, const ImageBuf& src, const PrefilterOptions& optio
     const int64_t band_pixels = is_frame_band(src.spec()) ? 0 : options.band_pixels;
     ProgressCounter progress(options.progress, "prefilter",
                              band_count(src.roi(), receptive_radius(options), band_pixels));
-    return run_local_op(dst, src, options.aovs, "prefilter", receptive_radius(options),
-                        band_pixels, [&](ImageBuf& d, const ImageBuf& s) {
-                            return prefilter_in_working_space(d, s, options, roi, nthreads, progress);
+    return run_local_op(dst, src, options.aovs, "prefilter", receptive_radius(options), band_pixels,
+                        [&](ImageBuf& d, const ImageBuf& s) {
+                            return prefilter_in_working_space(d, s, options, roi, nthreads,
+                                                              progress);
                         });
 }
 

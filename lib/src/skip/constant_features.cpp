@@ -16,13 +16,11 @@ bool is_constant_plane(const Plane& p)
 
 bool is_constant_feature(const FeaturePlanes& f)
 {
-    return is_constant_plane(f.mean) && is_constant_plane(f.half_a)
-           && is_constant_plane(f.half_b) && f.half_a.px[0] == f.mean.px[0]
-           && f.half_b.px[0] == f.mean.px[0];
+    return is_constant_plane(f.mean) && is_constant_plane(f.half_a) && is_constant_plane(f.half_b)
+           && f.half_a.px[0] == f.mean.px[0] && f.half_b.px[0] == f.mean.px[0];
 }
 
-void read_means_of_constant_halves(std::vector<FeaturePlanes>& features,
-                                   const OIIO::ImageBuf& src,
+void read_means_of_constant_halves(std::vector<FeaturePlanes>& features, const OIIO::ImageBuf& src,
                                    const std::vector<FeatureChannel>& channels)
 {
     read_feature_means(features, src, channels, [](const FeaturePlanes& f) {

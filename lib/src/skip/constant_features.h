@@ -17,8 +17,7 @@ bool is_constant_plane(const Plane& plane);
 
 /// For features read without their means (FeatureFaces): reads the mean of each whose halves
 /// hold one and the same value throughout, the only ones is_constant_feature can find constant.
-void read_means_of_constant_halves(std::vector<FeaturePlanes>& features,
-                                   const OIIO::ImageBuf& src,
+void read_means_of_constant_halves(std::vector<FeaturePlanes>& features, const OIIO::ImageBuf& src,
                                    const std::vector<FeatureChannel>& channels);
 
 /// Removes the constant features from `features` and, when given, the matching entries of

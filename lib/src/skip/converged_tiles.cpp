@@ -22,7 +22,10 @@ bool ConvergedTiles::any() const
     return std::find(converged.begin(), converged.end(), 1) != converged.end();
 }
 
-int ConvergedTiles::count() const { return int(std::count(converged.begin(), converged.end(), 1)); }
+int ConvergedTiles::count() const
+{
+    return int(std::count(converged.begin(), converged.end(), 1));
+}
 
 bool ConvergedTiles::covers(Rect r) const
 {
@@ -82,55 +85,56 @@ ConvergedTiles scan_converged(int width, int height, float max_relative_error, A
         return m;
     m.converged.assign(size_t(m.tiles_x) * m.tiles_y, 1);
     const int w = m.width;
-    tbb::parallel_for(tbb::blocked_range<int>(0, m.tiles_y), [&](const tbb::blocked_range<int>& rows) {
-        std::vector<float> r, across;
-        for (int ty = rows.begin(); ty != rows.end(); ++ty) {
-            const int y0 = ty * T, y1 = std::min(y0 + T, m.height);
-            // The tile row's relative variances, pixel-major, and their sums over x-1..x+1
-            // within each tile.
-            r.resize(size_t(y1 - y0) * w * 3);
-            across.resize(r.size());
-            for (int y = y0; y < y1; ++y) {
-                float* row = r.data() + size_t(y - y0) * w * 3;
-                for (int x = 0; x < w; ++x)
-                    for (int c = 0; c < 3; ++c) {
-                        const auto [mu, var] = at(c, x, y);
-                        row[size_t(x) * 3 + c] = relative_variance(mu, var);
+    tbb::parallel_for(
+        tbb::blocked_range<int>(0, m.tiles_y), [&](const tbb::blocked_range<int>& rows) {
+            std::vector<float> r, across;
+            for (int ty = rows.begin(); ty != rows.end(); ++ty) {
+                const int y0 = ty * T, y1 = std::min(y0 + T, m.height);
+                // The tile row's relative variances, pixel-major, and their sums over x-1..x+1
+                // within each tile.
+                r.resize(size_t(y1 - y0) * w * 3);
+                across.resize(r.size());
+                for (int y = y0; y < y1; ++y) {
+                    float* row = r.data() + size_t(y - y0) * w * 3;
+                    for (int x = 0; x < w; ++x)
+                        for (int c = 0; c < 3; ++c) {
+                            const auto [mu, var] = at(c, x, y);
+                            row[size_t(x) * 3 + c] = relative_variance(mu, var);
+                        }
+                    float* sum = across.data() + size_t(y - y0) * w * 3;
+                    for (int x = 0; x < w; ++x) {
+                        const int tile_x0 = x / T * T, tile_x1 = std::min(tile_x0 + T, w);
+                        for (int c = 0; c < 3; ++c) {
+                            float s = row[size_t(x) * 3 + c];
+                            if (x > tile_x0)
+                                s += row[size_t(x - 1) * 3 + c];
+                            if (x + 1 < tile_x1)
+                                s += row[size_t(x + 1) * 3 + c];
+                            sum[size_t(x) * 3 + c] = s;
+                        }
                     }
-                float* sum = across.data() + size_t(y - y0) * w * 3;
-                for (int x = 0; x < w; ++x) {
-                    const int tile_x0 = x / T * T, tile_x1 = std::min(tile_x0 + T, w);
-                    for (int c = 0; c < 3; ++c) {
-                        float s = row[size_t(x) * 3 + c];
-                        if (x > tile_x0)
-                            s += row[size_t(x - 1) * 3 + c];
-                        if (x + 1 < tile_x1)
-                            s += row[size_t(x + 1) * 3 + c];
-                        sum[size_t(x) * 3 + c] = s;
+                }
+                for (int y = y0; y < y1; ++y) {
+                    const int ya = std::max(y - 1, y0), yb = std::min(y + 1, y1 - 1);
+                    for (int x = 0; x < w; ++x) {
+                        uint8_t& tile = m.converged[size_t(ty) * m.tiles_x + x / T];
+                        if (!tile)
+                            continue;
+                        const int tile_x0 = x / T * T, tile_x1 = std::min(tile_x0 + T, w);
+                        const int nx = std::min(x + 1, tile_x1 - 1) - std::max(x - 1, tile_x0) + 1;
+                        const float count = float(nx * (yb - ya + 1));
+                        for (int c = 0; c < 3; ++c) {
+                            float s = 0;
+                            for (int yy = ya; yy <= yb; ++yy)
+                                s += across[(size_t(yy - y0) * w + x) * 3 + c];
+                            const float own = r[(size_t(y - y0) * w + x) * 3 + c];
+                            if (!(own <= cap) || !(s <= limit * count))
+                                tile = 0;
+                        }
                     }
                 }
             }
-            for (int y = y0; y < y1; ++y) {
-                const int ya = std::max(y - 1, y0), yb = std::min(y + 1, y1 - 1);
-                for (int x = 0; x < w; ++x) {
-                    uint8_t& tile = m.converged[size_t(ty) * m.tiles_x + x / T];
-                    if (!tile)
-                        continue;
-                    const int tile_x0 = x / T * T, tile_x1 = std::min(tile_x0 + T, w);
-                    const int nx = std::min(x + 1, tile_x1 - 1) - std::max(x - 1, tile_x0) + 1;
-                    const float count = float(nx * (yb - ya + 1));
-                    for (int c = 0; c < 3; ++c) {
-                        float s = 0;
-                        for (int yy = ya; yy <= yb; ++yy)
-                            s += across[(size_t(yy - y0) * w + x) * 3 + c];
-                        const float own = r[(size_t(y - y0) * w + x) * 3 + c];
-                        if (!(own <= cap) || !(s <= limit * count))
-                            tile = 0;
-                    }
-                }
-            }
-        }
-    });
+        });
     if (!m.any())
         m.converged.clear();
     return m;
@@ -141,9 +145,10 @@ ConvergedTiles scan_converged(int width, int height, float max_relative_error, A
 ConvergedTiles find_converged_tiles(const Plane mean[3], const Plane variance[3],
                                     float max_relative_error)
 {
-    return scan_converged(mean[0].width, mean[0].height, max_relative_error, [&](int c, int x, int y) {
-        return std::pair<float, float>(mean[c](x, y), variance[c](x, y));
-    });
+    return scan_converged(mean[0].width, mean[0].height, max_relative_error,
+                          [&](int c, int x, int y) {
+                              return std::pair<float, float>(mean[c](x, y), variance[c](x, y));
+                          });
 }
 
 bool attached_tiles(ConvergedTiles& m, const ImageBuf& src, const char* attribute, int width,
@@ -153,8 +158,8 @@ bool attached_tiles(ConvergedTiles& m, const ImageBuf& src, const char* attribut
     return !attached.empty() && decode_converged_tiles(m, attached, width, height);
 }
 
-ConvergedTiles converged_tiles_of(const ImageBuf& src, const Plane mean[3],
-                                  const Plane variance[3], const SkipOptions& skip)
+ConvergedTiles converged_tiles_of(const ImageBuf& src, const Plane mean[3], const Plane variance[3],
+                                  const SkipOptions& skip)
 {
     ConvergedTiles m;
     if (!skip.enabled || attached_tiles(m, src, kConvergedAttribute, mean[0].width, mean[0].height))
@@ -178,10 +183,12 @@ ConvergedTiles converged_tiles_of(const ImageBuf& src, const AovSet& aovs, const
         if (attached_tiles(m, src, kConvergedAttribute, spec.width, spec.height))
             return m;
         const size_t nchannels = size_t(spec.nchannels);
-        return scan_converged(spec.width, spec.height, skip.max_relative_error, [&](int c, int x, int y) {
-            const float* px = pixels + (size_t(y) * spec.width + x) * nchannels;
-            return std::pair<float, float>(sanitize(px[color[c]]), sanitize_variance(px[color_variance[c]]));
-        });
+        return scan_converged(
+            spec.width, spec.height, skip.max_relative_error, [&](int c, int x, int y) {
+                const float* px = pixels + (size_t(y) * spec.width + x) * nchannels;
+                return std::pair<float, float>(sanitize(px[color[c]]),
+                                               sanitize_variance(px[color_variance[c]]));
+            });
     }
     Plane mean[3], variance[3];
     for (int c = 0; c < 3; ++c) {
@@ -212,7 +219,8 @@ ConvergedTiles tiles_where_equal(const Plane a[3], const Plane b[3], const Conve
             bool same = true;
             for (int c = 0; c < 3 && same; ++c)
                 for (int y = ty * T; y < std::min(ty * T + T, m.height) && same; ++y)
-                    same = std::equal(a[c].row(y) + tx * T, a[c].row(y) + std::min(tx * T + T, m.width),
+                    same = std::equal(a[c].row(y) + tx * T,
+                                      a[c].row(y) + std::min(tx * T + T, m.width),
                                       b[c].row(y) + tx * T);
             m.converged[size_t(ty) * m.tiles_x + tx] = same;
         }
@@ -277,7 +285,9 @@ std::vector<Rect> unconverged_rects(const ConvergedTiles& m, int max_side, int a
     if (m.width <= 0 || m.height <= 0)
         return rects;
     // Runs of non-converged tiles per tile row, in tile units.
-    struct Run { int tx0, tx1, ty0, ty1; };
+    struct Run {
+        int tx0, tx1, ty0, ty1;
+    };
     std::vector<Run> open, done;
     for (int ty = 0; ty < m.tiles_y; ++ty) {
         std::vector<Run> row;
@@ -295,8 +305,9 @@ std::vector<Rect> unconverged_rects(const ConvergedTiles& m, int max_side, int a
         // A run identical to one of the row above extends it downwards.
         std::vector<Run> next;
         for (Run r : row) {
-            auto same = std::find_if(open.begin(), open.end(),
-                                     [&](const Run& o) { return o.tx0 == r.tx0 && o.tx1 == r.tx1; });
+            auto same = std::find_if(open.begin(), open.end(), [&](const Run& o) {
+                return o.tx0 == r.tx0 && o.tx1 == r.tx1;
+            });
             if (same != open.end()) {
                 r.ty0 = same->ty0;
                 open.erase(same);
@@ -307,8 +318,9 @@ std::vector<Rect> unconverged_rects(const ConvergedTiles& m, int max_side, int a
         open = std::move(next);
     }
     done.insert(done.end(), open.begin(), open.end());
-    std::sort(done.begin(), done.end(),
-              [](const Run& a, const Run& b) { return a.ty0 != b.ty0 ? a.ty0 < b.ty0 : a.tx0 < b.tx0; });
+    std::sort(done.begin(), done.end(), [](const Run& a, const Run& b) {
+        return a.ty0 != b.ty0 ? a.ty0 < b.ty0 : a.tx0 < b.tx0;
+    });
     // In pixels, split into pieces of at most max_side (a multiple of the alignment).
     const int side = std::max(max_side / alignment, 1) * alignment;
     for (const Run& r : done) {

@@ -18,18 +18,18 @@
 namespace mcdn {
 
 struct ConvergedTiles {
-    int width = 0, height = 0;          // of the image
-    int tiles_x = 0, tiles_y = 0;       // tiles of kConvergedTileSize, row-major
-    std::vector<uint8_t> converged;     // 1: converged; empty: none is
+    int width = 0, height = 0;       // of the image
+    int tiles_x = 0, tiles_y = 0;    // tiles of kConvergedTileSize, row-major
+    std::vector<uint8_t> converged;  // 1: converged; empty: none is
 
     bool any() const;
     bool all() const { return any() && count() == int(converged.size()); }
     int count() const;
-    bool tile(int tx, int ty) const { return !converged.empty() && converged[size_t(ty) * tiles_x + tx]; }
-    bool pixel(int x, int y) const
+    bool tile(int tx, int ty) const
     {
-        return tile(x / kConvergedTileSize, y / kConvergedTileSize);
+        return !converged.empty() && converged[size_t(ty) * tiles_x + tx];
     }
+    bool pixel(int x, int y) const { return tile(x / kConvergedTileSize, y / kConvergedTileSize); }
     /// Whether every pixel of `r` (in image coordinates, clipped to the image) is converged.
     bool covers(Rect r) const;
 };
@@ -53,11 +53,10 @@ ConvergedTiles find_converged_tiles(const Plane mean[3], const Plane variance[3]
 /// (kConvergedAttribute, so that the probes of a denoiser see the same tiles as its first
 /// run) when present and of src's size; else find_converged_tiles of src's colour and
 /// variance roles (none without a variance role).
-ConvergedTiles converged_tiles_of(const ImageBuf& src, const AovSet& aovs,
-                                  const SkipOptions& skip);
+ConvergedTiles converged_tiles_of(const ImageBuf& src, const AovSet& aovs, const SkipOptions& skip);
 /// The same from planes already read (nfor: its variance may be the two-buffer estimate).
-ConvergedTiles converged_tiles_of(const ImageBuf& src, const Plane mean[3],
-                                  const Plane variance[3], const SkipOptions& skip);
+ConvergedTiles converged_tiles_of(const ImageBuf& src, const Plane mean[3], const Plane variance[3],
+                                  const SkipOptions& skip);
 
 /// The tiles where a = b at every pixel of the three planes (a denoiser's result that is
 /// its input there), restricted to those of `within` when it is given.

@@ -42,7 +42,8 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
     // eps = 0 would make every divergence 0 (and SURE the residual alone).
     if (!(options.epsilon_relative > 0 && options.epsilon_relative <= kMaxEpsilonRelative)) {
         dst.errorfmt("sure: eps={} must be above 0 and at most {} (a step relative to the "
-                     "image's mean |x|)", options.epsilon_relative, kMaxEpsilonRelative);
+                     "image's mean |x|)",
+                     options.epsilon_relative, kMaxEpsilonRelative);
         return false;
     }
     SureFrame frame;
@@ -116,8 +117,8 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
             copy = copy_with_channels(src, sure_channel_names(frame), band.cut, nthreads);
             if (!copy.localpixels())
                 return dst.errorfmt("sure: could not allocate a {}x{} frame of {} channels",
-                                    copy.spec().width, copy.spec().height,
-                                    copy.spec().nchannels), false;
+                                    copy.spec().width, copy.spec().height, copy.spec().nchannels),
+                       false;
         }
         ImageBuf& noisy = in_place ? *probed : copy;
         if (!band_of_frame)
@@ -139,15 +140,16 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
 
 }  // namespace
 
-bool sure(ImageBuf& dst, const ImageBuf& src, const Denoiser& denoiser,
-          const SureOptions& options, ROI roi, int nthreads)
+bool sure(ImageBuf& dst, const ImageBuf& src, const Denoiser& denoiser, const SureOptions& options,
+          ROI roi, int nthreads)
 {
     // The denoiser runs on its own threads; sure's loops are light.
     if (!check_op_threads(dst, nthreads, "sure"))
         return false;
-    return run_in_working_space(dst, src, options.aovs, "sure", [&](ImageBuf& d, const ImageBuf& s) {
-        return sure_in_working_space(d, s, denoiser, options, roi, nthreads, nullptr);
-    });
+    return run_in_working_space(
+        dst, src, options.aovs, "sure", [&](ImageBuf& d, const ImageBuf& s) {
+            return sure_in_working_space(d, s, denoiser, options, roi, nthreads, nullptr);
+        });
 }
 
 bool sure_probing_src(ImageBuf& dst, ImageBuf& src, const Denoiser& denoiser,
@@ -156,14 +158,15 @@ bool sure_probing_src(ImageBuf& dst, ImageBuf& src, const Denoiser& denoiser,
     if (!check_op_threads(dst, nthreads, "sure"))
         return false;
     // src itself only where the op runs on it (not on a copy in the working space).
-    return run_in_working_space(dst, src, options.aovs, "sure", [&](ImageBuf& d, const ImageBuf& s) {
-        return sure_in_working_space(d, s, denoiser, options, roi, nthreads,
-                                     &s == &src ? &src : nullptr);
-    });
+    return run_in_working_space(
+        dst, src, options.aovs, "sure", [&](ImageBuf& d, const ImageBuf& s) {
+            return sure_in_working_space(d, s, denoiser, options, roi, nthreads,
+                                         &s == &src ? &src : nullptr);
+        });
 }
 
-ImageBuf sure(const ImageBuf& src, const Denoiser& denoiser, const SureOptions& options,
-              ROI roi, int nthreads)
+ImageBuf sure(const ImageBuf& src, const Denoiser& denoiser, const SureOptions& options, ROI roi,
+              int nthreads)
 {
     ImageBuf dst;
     sure(dst, src, denoiser, options, roi, nthreads);

@@ -77,8 +77,7 @@ bool write_denoised_rows(ImageBuf& dst, const ImageBuf& denoised, const Band& ba
 }
 
 // Adds eps*b to the given channels of `buf` (b is one probe, one plane per colour channel).
-void add_probe(ImageBuf& buf, const std::vector<int>& channels, const Plane probe[3],
-               double eps)
+void add_probe(ImageBuf& buf, const std::vector<int>& channels, const Plane probe[3], double eps)
 {
     for (int c = 0; c < 3; ++c) {
         Plane plane = read_plane(buf, channels[c]);
@@ -91,8 +90,7 @@ void add_probe(ImageBuf& buf, const std::vector<int>& channels, const Plane prob
 // A denoiser (a Python or C++ callable) must not make NaN or Inf: a value that is not
 // finite where its input's same channel was is an error (a pass-through channel's own NaN
 // is the input's, which -o reports).
-bool check_finite(const ImageBuf& denoised, const ImageBuf& noisy, int nthreads,
-                  std::string& error)
+bool check_finite(const ImageBuf& denoised, const ImageBuf& noisy, int nthreads, std::string& error)
 {
     const ImageSpec& spec = denoised.spec();
     const int nch = spec.nchannels;
@@ -103,7 +101,8 @@ bool check_finite(const ImageBuf& denoised, const ImageBuf& noisy, int nthreads,
     std::vector<std::vector<uint32_t>> row_bad(spec.height);
     parallel_for_index(spec.height, nthreads, [&](int r) {
         const int y = spec.y + r;
-        std::vector<float> row(size_t(spec.width) * nch), in(size_t(spec.width) * noisy.nchannels());
+        std::vector<float> row(size_t(spec.width) * nch),
+            in(size_t(spec.width) * noisy.nchannels());
         ROI roi(spec.x, spec.x + spec.width, y, y + 1, 0, 1, 0, nch);
         denoised.get_pixels(roi, OIIO::TypeDesc::FLOAT, row.data());
         roi.chend = noisy.nchannels();
@@ -112,7 +111,8 @@ bool check_finite(const ImageBuf& denoised, const ImageBuf& noisy, int nthreads,
             for (int c = 0; c < nch; ++c) {
                 float v = row[size_t(x) * nch + c];
                 if (!std::isfinite(v)
-                    && (source[c] < 0 || std::isfinite(in[size_t(x) * noisy.nchannels() + source[c]]))) {
+                    && (source[c] < 0
+                        || std::isfinite(in[size_t(x) * noisy.nchannels() + source[c]]))) {
                     row_bad[r].resize(nch, 0);
                     ++row_bad[r][c];
                 }
@@ -125,8 +125,8 @@ bool check_finite(const ImageBuf& denoised, const ImageBuf& noisy, int nthreads,
     for (int c = 0; c < spec.nchannels; ++c)
         if (bad[c]) {
             error = format("sure: the denoiser returned {} NaN or Inf values in channel {} "
-                           "(a denoiser must return finite values)", bad[c],
-                           spec.channelnames[c]);
+                           "(a denoiser must return finite values)",
+                           bad[c], spec.channelnames[c]);
             return false;
         }
     return true;
@@ -144,8 +144,8 @@ bool check_finite_in_place(const ImageSpec& spec, const std::vector<int>& channe
             bad += !std::isfinite(now[m][i]) && std::isfinite(before[m][i]);
         if (bad) {
             error = format("sure: the denoiser returned {} NaN or Inf values in channel {} "
-                           "(a denoiser must return finite values)", bad,
-                           spec.channel_name(channels[m]));
+                           "(a denoiser must return finite values)",
+                           bad, spec.channel_name(channels[m]));
             return false;
         }
     }
@@ -170,8 +170,8 @@ bool is_whole_output(const ImageBuf& denoised, const Band& band, const SureFrame
 }
 
 // Adds the tiles of `worse` that start in the band's own rows to dst's int `attribute`.
-void add_count(ImageBuf& dst, const char* attribute, const ConvergedTiles& worse,
-               const Band& band, int band_y)
+void add_count(ImageBuf& dst, const char* attribute, const ConvergedTiles& worse, const Band& band,
+               int band_y)
 {
     if (!worse.any())
         return;
@@ -238,10 +238,13 @@ struct BandState {
 // (SureFrame::denoise_in_place).
 void read_band(BandState& st, ImageBuf& noisy, const SureOptions& options, const SureFrame& frame)
 {
-    read_planes(noisy, { { frame.color[0], &st.x[0] }, { frame.color[1], &st.x[1] },
-                         { frame.color[2], &st.x[2] }, { frame.variance[0], &st.variance[0], true },
-                         { frame.variance[1], &st.variance[1], true },
-                         { frame.variance[2], &st.variance[2], true } },
+    read_planes(noisy,
+                { { frame.color[0], &st.x[0] },
+                  { frame.color[1], &st.x[1] },
+                  { frame.color[2], &st.x[2] },
+                  { frame.variance[0], &st.variance[0], true },
+                  { frame.variance[1], &st.variance[1], true },
+                  { frame.variance[2], &st.variance[2], true } },
                 {}, frame.nthreads);
     st.converged = converged_tiles_of(noisy, st.x, st.variance, options.skip);
     if (options.skip.enabled)
@@ -309,8 +312,10 @@ bool denoise_into_output(BandState& st, ImageBuf& dst, ImageBuf& noisy, const Ba
     if (!check_finite(denoised, noisy, frame.nthreads, error))
         return false;
     trace.mark("y is finite");
-    read_planes(denoised, { { frame.color[0], &st.y[0] }, { frame.color[1], &st.y[1] },
-                            { frame.color[2], &st.y[2] } },
+    read_planes(denoised,
+                { { frame.color[0], &st.y[0] },
+                  { frame.color[1], &st.y[1] },
+                  { frame.color[2], &st.y[2] } },
                 {}, frame.nthreads);
     st.denoiser_tiles = denoised.spec().get_string_attribute(kDenoiserTilesAttribute);
     if (!dst.initialized() && is_whole_output(denoised, band, frame)) {
@@ -345,9 +350,9 @@ bool probe_divergence(BandState& st, ImageBuf& noisy, const Denoiser& denoiser,
         parallel_for_index(h, frame.nthreads, [&](int row) {
             for (int c = 0; c < 3; ++c)
                 for (size_t i = size_t(row) * w; i < size_t(row + 1) * w; ++i)
-                    b[c].px[i] = std::sqrt(st.variance[c].px[i])
-                                 * standard_normal(options.seed, uint64_t(k),
-                                                   (first_index + i) * 3 + c);
+                    b[c].px[i] =
+                        std::sqrt(st.variance[c].px[i])
+                        * standard_normal(options.seed, uint64_t(k), (first_index + i) * 3 + c);
         });
         for (int c = 0; c < 3; ++c)
             pass_through_converged(b[c], no_probe, passed);
@@ -375,14 +380,14 @@ bool probe_divergence(BandState& st, ImageBuf& noisy, const Denoiser& denoiser,
             const std::string& name = noisy.spec().channel_name(frame.color[c]);
             const int index = response.spec().channelindex(name);
             if (index < 0) {
-                error = format("sure: the denoiser's result on probe {} has no channel '{}'", k,
-                               name);
+                error =
+                    format("sure: the denoiser's result on probe {} has no channel '{}'", k, name);
                 return false;
             }
             Plane f = read_plane(response, index);
             for (size_t i = 0; i < f.size(); ++i)
-                st.divergence[c].px[i] += float(b[c].px[i] * (double(f.px[i]) - st.y[c].px[i])
-                                                / (eps * options.probes));
+                st.divergence[c].px[i] +=
+                    float(b[c].px[i] * (double(f.px[i]) - st.y[c].px[i]) / (eps * options.probes));
         }
     }
     return true;
@@ -415,15 +420,15 @@ void write_sure(BandState& st, ImageBuf& dst, const ImageSpec& in_spec, const Ba
                 double d = double(st.y[c].px[i]) - st.x[c].px[i];
                 residual[c].px[i] = sanitize(float(d * d));
                 st.divergence[c].px[i] = sanitize(st.divergence[c].px[i]);
-                estimate[c].px[i] = sanitize(residual[c].px[i] + 2 * st.divergence[c].px[i]
-                                             - st.variance[c].px[i]);
+                estimate[c].px[i] =
+                    sanitize(residual[c].px[i] + 2 * st.divergence[c].px[i] - st.variance[c].px[i]);
             }
         });
     }
     const ConvergedTiles worse = tiles_worse_than_render(estimate, st.variance, st.y, passed);
     const Plane fell_back = frame.fallback_channel ? tile_flags(worse, w, h) : Plane();
-    add_count(dst, options.fallback ? kSureFallbackCountAttribute : kSureWorseCountAttribute,
-              worse, band, band_y);
+    add_count(dst, options.fallback ? kSureFallbackCountAttribute : kSureWorseCountAttribute, worse,
+              band, band_y);
     const bool fall_back = options.fallback && worse.any();
     if (fall_back) {
         const Plane zero(w, h);
@@ -510,8 +515,8 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
         noisy.specmod() = st.result_spec;
         dst = std::move(noisy);
     }
-    write_sure(st, dst, frame.denoise_in_place ? dst.spec() : noisy.spec(), band, band_y,
-               options, frame, passed);
+    write_sure(st, dst, frame.denoise_in_place ? dst.spec() : noisy.spec(), band, band_y, options,
+               frame, passed);
     trace.mark("eq. 1, sure.* channels");
     return true;
 }

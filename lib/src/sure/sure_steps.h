@@ -19,19 +19,19 @@ namespace mcdn {
 
 /// What every band of one frame shares.
 struct SureFrame {
-    ROI whole;                   // the frame's data window
-    int index_origin = 0;        // the first row of the probes' index space (a band's frame)
-    ROI where;                   // where the SURE channels are written (zero outside)
+    ROI whole;             // the frame's data window
+    int index_origin = 0;  // the first row of the probes' index space (a band's frame)
+    ROI where;             // where the SURE channels are written (zero outside)
     std::vector<int> color, variance;
-    std::vector<int> moved;      // colour and half buffers: what a probe moves
-    std::vector<int> extras;     // x of the RGB extra AOVs, recorded as noisy.<name>
+    std::vector<int> moved;   // colour and half buffers: what a probe moves
+    std::vector<int> extras;  // x of the RGB extra AOVs, recorded as noisy.<name>
     std::vector<std::string> extra_names;
-    double eps = 0;              // the probe step (core/frame_facts.h relative_probe_step)
+    double eps = 0;                 // the probe step (core/frame_facts.h relative_probe_step)
     bool fallback_channel = false;  // sure.fallback (SureOptions::output_fallback)
     // The denoiser runs on noisy itself (SureOptions::denoiser_in_place) and noisy, which
     // already has sure's channels, becomes dst: the band is the whole frame.
     bool denoise_in_place = false;
-    int nthreads = 0;            // for SURE's own per-pixel work (the op's nthreads)
+    int nthreads = 0;  // for SURE's own per-pixel work (the op's nthreads)
 };
 
 /// The channels sure adds, in the order it writes them: noisy.*, sure.*, sure.divergence.*,
