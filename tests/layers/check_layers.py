@@ -8,7 +8,7 @@ Layers, lowest first (a file may include its own layer and those below it):
   1 engines     lib/src/{nl_means,nn,outliers,ops}/: the NL-means filter, the network engine,
                 the heavy-tailed samples' detection, and what the ops share above the
                 foundation (frames in bands and in the working space, neighbouring frames
-                aligned by their motion)
+                aligned by their motion, the colour role read as planes)
   2 stages      lib/src/{prefilter,nfor,cnn,oidn,sure,mix,frames}/ and their public headers
   3 chains      lib/src/chain/, mcdn/{chain,settings,stages,denoise}.h: the only code that
                 knows every stage (the stage table, mcdn/stages.h)

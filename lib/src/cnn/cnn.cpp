@@ -14,7 +14,7 @@
 #include "cnn/extras_kernels.h"
 #include "cnn/worker_pool.h"
 #include "core/attributes.h"
-#include "core/color_planes.h"
+#include "ops/color_planes.h"
 #include "core/frame_facts.h"
 #include "core/op_prepare.h"
 #include "core/progress.h"

@@ -7,7 +7,7 @@
 #include <cmath>
 #include <set>
 
-#include "core/color_planes.h"
+#include "ops/color_planes.h"
 #include "ops/motion.h"
 #include "core/op_prepare.h"
 #include "core/planar.h"

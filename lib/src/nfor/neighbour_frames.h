@@ -17,7 +17,7 @@
 
 #include <OpenImageIO/imagebuf.h>
 
-#include "core/color_planes.h"
+#include "ops/color_planes.h"
 #include "core/feature_channels.h"
 #include "core/planar.h"
 #include "mcdn/aov.h"

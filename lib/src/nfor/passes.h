@@ -5,7 +5,7 @@
 
 #include <OpenImageIO/imagebuf.h>
 
-#include "core/color_planes.h"
+#include "ops/color_planes.h"
 #include "core/feature_channels.h"
 #include "core/frame_facts.h"
 #include "core/planar.h"

@@ -1,4 +1,4 @@
-#include "core/color_planes.h"
+#include "ops/color_planes.h"
 
 #include <cmath>
 
