@@ -1,6 +1,6 @@
 // `import mcdenoise` (its compiled part, mcdenoise._mcdenoise): the library's ops for Python
-// pipeline steps. Every op takes and returns
-// OpenImageIO.ImageBuf (the types of python3-openimageio's module, shared through pybind11),
+// pipeline steps. Every op takes and returns OpenImageIO.ImageBuf (the types of
+// python3-openimageio's module, shared through pybind11),
 // releases the GIL while it works, and raises RuntimeError with the library's message.
 #include <pybind11/functional.h>
 #include <pybind11/pybind11.h>
@@ -20,177 +20,14 @@
 #include "mcdn/stages.h"
 #include "mcdn/sure.h"
 
+#include "module_steps.h"
+
 namespace py = pybind11;
 using OIIO::ImageBuf;
 
 namespace {
 
-// The AOV spec from the keyword arguments every op shares.
-mcdn::AovSpec aov_spec(const std::string& preset, const std::map<std::string, std::string>& aovs,
-                       const std::string& colorspace)
-{
-    mcdn::AovSpec spec;
-    spec.preset = preset;
-    spec.colorspace = colorspace;
-    std::string error;
-    for (const auto& [role, channels] : aovs)
-        if (!spec.parse_override(role + "=" + channels, error))
-            throw std::runtime_error(error);
-    return spec;
-}
-
-// A stage's Options from its keyword arguments, through the library's settings parser, so
-// Python checks values exactly as mcdntool and the recipe do ("nfor: window=4 must be ...").
-template <class Options>
-Options stage_options(const std::string& stage, const mcdn::AovSpec& aovs,
-                      const mcdn::Settings& settings)
-{
-    Options o;
-    o.aovs = aovs;
-    std::string error;
-    if (!mcdn::apply_settings(o, settings, error))
-        throw std::runtime_error(stage + ": " + error);
-    return o;
-}
-
-std::string text(int value)
-{
-    return std::to_string(value);
-}
-std::string text(bool value)
-{
-    return value ? "1" : "0";
-}
-std::string text(float value)
-{
-    return OIIO::Strutil::fmt::format("{}", value);
-}
-
-// Which half buffers an op reads, as mcdntool decides what to read (its InputSelection):
-// NFOR's always, the other stages' only where there is no colour variance (they take the
-// halves' difference then), a stage's result's never (its colour is denoised).
-enum class Halves { Read, WithoutVariance, Never };
-
-// What mcdntool and the plugin check of their inputs before any stage, for an image a
-// Python step hands an op: its values (mcdn::validate_inputs: NaN, Inf, huge values, a
-// negative variance, a normal that is no direction, in any channel a stage reads) and the
-// half buffers the op reads (mcdn::check_halves). A RuntimeError names the file and
-// channel; tiles whose halves were repaired are a RuntimeWarning. Returns the image to run
-// on: `src`, or `repaired` (a copy) where halves were repaired. An AOV set that does not
-// resolve is left to the op to report.
-const ImageBuf& checked(const ImageBuf& src, const mcdn::AovSpec& spec, ImageBuf& repaired,
-                        Halves halves)
-{
-    mcdn::AovSet set;
-    std::string error;
-    if (!mcdn::resolve_aovs(set, spec, src.spec(), error))
-        return src;
-    const bool local = src.localpixels() && src.spec().format == OIIO::TypeDesc::FLOAT;
-    ImageBuf copy;
-    if (!local && !copy.copy(src, OIIO::TypeDesc::FLOAT))
-        throw std::runtime_error(copy.geterror());
-    const ImageBuf& values = local ? src : copy;
-    const bool reads_halves =
-        set.has(mcdn::Role::ColorA) && set.has(mcdn::Role::ColorB)
-        && (halves == Halves::Read
-            || (halves == Halves::WithoutVariance && !set.has(mcdn::Role::ColorVariance)));
-    int tiles = 0;
-    {
-        py::gil_scoped_release release;
-        if (mcdn::validate_inputs(values, set, error) && reads_halves) {
-            if (local)
-                copy.copy(src);
-            if (!mcdn::check_halves(copy, set, tiles, error))
-                tiles = -1;
-        }
-    }
-    if (!error.empty())
-        throw std::runtime_error(error);
-    if (tiles <= 0)
-        return src;
-    py::module_::import("warnings")
-        .attr("warn")(std::to_string(tiles)
-                          + " tile(s) of 32x32 pixels: the half buffers disagree with the "
-                            "render there (a corrupt block?); their halves are the render's colour",
-                      py::module_::import("builtins").attr("RuntimeWarning"));
-    repaired = std::move(copy);
-    return repaired;
-}
-
-// Runs an op in OIIO's shape on `src` as checked() passes it, without the GIL; its error
-// becomes a RuntimeError.
-template <class Op>
-ImageBuf run(const ImageBuf& src, const mcdn::AovSpec& spec, Halves halves, Op op)
-{
-    ImageBuf repaired;
-    const ImageBuf& in = checked(src, spec, repaired, halves);
-    ImageBuf dst;
-    bool ok;
-    {
-        py::gil_scoped_release release;
-        ok = op(dst, in);
-    }
-    if (!ok)
-        throw std::runtime_error(dst.geterror());
-    return dst;
-}
-
-// checked() of the neighbouring frames of a cross-frame op, held with any repaired copies.
-struct CheckedFrames {
-    std::vector<ImageBuf> repaired;  // reserved up front: the pointers point into it
-    std::vector<const ImageBuf*> previous, next;
-
-    CheckedFrames(const std::vector<ImageBuf*>& before, const std::vector<ImageBuf*>& after,
-                  const mcdn::AovSpec& spec, Halves halves)
-    {
-        repaired.reserve(before.size() + after.size());
-        for (auto [from, to] : { std::pair { &before, &previous }, std::pair { &after, &next } })
-            for (ImageBuf* frame : *from) {
-                repaired.emplace_back();
-                to->push_back(&checked(*frame, spec, repaired.back(), halves));
-            }
-    }
-};
-
-// Denoisers by name ("nfor", "cnn", "prefilter,nfor": Denoisers of the stage table,
-// mcdn/stages.h) as one, with how far they reach (SureOptions::denoiser_radius) and whether
-// one of them reads the half buffers.
-mcdn::Denoiser named_denoiser(const std::string& chain, const mcdn::AovSpec& spec,
-                              const mcdn::SkipOptions& skip, int nthreads, int& radius,
-                              bool& reads_halves)
-{
-    std::vector<std::string> names;
-    std::string error;
-    const std::vector<std::string> known = mcdn::stage_names({ mcdn::StageKind::Denoiser });
-    auto unknown = [&]() {
-        return std::runtime_error("sure: unknown denoiser '" + chain + "' (use "
-                                  + OIIO::Strutil::join(known, ", ")
-                                  + ", several joined by commas, or a callable)");
-    };
-    if (!mcdn::parse_chain(names, chain, error))
-        throw unknown();
-    mcdn::StageContext context;
-    context.aovs = spec;
-    context.nthreads = nthreads;
-    const mcdn::Settings settings = { { "skip", text(skip.enabled) },
-                                      { "converged", text(skip.max_relative_error) } };
-    std::vector<std::pair<std::string, mcdn::Denoiser>> denoisers;
-    std::vector<mcdn::StageReach> reach;
-    reads_halves = false;
-    for (const std::string& name : names) {
-        const mcdn::StageInfo& stage = *mcdn::find_stage(name);
-        mcdn::MadeStage made;
-        if (stage.kind != mcdn::StageKind::Denoiser)
-            throw unknown();
-        if (!stage.make(made, settings, context, error))
-            throw std::runtime_error("sure: " + name + ": " + error);
-        denoisers.emplace_back(name, std::move(made.run));
-        reach.push_back(made.reach);
-        reads_halves |= stage.reads_halves;
-    }
-    radius = mcdn::chain_radius(reach);
-    return mcdn::compose(std::move(denoisers));
-}
+using namespace mcdn_python;
 
 // Read_inputs, write, validate: files in and out, and the checks mcdntool makes.
 void bind_files(py::module_& m)
@@ -455,21 +292,6 @@ void bind_progressive(py::module_& m)
         "denoiser named in the "
         "image's 'mcdn:denoiser' attribute (set by nfor and cnn; models/mix_cnn.mcdnw for "
         "'cnn', else models/mix.mcdnw).");
-}
-
-// A Python progress(stage, fraction) as the stages' callback (none: none).
-mcdn::ProgressCallback python_progress(py::object progress, const char* where)
-{
-    if (progress.is_none())
-        return {};
-    return [progress, where](const std::string& stage, float fraction) {
-        py::gil_scoped_acquire gil;
-        try {
-            progress(stage, fraction);
-        } catch (py::error_already_set& e) {
-            e.discard_as_unraisable(where);
-        }
-    };
 }
 
 // Denoise, plan and run_chain: the best chain the inputs allow, or any chain of the stage

@@ -1,0 +1,133 @@
+// Where each renderer's preset finds each role (aov/presets.h): the channel names from the
+// renderers' own documentation.
+#include "aov/presets.h"
+
+namespace mcdn {
+
+std::vector<std::string> with_suffixes(const std::string& stem, const char* suffixes)
+{
+    std::vector<std::string> names;
+    for (const char* s = suffixes; *s; ++s)
+        names.push_back(stem + "." + *s);
+    return names;
+}
+
+// Where a preset keeps the mean face of `role`: channel-name lists to try in order.
+// The other faces are the same names behind the input-kind prefix (a separate -i:as= file),
+// or where the renderer writes them into the render file itself: preset_face_candidates.
+//
+// The renderers' names, from their documentation:
+// - Cycles (Blender's multilayer EXR, "<layer>.<pass>.<channel>"): Combined, Denoising
+//   Albedo/Normal/Depth, DiffCol/Dir/Ind, GlossCol/Dir/Ind, Emit, Env; light groups
+//   Combined_<group> (blender intern/cycles/blender/sync.cpp). No variance pass: K seeds give
+//   the mean, the variance of the mean and halves A/B (training/datagen).
+// - Arnold (help.autodesk.com, Arnold User Guide: AOVs, Expression AOVs, Arnold Denoiser):
+//   the beauty RGBA as R,G,B,A, or RGBA.R,... with "Preserve Layer Name"; N, Z; the albedo
+//   LPE AOVs albedo, denoise_albedo, diffuse_albedo; light groups RGBA_<group>. The variance
+//   is an output of the beauty through variance_filter, named by the output line; `variance`
+//   (variance.R,G,B) is what the noice documentation and the exporters use.
+// - RenderMan (rmanwiki.pixar.com, Denoising): Ci (Ci.r,g,b; or R,G,B), a; mse (the error
+//   estimate of Ci); albedo, albedo_var; normal, normal_var; zfiltered, zfiltered_var;
+//   diffuse, specular (and their _mse); forward/backward (motion, not read).
+// - OIDN-style files: the beauty with an albedo and a normal, no variance (what Blender's and
+//   OIDN's own denoiser need).
+Candidates preset_candidates(const std::string& preset, const std::string& layer, Role role)
+{
+    if (preset == "cycles") {
+        const std::string L = layer + ".";
+        switch (role) {
+        case Role::Color: return { with_suffixes(L + "Combined", "RGB") };
+        case Role::Albedo: return { with_suffixes(L + "Denoising Albedo", "RGB") };
+        case Role::Normal: return { with_suffixes(L + "Denoising Normal", "XYZ") };
+        case Role::Depth: return { { L + "Denoising Depth.Z" }, { L + "Depth.Z" } };
+        case Role::DiffuseColor: return { with_suffixes(L + "DiffCol", "RGB") };
+        case Role::DiffuseDirect: return { with_suffixes(L + "DiffDir", "RGB") };
+        case Role::DiffuseIndirect: return { with_suffixes(L + "DiffInd", "RGB") };
+        case Role::GlossyColor: return { with_suffixes(L + "GlossCol", "RGB") };
+        case Role::GlossyDirect: return { with_suffixes(L + "GlossDir", "RGB") };
+        case Role::GlossyIndirect: return { with_suffixes(L + "GlossInd", "RGB") };
+        case Role::Emission: return { with_suffixes(L + "Emit", "RGB") };
+        case Role::Environment: return { with_suffixes(L + "Env", "RGB") };
+        case Role::Motion: return { with_suffixes(L + "Vector", "XYZW") };
+        default: return {};
+        }
+    }
+    if (preset == "arnold") {
+        switch (role) {
+        case Role::Color: return { { "R", "G", "B" }, with_suffixes("RGBA", "RGB") };
+        case Role::Albedo:
+            return { with_suffixes("denoise_albedo", "RGB"), with_suffixes("albedo", "RGB"),
+                     with_suffixes("diffuse_albedo", "RGB") };
+        case Role::Normal: return { with_suffixes("N", "XYZ"), with_suffixes("N", "RGB") };
+        case Role::Depth: return { { "Z" }, { "Z.Z" }, { "Z.R" } };
+        default: return {};
+        }
+    }
+    if (preset == "renderman") {
+        switch (role) {
+        case Role::Color:
+            return { with_suffixes("Ci", "rgb"), with_suffixes("Ci", "RGB"), { "R", "G", "B" } };
+        case Role::Albedo:
+            return { with_suffixes("albedo", "rgb"), with_suffixes("albedo", "RGB") };
+        case Role::Normal:
+            return { with_suffixes("normal", "xyz"), with_suffixes("normal", "rgb"),
+                     with_suffixes("normal", "XYZ"), with_suffixes("normal", "RGB") };
+        case Role::Depth:
+            return { { "zfiltered" }, { "zfiltered.r" }, { "zfiltered.z" }, { "zfiltered.Z" } };
+        case Role::Diffuse:
+            return { with_suffixes("diffuse", "rgb"), with_suffixes("diffuse", "RGB") };
+        case Role::Specular:
+            return { with_suffixes("specular", "rgb"), with_suffixes("specular", "RGB") };
+        default: return {};
+        }
+    }
+    // generic, oidn, and tungsten (read_tungsten_directory produces the generic layout)
+    switch (role) {
+    case Role::Color: return { { "R", "G", "B" }, with_suffixes("color", "RGB") };
+    case Role::Albedo: return { with_suffixes("albedo", "RGB") };
+    case Role::Normal:
+        return { with_suffixes("N", "XYZ"), with_suffixes("normal", "XYZ"),
+                 with_suffixes("normal", "RGB") };
+    case Role::Depth: return { { "Z" }, { "depth.Z" }, { "depth" } };
+    case Role::Visibility:
+        if (preset == "oidn")
+            return {};
+        return { { "visibility" }, { "visibility.Y" } };
+    case Role::Diffuse:
+    case Role::Specular:
+        if (preset == "oidn")
+            return {};
+        return { with_suffixes(role == Role::Diffuse ? "diffuse" : "specular", "RGB") };
+    default: return {};
+    }
+}
+
+// Faces a renderer writes into the render file under their own names (tried before the
+// prefixed names of a separate -i:as= file).
+Candidates preset_face_candidates(const std::string& preset, Role base, Face face)
+{
+    if (face != Face::Variance)
+        return {};
+    if (preset == "arnold" && base == Role::Color)
+        return { with_suffixes("variance", "RGB"), with_suffixes("RGBA_variance", "RGB"),
+                 with_suffixes("beauty_variance", "RGB") };
+    if (preset == "renderman") {
+        switch (base) {
+        case Role::Color: return { with_suffixes("mse", "rgb"), with_suffixes("mse", "RGB") };
+        case Role::Albedo:
+            return { with_suffixes("albedo_var", "rgb"), with_suffixes("albedo_var", "RGB") };
+        case Role::Normal:
+            return { with_suffixes("normal_var", "xyz"), with_suffixes("normal_var", "rgb"),
+                     with_suffixes("normal_var", "XYZ"), with_suffixes("normal_var", "RGB") };
+        case Role::Depth:
+            return { { "zfiltered_var" },
+                     { "zfiltered_var.r" },
+                     { "zfiltered_var.z" },
+                     { "zfiltered_var.Z" } };
+        default: return {};
+        }
+    }
+    return {};
+}
+
+}  // namespace mcdn
