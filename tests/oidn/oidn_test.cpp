@@ -266,6 +266,54 @@ TEST(Oidn, ErrorsNameTheFileAndWhereWeightsComeFrom)
     std::remove(path.c_str());
 }
 
+// A heavy-tailed pixel enters the network as its neighbourhood (OidnOptions::outliers): the
+// result changes only within the network's reach of it, and nowhere without a variance.
+TEST(Oidn, HeavyTailedPixelsEnterAsTheirNeighbourhood)
+{
+    const std::string path = temp_path("outliers.tza");
+    write_tiny_tza(path, 9, 8, 8);
+    const int w = 96, h = 96;
+    ImageBuf src = render(w, h, 9);
+    ImageSpec spec = src.spec();
+    // The render's variance: small everywhere but at one firefly, 40x its neighbours.
+    ImageBuf with_variance = OIIO::ImageBufAlgo::channel_append(
+        src, ImageBuf(ImageSpec(w, h, 3, OIIO::TypeDesc::FLOAT)));
+    with_variance.specmod().channelnames = spec.channelnames;
+    for (const char* c : { "variance.R", "variance.G", "variance.B" })
+        with_variance.specmod().channelnames.push_back(c);
+    const int fx = 50, fy = 40;
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+            for (int c = 0; c < 3; ++c) {
+                const bool firefly = x == fx && y == fy;
+                float value[12];
+                with_variance.getpixel(x, y, value, 12);
+                value[c] = firefly ? 400.0f : 0.4f;
+                value[9 + c] = firefly ? 1e4f : 1e-3f;
+                with_variance.setpixel(x, y, value, 12);
+            }
+    OidnOptions o = options_with(path);
+    o.aovs.overrides["color_variance"] = { "variance.R", "variance.G", "variance.B" };
+    ImageBuf dropped, kept;
+    ASSERT_TRUE(oidn(dropped, with_variance, o, {}, 2)) << dropped.geterror();
+    o.outliers = OidnOptions::Outliers::Off;
+    ASSERT_TRUE(oidn(kept, with_variance, o, {}, 2)) << kept.geterror();
+    const int reach = receptive_radius(o) + 2;
+    float differs_near = 0, differs_far = 0;
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            float a[12], b[12];
+            dropped.getpixel(x, y, a, 12);
+            kept.getpixel(x, y, b, 12);
+            const float d = std::abs(a[0] - b[0]);
+            (std::max(std::abs(x - fx), std::abs(y - fy)) <= reach ? differs_near : differs_far) +=
+                d;
+        }
+    EXPECT_GT(differs_near, 0.0f);
+    EXPECT_EQ(differs_far, 0.0f);
+    std::remove(path.c_str());
+}
+
 // ../peers/oidn/README.md's measurements: relMSE of rt_hdr_alb_nrm against the reference.
 TEST(Oidn, PublishedWeightsReproduceThePublishedNumbers)
 {

@@ -14,6 +14,8 @@
 //   net     OIDN's UNet (lib/src/oidn/oidn_steps.h), tiled with a halo of its receptive
 //           field, the image extended to a multiple of 16
 //   out     the inverse transfer of the output clamped at 0, divided by the scale
+// Heavy-tailed pixels (OidnOptions::outliers) enter the network as their neighbourhood's
+// median, as they enter our CNN.
 #pragma once
 
 #include <string>
@@ -36,6 +38,16 @@ struct OidnOptions {
     /// Output tile side of the tiled inference: memory follows (tile + 2 × halo)², not the
     /// frame; the output does not depend on it.
     int tile_size = 512;
+    /// Heavy-tailed samples (a caustic through glass, a firefly), by the rule and thresholds
+    /// of NFOR's and the CNN's (lib/src/outliers/outliers.h): such a pixel's colour becomes
+    /// its 5×5 neighbourhood's median in the network's input and its excess is dropped, as a
+    /// renderer's sample clamp would; otherwise the network spreads it into a blotch. Needs
+    /// the colour's variance (else nothing is taken out).
+    enum class Outliers {
+        Drop,  ///< taken out of the input, their excess dropped (the default)
+        Off,   ///< every pixel as rendered
+    };
+    Outliers outliers = Outliers::Drop;
     /// Converged tiles are the render (mcdn/skip.h).
     SkipOptions skip;
     ProgressCallback progress;

@@ -254,6 +254,16 @@ bool oidn_settings(OidnOptions& o, const Settings& settings, std::string& error)
     return SettingsReader(settings, "oidn", error)
         .text("weights", o.weights)
         .positive_int("tile", o.tile_size)
+        .custom("outliers", "must be drop or off",
+                [&](const std::string& v) {
+                    if (v == "drop")
+                        o.outliers = OidnOptions::Outliers::Drop;
+                    else if (v == "off" || v == "0")
+                        o.outliers = OidnOptions::Outliers::Off;
+                    else
+                        return false;
+                    return true;
+                })
         .skip(o.skip)
         .ok();
 }
@@ -283,7 +293,7 @@ StageInfo oidn_stage()
 {
     StageInfo s;
     s.name = "oidn";
-    s.keys = { "weights", "tile", "skip", "converged" };
+    s.keys = { "weights", "tile", "outliers", "skip", "converged" };
     s.cross_frame = true;
     s.probes_in_place = true;
     s.facts.exposure = true;
@@ -301,7 +311,10 @@ StageInfo oidn_stage()
              "else <prefix>/share/mcdenoise/oidn/; mcdenoise does not ship them: they are "
              "OIDN's, Apache 2.0, from RenderKit/oidn-weights). The model follows the inputs: "
              "colour + albedo + normal (rt_hdr_alb_nrm), colour + albedo (rt_hdr_alb), colour "
-             "(rt_hdr). Tiled (tile=512); extra AOVs are kept as they are. Cross-frame, in a "
+             "(rt_hdr). Tiled (tile=512); extra AOVs are kept as they are. A pixel holding one "
+             "sample worth a hundred of its neighbours (a caustic, a firefly) enters the network "
+             "as its neighbourhood and its excess is removed, by --nfor's rule (outliers=drop; "
+             "off: left in, where the network spreads it). Cross-frame, in a "
              "sequence: frames=2 combines this frame with 2 previous and 2 next ones first, as "
              "--cnn:frames=2 does. "
              "--oidn --sure --mix is Progressive Denoising's configuration (§6): OIDN's result, "

@@ -4,6 +4,7 @@
 // output's colour — one tile per worker thread, each with its own copy of the network.
 #include "mcdn/oidn.h"
 
+#include <array>
 #include <cstdlib>
 #include <map>
 #include <memory>
@@ -22,6 +23,9 @@
 #include "mcdn/version.h"
 #include "nn/network_regions.h"
 #include "nn/with_threads.h"
+#include "ops/color_planes.h"
+#include "outliers/outliers.h"
+#include "mcdn/nfor.h"
 #include "oidn/oidn_steps.h"
 #include "skip/converged_tiles.h"
 
@@ -85,7 +89,35 @@ struct Inputs {
     int color[3], albedo[3], normal[3];
     bool has_albedo = false, has_normal = false;
     float exposure = 1;
+    /// Heavy-tailed pixels (frame plane index, ascending) and the colour they enter as.
+    std::vector<uint32_t> outliers;
+    std::vector<std::array<float, 3>> outlier_color;
 };
+
+/// OidnOptions::outliers: the heavy-tailed pixels of src by NFOR's rule and thresholds
+/// (outliers/outliers.h), with their neighbourhood's median colour; none without the
+/// colour's variance.
+void find_outliers(Inputs& in, const ImageBuf& src, const AovSet& aovs,
+                   const ConvergedTiles& converged, int nthreads)
+{
+    if (!aovs.has(Role::ColorVariance))
+        return;
+    ColorPlanes color;
+    read_color_planes(color, src, aovs, false);
+    FrameFacts facts;
+    const ColorSums frame = frame_facts(facts, src.spec()) ? facts.color : color_sums(color);
+    const NforOptions nfor;  // the same thresholds as NFOR's and the CNN's
+    const OutlierRule rule = outlier_rule(nfor.outlier_sigma, nfor.outlier_variance_ratio,
+                                          nfor.outlier_level_ratio, frame);
+    std::vector<ExtraPlanes> no_extras;
+    const OutlierPixels found = take_out_outliers(color.mean, color.variance, nullptr, nullptr,
+                                                  no_extras, converged, rule, nthreads);
+    for (uint32_t i : found.pixels) {
+        in.outliers.push_back(i);
+        in.outlier_color.push_back(
+            { color.mean[0].px[i], color.mean[1].px[i], color.mean[2].px[i] });
+    }
+}
 
 /// The network's input on `window` (coordinates of the frame extended to a multiple of the
 /// network's alignment: rows and columns past the frame repeat its last ones).
@@ -106,6 +138,14 @@ void tile_input(nn::Tensor& input, const ImageBuf& src, const Inputs& in, const 
         src.get_pixels(OIIO::ROI(spec.x + inside.x0, spec.x + inside.x1, spec.y + inside.y0,
                                  spec.y + inside.y1, 0, 1, channel, channel + 1),
                        OIIO::TypeDesc::FLOAT, plane.data());
+        // A heavy-tailed pixel's colour enters as its neighbourhood's (find_outliers).
+        for (size_t k = 0; to < 3 && k < in.outliers.size(); ++k) {
+            const int x = int(in.outliers[k] % uint32_t(spec.width));
+            const int y = int(in.outliers[k] / uint32_t(spec.width));
+            if (x >= inside.x0 && x < inside.x1 && y >= inside.y0 && y < inside.y1)
+                plane[size_t(y - inside.y0) * inside.width() + (x - inside.x0)] =
+                    in.outlier_color[k][size_t(to)];
+        }
         for (int y = window.y0; y < window.y1; ++y)
             for (int x = window.x0; x < window.x1; ++x) {
                 const int sy = std::min(y, inside.y1 - 1), sx = std::min(x, inside.x1 - 1);
@@ -191,6 +231,8 @@ bool oidn_in_working_space(ImageBuf& dst, const ImageBuf& src, const OidnOptions
     const ConvergedTiles converged = converged_tiles_of(src, aovs, options.skip);
     if (converged.all())
         return true;
+    if (options.outliers == OidnOptions::Outliers::Drop)
+        find_outliers(in, src, aovs, converged, nthreads);
     // The exposure of the whole frame (a band of a larger one carries it).
     FrameFacts facts;
     in.exposure = frame_facts(facts, src.spec()) && facts.has_exposure
@@ -294,7 +336,9 @@ int receptive_radius(const OidnOptions& options)
         nn::Net net;
         if (oidn_weights(path, options, albedo, albedo, error)
             && cached_weights(weights, path, error) && oidn_net::build_unet(net, *weights, error))
-            return net.receptive_radius();
+            // Outliers are decided on the 5×5 neighbourhood of the input.
+            return net.receptive_radius()
+                   + (options.outliers == OidnOptions::Outliers::Drop ? OutlierRule::radius : 0);
     }
     return -1;
 }
