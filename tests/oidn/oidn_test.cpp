@@ -314,6 +314,61 @@ TEST(Oidn, HeavyTailedPixelsEnterAsTheirNeighbourhood)
     std::remove(path.c_str());
 }
 
+// Light groups are denoised too and still add up to the denoised beauty (to rounding);
+// extras=0 keeps them as rendered.
+TEST(Oidn, ExtrasStillSumToTheBeauty)
+{
+    const std::string path = temp_path("extras.tza");
+    write_tiny_tza(path, 9, 8, 10);
+    const int w = 70, h = 50;
+    const ImageBuf base = render(w, h, 11);
+    ImageSpec spec(w, h, 15, OIIO::TypeDesc::FLOAT);
+    spec.channelnames = base.spec().channelnames;
+    for (const char* c : { "key.R", "key.G", "key.B", "fill.R", "fill.G", "fill.B" })
+        spec.channelnames.push_back(c);
+    ImageBuf src(spec);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            float p[15];
+            base.getpixel(x, y, p, 9);
+            for (int c = 0; c < 3; ++c) {
+                p[9 + c] = p[c] * float(x) / float(w);  // the key's share of the beauty
+                p[12 + c] = p[c] - p[9 + c];
+            }
+            src.setpixel(x, y, p, 15);
+        }
+    OidnOptions o = options_with(path);
+    o.aovs.extras = { { "key", { "key.R", "key.G", "key.B" } },
+                      { "fill", { "fill.R", "fill.G", "fill.B" } } };
+    ImageBuf out, kept;
+    ASSERT_TRUE(oidn(out, src, o, {}, 2)) << out.geterror();
+    float worst = 0, moved = 0;
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            float p[15], q[15];
+            out.getpixel(x, y, p, 15);
+            src.getpixel(x, y, q, 15);
+            for (int c = 0; c < 3; ++c) {
+                worst = std::max(worst,
+                                 std::abs(p[9 + c] + p[12 + c] - p[c]) / (1.0f + std::abs(p[c])));
+                moved = std::max(moved, std::abs(p[9 + c] - q[9 + c]));
+            }
+        }
+    EXPECT_LT(worst, 1e-4f);
+    EXPECT_GT(moved, 0.0f);
+    o.denoise_extras = false;
+    ASSERT_TRUE(oidn(kept, src, o, {}, 2)) << kept.geterror();
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            float p[15], q[15];
+            kept.getpixel(x, y, p, 15);
+            src.getpixel(x, y, q, 15);
+            for (int c = 9; c < 15; ++c)
+                ASSERT_EQ(p[c], q[c]);
+        }
+    std::remove(path.c_str());
+}
+
 // ../peers/oidn/README.md's measurements: relMSE of rt_hdr_alb_nrm against the reference.
 TEST(Oidn, PublishedWeightsReproduceThePublishedNumbers)
 {

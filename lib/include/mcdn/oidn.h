@@ -35,6 +35,10 @@ struct OidnOptions {
     /// <prefix>/share/mcdenoise/oidn/ (oidn_weights_dir()). A file's first convolution
     /// says which inputs it reads (3: colour, 6: + albedo, 9: + normal).
     std::string weights;
+    /// Denoise the AOV set's extra AOVs (AovSpec::extras, light groups) too, each by the
+    /// network with the beauty's features and exposure, then shared so that extras which add
+    /// up to the beauty still do (to float rounding); false: keep them as rendered.
+    bool denoise_extras = true;
     /// Output tile side of the tiled inference: memory follows (tile + 2 × halo)², not the
     /// frame; the output does not depend on it.
     int tile_size = 512;
@@ -66,8 +70,8 @@ bool oidn_weights(std::string& path, const OidnOptions& options, bool has_albedo
 int receptive_radius(const OidnOptions& options);
 
 /// dst = src with the colour role replaced by OIDN's network's estimate (inside `roi`; every
-/// other channel kept). Needs the colour; reads the albedo and normal where present.
-/// Deterministic for any `nthreads` (0 = all cores).
+/// other channel kept, the extras denoised as OidnOptions::denoise_extras says). Needs the colour;
+/// reads the albedo and normal where present. Deterministic for any `nthreads` (0 = all cores).
 bool oidn(ImageBuf& dst, const ImageBuf& src, const OidnOptions& options = {}, ROI roi = {},
           int nthreads = 0);
 ImageBuf oidn(const ImageBuf& src, const OidnOptions& options = {}, ROI roi = {}, int nthreads = 0);

@@ -254,6 +254,7 @@ bool oidn_settings(OidnOptions& o, const Settings& settings, std::string& error)
     return SettingsReader(settings, "oidn", error)
         .text("weights", o.weights)
         .positive_int("tile", o.tile_size)
+        .flag("extras", o.denoise_extras)
         .custom("outliers", "must be drop or off",
                 [&](const std::string& v) {
                     if (v == "drop")
@@ -293,7 +294,7 @@ StageInfo oidn_stage()
 {
     StageInfo s;
     s.name = "oidn";
-    s.keys = { "weights", "tile", "outliers", "skip", "converged" };
+    s.keys = { "weights", "tile", "extras", "outliers", "skip", "converged" };
     s.cross_frame = true;
     s.probes_in_place = true;
     s.facts.exposure = true;
@@ -311,7 +312,9 @@ StageInfo oidn_stage()
              "else <prefix>/share/mcdenoise/oidn/; mcdenoise does not ship them: they are "
              "OIDN's, Apache 2.0, from RenderKit/oidn-weights). The model follows the inputs: "
              "colour + albedo + normal (rt_hdr_alb_nrm), colour + albedo (rt_hdr_alb), colour "
-             "(rt_hdr). Tiled (tile=512); extra AOVs are kept as they are. A pixel holding one "
+             "(rt_hdr). Tiled (tile=512). Extra AOVs (light groups) are denoised by the network "
+             "too, then shared so that extras that add up to the beauty still do (extras=0: "
+             "keep them). A pixel holding one "
              "sample worth a hundred of its neighbours (a caustic, a firefly) enters the network "
              "as its neighbourhood and its excess is removed, by --nfor's rule (outliers=drop; "
              "off: left in, where the network spreads it). Cross-frame, in a "

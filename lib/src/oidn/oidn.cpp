@@ -14,6 +14,7 @@
 #include <OpenImageIO/strutil.h>
 
 #include "core/attributes.h"
+#include "core/extra_aovs.h"
 #include "core/frame_facts.h"
 #include "core/op_prepare.h"
 #include "core/planar.h"
@@ -163,6 +164,49 @@ void tile_input(nn::Tensor& input, const ImageBuf& src, const Inputs& in, const 
         read(in.normal[c], 6 + c, [](float v) { return std::clamp(v, -1.0f, 1.0f) * 0.5f + 0.5f; });
 }
 
+/// One run of the network over the frame: the beauty, or an extra AOV in the colour's place.
+struct Pass {
+    Inputs in;
+    std::vector<int> out;  // dst's channels it writes
+};
+
+/// The denoised extras still add up as the rendered ones did: where the input's extras sum
+/// to its beauty less a remainder R (light in no group; 0 when they partition it), the
+/// result's sum to the denoised beauty less R, the difference shared among the extras by
+/// their denoised magnitude (equally where all are 0). Inside `where`, not on converged
+/// tiles (which are the render).
+void keep_extras_summing(ImageBuf& dst, const ImageBuf& src, const std::vector<Pass>& passes,
+                         const ROI& where, const ConvergedTiles& converged)
+{
+    const ImageSpec& spec = dst.spec();
+    float* pixels = const_cast<float*>(float_frame_pixels(dst));
+    const size_t n = passes.size() - 1;
+    std::vector<float> rendered(size_t(src.nchannels()));
+    for (int y = where.ybegin - spec.y; y < where.yend - spec.y; ++y)
+        for (int x = where.xbegin - spec.x; x < where.xend - spec.x; ++x) {
+            if (converged.pixel(x, y))
+                continue;
+            src.getpixel(spec.x + x, spec.y + y, rendered.data(), src.nchannels());
+            float* pixel = pixels + (size_t(y) * spec.width + x) * spec.nchannels;
+            for (int c = 0; c < 3; ++c) {
+                double sum_in = 0, sum_out = 0, magnitude = 0;
+                for (size_t e = 1; e <= n; ++e) {
+                    const int ch = passes[e].out[size_t(c)];
+                    sum_in += sanitize(rendered[size_t(ch)]);
+                    sum_out += pixel[ch];
+                    magnitude += std::abs(pixel[ch]);
+                }
+                const int beauty = passes[0].out[size_t(c)];
+                const double remainder = sanitize(rendered[size_t(beauty)]) - sum_in;
+                const double missing = pixel[beauty] - remainder - sum_out;
+                for (size_t e = 1; e <= n; ++e) {
+                    float& v = pixel[passes[e].out[size_t(c)]];
+                    v = float(v + missing * (magnitude > 0 ? std::abs(v) / magnitude : 1.0 / n));
+                }
+            }
+        }
+}
+
 /// The network's output on the frame pixels `rect` (inside its tile's core) into dst's
 /// colour channels `out`, through the inverse transform, except on converged tiles.
 void write_output(ImageBuf& dst, const int out[3], const nn::Tensor& result, const Rect& window,
@@ -265,10 +309,24 @@ bool oidn_in_working_space(ImageBuf& dst, const ImageBuf& src, const OidnOptions
     for (const nn::Tile& tile : planned)
         if (!output_rect(tile.core).empty())
             tiles.push_back(tile);
-    ProgressCounter progress(options.progress, "oidn", int(tiles.size()));
+    // The beauty, then each extra AOV (a light group: its own run of the network, with the
+    // beauty's exposure and features), into its channels of dst.
+    std::vector<Pass> passes = { { in, { out[0], out[1], out[2] } } };
+    if (!color_only && denoises_extras(options.denoise_extras, src))
+        for (const AovSet::Extra& extra : aovs.extras())
+            if (extra.channels.size() == 3) {
+                Pass pass { in, extra.channels };
+                pass.in.outliers.clear();
+                pass.in.outlier_color.clear();
+                for (int c = 0; c < 3; ++c)
+                    pass.in.color[c] = extra.channels[size_t(c)];
+                passes.push_back(pass);
+            }
+    const int count = int(tiles.size() * passes.size());
+    ProgressCounter progress(options.progress, "oidn", count);
     std::mutex failed;
     const bool ran = nn::with_threads(nthreads, [&] {
-        const int workers = std::min(nn::max_threads(), int(tiles.size()));
+        const int workers = std::min(nn::max_threads(), count);
         while (int(nets.size()) < workers) {
             nets.push_back(std::make_unique<nn::Net>());
             if (!oidn_net::build_unet(*nets.back(), *weights, error))
@@ -276,19 +334,20 @@ bool oidn_in_working_space(ImageBuf& dst, const ImageBuf& src, const OidnOptions
         }
         std::vector<std::vector<nn::Tensor>> inputs(static_cast<size_t>(workers)),
             results(static_cast<size_t>(workers));
-        return nn::for_each_tile(int(tiles.size()), workers, [&](int index, int worker) {
-            const nn::Tile& tile = tiles[size_t(index)];
+        return nn::for_each_tile(count, workers, [&](int index, int worker) {
+            const Pass& pass = passes[size_t(index) / tiles.size()];
+            const nn::Tile& tile = tiles[size_t(index) % tiles.size()];
             std::vector<nn::Tensor>& input = inputs[size_t(worker)];
             std::string tile_error;
             input.resize(1);
-            tile_input(input[0], src, in, tile.window);
+            tile_input(input[0], src, pass.in, tile.window);
             if (!nets[size_t(worker)]->run(input, results[size_t(worker)], tile_error)) {
                 std::lock_guard<std::mutex> lock(failed);
                 error = format("oidn: '{}': {}", path, tile_error);
                 return false;
             }
-            write_output(dst, out, results[size_t(worker)][0], tile.window, output_rect(tile.core),
-                         in.exposure, converged);
+            write_output(dst, pass.out.data(), results[size_t(worker)][0], tile.window,
+                         output_rect(tile.core), in.exposure, converged);
             progress.advance();
             return true;
         });
@@ -297,6 +356,8 @@ bool oidn_in_working_space(ImageBuf& dst, const ImageBuf& src, const OidnOptions
         dst.errorfmt("{}", error);
         return false;
     }
+    if (passes.size() > 1)
+        keep_extras_summing(dst, src, passes, where, converged);
     trace.mark("network tiles");
     return true;
 }
