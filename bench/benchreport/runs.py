@@ -29,6 +29,14 @@ class Chain:
         return re.sub(r"[^A-Za-z0-9]+", "_", self.name).strip("_")
 
 
+OIDN_WEIGHTS = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))),
+                            "..", "shared", "peers", "oidn")
+
+
+def has_oidn_weights():
+    return os.path.exists(os.path.join(OIDN_WEIGHTS, "rt_hdr_alb_nrm.tza"))
+
+
 CHAINS = [
     Chain("noisy", []),  # the render passed through: read and write only
     Chain("nfor", ["--prefilter", "--nfor"]),
@@ -37,6 +45,11 @@ CHAINS = [
     Chain("nfor+sure+mix:net", ["--prefilter", "--nfor", "--sure", "--mix:model=net:alpha=1"], True),
     Chain("cnn+sure+mix:analytic", ["--cnn", "--sure", "--mix:model=analytic:alpha=1"], True),
     Chain("cnn+sure+mix:net", ["--cnn", "--sure", "--mix:model=net:alpha=1"], True),
+    # Intel Open Image Denoise's published network on our engine, with the weights of
+    # ../shared/peers/oidn (measurement only, never part of the project): skipped without them.
+    Chain("oidn", ["--oidn:weights=" + OIDN_WEIGHTS]),
+    Chain("oidn+sure+mix:net", ["--oidn:weights=" + OIDN_WEIGHTS, "--sure",
+                                "--mix:model=net:alpha=1"], True),
 ]
 ALPHA_CHANNELS = ["mix.alpha.R", "mix.alpha.G", "mix.alpha.B"]
 MEASURE_CHILD = os.path.join(os.path.dirname(os.path.abspath(__file__)), "measure_child.py")
