@@ -290,6 +290,17 @@ bool make_oidn(MadeStage& made, const Settings& settings, const StageContext& co
     return true;
 }
 
+// A worker's network buffers: the UNet's layers at full resolution, ~250 floats a pixel, over
+// (tile + 2 halo)^2.
+double oidn_thread_bytes(const Settings& settings)
+{
+    OidnOptions o;
+    std::string error;
+    oidn_settings(o, settings, error);
+    const double side = o.tile_size + 2 * 96;
+    return side * side * 250 * sizeof(float);
+}
+
 StageInfo oidn_stage()
 {
     StageInfo s;
@@ -299,14 +310,7 @@ StageInfo oidn_stage()
     s.probes_in_place = true;
     s.facts.exposure = true;
     s.frame_buffers = 1.0;  // the result
-    s.thread_bytes = [](const Settings& settings) {
-        // The UNet's layers at full resolution, ~250 floats a pixel, over (tile + halo)^2.
-        OidnOptions o;
-        std::string error;
-        oidn_settings(o, settings, error);
-        const double side = o.tile_size + 2 * 96;
-        return side * side * 250 * sizeof(float);
-    };
+    s.thread_bytes = oidn_thread_bytes;
     s.help = "Intel Open Image Denoise's published network on our engine, with your copy of "
              "OIDN's weights (weights=FILE.tza or a folder of them; else $MCDN_OIDN_WEIGHTS, "
              "else <prefix>/share/mcdenoise/oidn/; mcdenoise does not ship them: they are "
@@ -487,14 +491,19 @@ std::vector<StageInfo> make_table()
 {
     std::vector<StageInfo> table = { denoise_stage(), prefilter_stage(), nfor_stage(), cnn_stage(),
                                      oidn_stage(),    sure_stage(),      mix_stage() };
-    // The plan's memory is that of its longest chain (mcdn/denoise.h): cnn, sure, mix.
+    // The plan's memory is that of its longest chain (mcdn/denoise.h): cnn or oidn, sure,
+    // mix; per thread, the larger of its denoisers' networks.
     for (const char* planned : { "cnn", "sure", "mix" }) {
         const auto& stage = *std::find_if(table.begin(), table.end(),
                                           [&](const StageInfo& s) { return s.name == planned; });
         table[0].frame_buffers += stage.frame_buffers;
-        if (stage.thread_bytes)
-            table[0].thread_bytes = stage.thread_bytes;
     }
+    table[0].thread_bytes = [](const Settings& settings) {
+        std::string path, unused;  // oidn takes the cnn's place where its weights are found
+        const bool oidn = oidn_weights(path, OidnOptions(), true, true, unused)
+                          || oidn_weights(path, OidnOptions(), false, false, unused);
+        return std::max(cnn_thread_bytes(settings), oidn ? oidn_thread_bytes(settings) : 0.0);
+    };
     return table;
 }
 
