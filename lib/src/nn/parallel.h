@@ -7,6 +7,7 @@
 #pragma once
 
 #include <algorithm>
+#include <exception>
 
 #ifdef _OPENMP
 #    include <omp.h>
@@ -27,9 +28,20 @@ template <class Block> void parallel_row_blocks(int height, Block block)
     // Inside nn::for_each_tile (one tile per worker) the rows stay on this worker.
     const bool nested = omp_in_parallel();
     const int rows = std::max(1, std::min(8, height / (4 * omp_get_max_threads())));
+    // An exception (out of memory) cannot leave an OpenMP region: the first is thrown again
+    // on this thread once the region ends.
+    std::exception_ptr thrown;
 #    pragma omp parallel for schedule(dynamic, 1) if (!nested)
     for (int first = 0; first < height; first += rows)
-        block(first, std::min(first + rows, height));
+        try {
+            block(first, std::min(first + rows, height));
+        } catch (...) {
+#    pragma omp critical(mcdn_parallel_row_blocks)
+            if (!thrown)
+                thrown = std::current_exception();
+        }
+    if (thrown)
+        std::rethrow_exception(thrown);
 #else
     tbb::parallel_for(tbb::blocked_range<int>(0, height),
                       [&](const tbb::blocked_range<int>& r) { block(r.begin(), r.end()); });

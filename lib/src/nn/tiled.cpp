@@ -6,6 +6,8 @@
 // callback (KPCN) not even the inputs exist for the whole image.
 #include <algorithm>
 #include <atomic>
+#include <exception>
+#include <mutex>
 
 #ifdef _OPENMP
 #    include <omp.h>
@@ -121,15 +123,28 @@ bool for_each_tile(int count, int workers, const std::function<bool(int, int)>& 
     if (workers > 1 && count > 1) {
         // Nested regions (oneDNN's, parallel_row_blocks) see omp_in_parallel() and run on
         // their worker alone: one tile per core, no barriers between a tile's layers.
+        // An exception (out of memory) cannot leave an OpenMP region: the first is kept and
+        // thrown again on this thread once the region ends, where the caller can catch it.
         std::atomic<bool> ok { true };
+        std::exception_ptr thrown;
+        std::mutex first;
 #    pragma omp parallel num_threads(workers)
         {
             const int worker = omp_get_thread_num();
 #    pragma omp for schedule(dynamic, 1)
             for (int index = 0; index < count; ++index)
-                if (ok && !work(index, worker))
+                try {
+                    if (ok && !work(index, worker))
+                        ok = false;
+                } catch (...) {
+                    std::lock_guard<std::mutex> lock(first);
+                    if (!thrown)
+                        thrown = std::current_exception();
                     ok = false;
+                }
         }
+        if (thrown)
+            std::rethrow_exception(thrown);
         return ok;
     }
 #endif
