@@ -110,16 +110,7 @@ bool apply_settings(CnnOptions& o, const Settings& s, std::string& error)
         .text("weights", o.weights)
         .positive_int("tile", o.tile_size)
         .flag("extras", o.denoise_extras)
-        .custom("outliers", "must be drop or off",
-                [&](const std::string& v) {
-                    if (v == "drop")
-                        o.outliers = CnnOptions::Outliers::Drop;
-                    else if (v == "off" || v == "0")
-                        o.outliers = CnnOptions::Outliers::Off;
-                    else
-                        return false;
-                    return true;
-                })
+        .drop_or_off("outliers", o.outliers)
         .skip(o.skip)
         .ok();
 }

@@ -105,6 +105,17 @@ public:
         return *this;
     }
 
+    // outliers=drop|off (0: off) of a network stage, into its Outliers enum (Drop, Off).
+    template <class Outliers> SettingsReader& drop_or_off(const std::string& key, Outliers& value)
+    {
+        return custom(key, "must be drop or off", [&](const std::string& v) {
+            if (v != "drop" && v != "off" && v != "0")
+                return false;
+            value = v == "drop" ? Outliers::Drop : Outliers::Off;
+            return true;
+        });
+    }
+
     // A value the typed readers do not cover: `parse` sets the option and says whether the
     // text was valid; `requirement` completes the message when it was not.
     template <class Parse>
