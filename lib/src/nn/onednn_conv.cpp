@@ -3,8 +3,38 @@
 #include "nn/onednn_conv.h"
 #include "nn/ops.h"
 
+#include <new>
+#include <sys/mman.h>
+#include <sys/resource.h>
+
 namespace mcdn {
 namespace nn {
+
+namespace {
+
+// oneDNN 2.6 writes its JIT kernels into buffers it grows as it goes and does not check that
+// they grew: under an address-space limit (`ulimit -v`, a farm slot's) with less than that
+// left, creating a primitive crashes instead of failing. So where such a limit is set, a
+// primitive is made only while this much more could still be mapped; otherwise
+// std::bad_alloc, which the op reports as out of memory.
+constexpr size_t kJitHeadroomBytes = size_t(64) << 20;
+
+void ensure_jit_headroom()
+{
+    static const bool limited = [] {
+        rlimit limit {};
+        return getrlimit(RLIMIT_AS, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY;
+    }();
+    if (!limited)
+        return;
+    void* probe = mmap(nullptr, kJitHeadroomBytes, PROT_NONE,
+                       MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
+    if (probe == MAP_FAILED)
+        throw std::bad_alloc();
+    munmap(probe, kJitHeadroomBytes);
+}
+
+}  // namespace
 
 using dnnl::memory;
 using tag = memory::format_tag;
@@ -23,6 +53,7 @@ ConvLayer::Prepared& ConvLayer::prepare(dnnl::engine& engine, dnnl::stream& stre
     if (found != by_size_.end())
         return found->second;
 
+    ensure_jit_headroom();
     const memory::dim pad = kernel_ / 2;
     const memory::desc src_md({ 1, in_channels_, height, width }, dt::f32, tag::nhwc);
     const memory::desc dst_md({ 1, out_channels_, height, width }, dt::f32, tag::nhwc);
