@@ -17,9 +17,11 @@ import numpy as np
 from mathutils import Vector
 
 FAMILIES = ["interior", "exterior", "texture", "bump", "metal", "glass", "emissive", "fine", "dof"]
-# Families a dataset has only when asked for (--families): not in the default rotation, so
-# that the default datasets' crops keep their families.
-EXTRA_FAMILIES = ["caustics"]
+# Families a dataset has only when asked for (--families, the n2n preset): not in the default
+# rotation, so that the default datasets' crops keep their families. scenes_more.py builds
+# all but caustics.
+EXTRA_FAMILIES = ["caustics", "window", "many_lights", "screens", "volume", "subsurface", "foliage",
+                  "motion_blur", "water", "glossy", "carpaint", "anisotropic", "text", "hdri", "night"]
 
 TEXTURES = ["checker", "noise", "voronoi", "brick", "wave", "magic"]
 
@@ -1085,6 +1087,9 @@ def build(family, seed):
     rng = random.Random(f"{family}:{seed}")
     if family == "caustics":
         return build_caustics(rng, seed)
+    if family in EXTRA_FAMILIES:
+        import scenes_more  # imports this module: only once it is loaded
+        return scenes_more.build(family, rng, seed)
     clear_scene()
     stage_name = rng.choice(FAMILY_STAGES[family])
     st = STAGES[stage_name](rng, family)
