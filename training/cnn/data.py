@@ -14,7 +14,6 @@ and Var[specular] = the same sum over the glossy and transmission products + Var
 import os
 
 import numpy as np
-import OpenImageIO as oiio
 
 RGB = ("R", "G", "B")
 PRODUCTS_DIFFUSE = [("DiffCol", "DiffDir", "DiffInd")]
@@ -24,6 +23,7 @@ ADDED_SPECULAR = ["Emit", "Env"]
 
 def read_exr(path):
     """{channel name: [H, W] float32}."""
+    import OpenImageIO as oiio  # here: a GPU machine training from the patch set has none
     buf = oiio.ImageBuf(path)
     pixels = buf.get_pixels(oiio.FLOAT)
     if pixels is None or buf.has_error:
@@ -111,3 +111,9 @@ def crops(dataset_dir):
         if os.path.isfile(os.path.join(d, "crop.json")):
             out.append(d)
     return out
+
+
+def load_reference_variance(path):
+    """The variance of the mean of a reference's (or target's) colour, [3, H, W]."""
+    var = read_exr(path)
+    return np.maximum(_pass(var, _layer(var), "Combined"), 0)

@@ -36,6 +36,11 @@ FIXTURE_RENDER = os.path.join(ROOT, "tests", "data", "generated", "0000_interior
 CUT = (30, 29)  # rows, columns of the cut fixture (not multiples of 4)
 
 
+def meta_widths(net):
+    return [net.diffuse.enc1.out_channels, net.diffuse.enc2a.out_channels,
+            net.diffuse.bottleneck_a.out_channels]
+
+
 def metadata(net, extra=None):
     w1 = net.diffuse.enc1.out_channels
     meta = {"network": "kpcn", "input_layout": kpcn.INPUT_LAYOUT,
@@ -43,7 +48,7 @@ def metadata(net, extra=None):
             "kernel": kpcn.KERNEL, "iterations": net.diffuse.iterations,
             "albedo_epsilon": kpcn.ALBEDO_EPSILON,
             "gflop_1080p_both_branches": round(
-                kpcn.flops_per_pixel(kpcn.WIDTHS) * 1920 * 1080 * 2 / 1e9, 1)}
+                kpcn.flops_per_pixel(tuple(meta_widths(net))) * 1920 * 1080 * 2 / 1e9, 1)}
     meta.update(extra or {})
     return meta
 
@@ -78,24 +83,38 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--fixture", action="store_true", help="only remake the test fixture")
     ap.add_argument("--out", default=os.path.join(ROOT, "models", "kpcn.mcdnw"))
+    ap.add_argument("--run", default="run", help="the run under $CACHE/cnn (train.py --run)")
+    ap.add_argument("--which", choices=("best", "last"), default="best",
+                    help="the weights at the best validation (default) or the last")
+    ap.add_argument("--data", default="training/datagen n2n set ($CACHE/datasets/n2n): 24 families, "
+                    "128x128 crops at 4/16/64 spp, independent 128-spp targets (Noise2Noise); "
+                    "validation families bump, anisotropic; test families dof, many_lights, water",
+                    help="what the metadata says the model was trained on")
     args = ap.parse_args()
     make_fixture()
     if args.fixture:
         return
-    ck = torch.load(os.path.join(RUN, "checkpoint.pt"))
-    net = kpcn.KPCN()
-    net.load_state_dict(ck["model"])
-    state = ck["state"]
+    run = os.path.join(CACHE, "cnn", args.run)
+    import json
+    with open(os.path.join(run, "state.json")) as f:
+        state = json.load(f)
+    with np.load(os.path.join(run, "model_%s.npz" % args.which)) as f:
+        state_dict = {k: torch.from_numpy(f[k]) for k in f.files}
+    widths = tuple(int(state_dict["diffuse.%s.weight" % n].shape[0])
+                   for n in ("enc1", "enc2a", "bottleneck_a"))
+    net = kpcn.KPCN(widths)
+    net.load_state_dict(state_dict)
     curve = state["curve"]
     meta = metadata(net, {
         "training": {"steps": state["step"], "minutes": round(state["elapsed"] / 60, 1),
+                     "weights_at_step": state.get("best_step") if args.which == "best" else state["step"],
                      "batch": state["args"]["batch"], "patch": state["args"]["patch"],
-                     "data": "training/datagen crops ($CACHE/datasets/{full,small}), "
-                             "levels 4/16/64/256, validation = full crops number % 6 == 4",
+                     "loss": state["args"].get("loss") or "n2n", "data": args.data,
                      "last_validation": curve[-1] if curve else None}})
     write_weights(args.out, net.state_dict(), meta)
-    shutil.copyfile(os.path.join(RUN, "loss.csv"), os.path.join(os.path.dirname(args.out), "kpcn_loss.csv"))
-    print("wrote %s (step %d, %.1f min)" % (args.out, state["step"], state["elapsed"] / 60))
+    shutil.copyfile(os.path.join(run, "loss.csv"), os.path.join(os.path.dirname(args.out), "kpcn_loss.csv"))
+    print("wrote %s (widths %s, step %s of %d, %.1f min)" % (
+        args.out, widths, meta["training"]["weights_at_step"], state["step"], state["elapsed"] / 60))
 
 
 if __name__ == "__main__":
