@@ -382,34 +382,49 @@ bool check_fixnan(const Command& c, std::string& error)
     return fixnan_mode(c, mode, error);
 }
 
+bool fix_non_finite(ImageBuf& image, OIIO::ImageBufAlgo::NonFiniteFixMode mode,
+                    const std::string& name, int nthreads, int& fixed, std::string& error)
+{
+    fixed = 0;
+    if (OIIO::ImageBufAlgo::fixNonFinite(image, image, mode, &fixed, {}, nthreads))
+        return true;
+    // OIIO says only that something is not finite: the first such value, by channel.
+    std::string where = image.has_error() ? image.geterror() : "non-finite values";
+    image.geterror();  // cleared
+    const OIIO::ImageSpec& spec = image.spec();
+    for (OIIO::ImageBuf::ConstIterator<float> it(image); !it.done(); ++it) {
+        int c = 0;
+        while (c < spec.nchannels && std::isfinite(it[c]))
+            ++c;
+        if (c < spec.nchannels) {
+            where = format("{}: channel '{}' has {} at pixel ({}, {})",
+                           mcdn::channel_source(spec, spec.channelnames[c]), spec.channelnames[c],
+                           std::isnan(it[c]) ? "NaN" : "Inf", it.x(), it.y());
+            break;
+        }
+    }
+    error = format("--fixnan {}: {}", name, where);
+    return false;
+}
+
 bool run_fixnan(Session& s, const Command& c, std::string& error)
 {
     OIIO::ImageBufAlgo::NonFiniteFixMode fix;
-    if (!fixnan_mode(c, fix, error) || !s.load(error))
+    if (!fixnan_mode(c, fix, error))
         return false;
     const std::string& mode = c.args[0];
     int fixed = 0;
-    ImageBuf& image = s.image();
-    if (!OIIO::ImageBufAlgo::fixNonFinite(image, image, fix, &fixed, {}, s.nthreads)) {
-        // OIIO says only that something is not finite: the first such value, by channel.
-        std::string where = image.has_error() ? image.geterror() : "non-finite values";
-        image.geterror();  // cleared
-        const OIIO::ImageSpec& spec = image.spec();
-        for (OIIO::ImageBuf::ConstIterator<float> it(image); !it.done(); ++it) {
-            int c = 0;
-            while (c < spec.nchannels && std::isfinite(it[c]))
-                ++c;
-            if (c < spec.nchannels) {
-                where =
-                    format("{}: channel '{}' has {} at pixel ({}, {})",
-                           mcdn::channel_source(spec, spec.channelnames[c]), spec.channelnames[c],
-                           std::isnan(it[c]) ? "NaN" : "Inf", it.x(), it.y());
-                break;
-            }
-        }
-        error = format("--fixnan {}: {}", mode, where);
+    if (!s.loaded()) {
+        // Before the inputs are read: repaired as read, every channel, before they are
+        // checked (a NaN in the beauty would stop the frame there), and each neighbour of a
+        // cross-frame stage likewise.
+        s.input_fix = fix;
+        s.input_fix_name = mode;
+        if (!s.load(error))
+            return false;
+        fixed = s.input_fixed;
+    } else if (!s.load(error) || !fix_non_finite(s.image(), fix, mode, s.nthreads, fixed, error))
         return false;
-    }
     if (s.verbose)
         std::cerr << format("mcdntool: fixnan {}: {} pixels repaired\n", mode, fixed);
     return true;

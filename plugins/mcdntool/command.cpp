@@ -136,9 +136,11 @@ const std::vector<CommandInfo>& command_table()
             { "--fixnan",
               "STRATEGY",
               {},
-              "Repair NaN and Inf in the current image, as oiiotool does: none, black (0), "
-              "box3 (the 3x3 neighbours' mean) or error (fail if there are any). No stage "
-              "makes them; they come with channels no stage reads, which -o warns about.",
+              "Repair NaN and Inf in every channel, as oiiotool does: none, black (0), "
+              "box3 (the 3x3 neighbours' mean) or error (fail if there are any). Right "
+              "after the inputs (-i F --fixnan box3 --denoise) it repairs them as they are "
+              "read, before they are checked (a cross-frame stage's neighbours too); later, "
+              "the current image. No stage makes them.",
               run_fixnan,
               false,
               check_fixnan,

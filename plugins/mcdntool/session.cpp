@@ -214,8 +214,10 @@ bool Session::read_neighbours(int radius, std::vector<std::shared_ptr<ImageBuf>>
                 error = frame->geterror();
                 return false;
             }
-            int repaired = 0;
-            if (!mcdn::resolve_aovs(aovs, aov_spec, frame->spec(), error)
+            int repaired = 0, fixed = 0;
+            if ((input_fix
+                 && !fix_non_finite(*frame, *input_fix, input_fix_name, nthreads, fixed, error))
+                || !mcdn::resolve_aovs(aovs, aov_spec, frame->spec(), error)
                 || !mcdn::validate_inputs(*frame, aovs, error)
                 || !mcdn::check_halves(*frame, aovs, repaired, error))
                 return false;
@@ -237,7 +239,10 @@ bool Session::load_inputs(std::string& error)
         || !rows.read(merged, rows.spec().y, rows.spec().y + rows.spec().height, error))
         return false;
     int repaired = 0;
-    if (!mcdn::validate_inputs(merged, m_aovs, error)
+    input_fixed = 0;
+    if ((input_fix
+         && !fix_non_finite(merged, *input_fix, input_fix_name, nthreads, input_fixed, error))
+        || !mcdn::validate_inputs(merged, m_aovs, error)
         || !mcdn::check_halves(merged, m_aovs, repaired, error))
         return false;
     if (verbose)

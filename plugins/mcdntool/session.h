@@ -4,10 +4,12 @@
 
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include <OpenImageIO/imagebuf.h>
+#include <OpenImageIO/imagebufalgo.h>
 
 #include "mcdn/aov.h"
 #include "mcdn/io.h"
@@ -42,6 +44,11 @@ public:
                          std::vector<std::shared_ptr<OIIO::ImageBuf>>& next,
                          std::string& error) const;
     mcdn::AovSpec aov_spec;
+    /// --fixnan given before the inputs were read: every channel of the frame (and of its
+    /// neighbours) is repaired so, before the inputs are checked.
+    std::optional<OIIO::ImageBufAlgo::NonFiniteFixMode> input_fix;
+    std::string input_fix_name;                // its strategy as given (box3)
+    int input_fixed = 0;                       // pixels it repaired in this frame
     std::vector<std::string> output_channels;  // --ch
     std::string last_reference;                // --metrics REF, for --heatmap
     /// A --prefilter changes the features; -o writes the input's own unless a stage asked
@@ -78,6 +85,7 @@ public:
     mcdn::ProgressCallback progress() const;
     /// Marks the current image stale (a new -i or --aov arrived).
     void invalidate() { m_loaded = false; }
+    bool loaded() const { return m_loaded; }
 
     OIIO::ImageBuf& image() { return m_image; }
     const mcdn::AovSet& aovs() const { return m_aovs; }
@@ -105,6 +113,12 @@ private:
     OIIO::ImageBuf m_image;
     mcdn::AovSet m_aovs;
 };
+
+/// Repairs the non-finite values of every channel of `image` by `mode` (--fixnan's
+/// strategies, `name` as given); false with the first such value by channel and pixel where
+/// the mode is error. `fixed`: the pixels repaired.
+bool fix_non_finite(OIIO::ImageBuf& image, OIIO::ImageBufAlgo::NonFiniteFixMode mode,
+                    const std::string& name, int nthreads, int& fixed, std::string& error);
 
 /// Built-in command actions (session.cpp).
 bool run_input(Session&, const Command&, std::string& error);

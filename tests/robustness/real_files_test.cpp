@@ -499,6 +499,27 @@ TEST(RealFiles, TheSmallerItems)
     EXPECT_NE(run.output.find("channel 'ViewLayer.Depth.Z' has NaN at pixel (4, 3)"),
               std::string::npos)
         << run.output;
+    // A NaN in the beauty stops the frame naming --fixnan; --fixnan box3 right after the
+    // inputs repairs it as it is read, and the frame is denoised (issue 46, item 8).
+    OIIO::ImageBuf nan_beauty = read_float(kBox);
+    const int red = nan_beauty.spec().channelindex("ViewLayer.Combined.R");
+    static_cast<float*>(
+        nan_beauty.localpixels())[(size_t(7) * 64 + 9) * nan_beauty.nchannels() + red] = NAN;
+    ASSERT_TRUE(nan_beauty.write(dir + "/nan_beauty.exr"));
+    run = run_mcdntool("-i " + quote(dir + "/nan_beauty.exr") + " --denoise -o " + quote(out));
+    EXPECT_EQ(run.exit_code, 1) << run.output;
+    EXPECT_NE(run.output.find("has NaN at pixel (9, 7)"), std::string::npos) << run.output;
+    EXPECT_NE(run.output.find("--fixnan box3"), std::string::npos) << run.output;
+    run = run_mcdntool("-v -i " + quote(dir + "/nan_beauty.exr") + " --fixnan box3 --denoise -o "
+                       + quote(out));
+    EXPECT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_NE(run.output.find("fixnan box3: 1 pixels repaired"), std::string::npos) << run.output;
+    {
+        OIIO::ImageBuf repaired(out);
+        ASSERT_TRUE(repaired.read(0, 0, true, OIIO::TypeFloat));
+        EXPECT_TRUE(OIIO::ImageBufAlgo::computePixelStats(repaired).nancount[0] == 0);
+        EXPECT_TRUE(std::isfinite(repaired.getchannel(9, 7, 0, red)));
+    }
     // The stage named once.
     run = run_mcdntool("-i " + quote(kBox) + " --cnn:weights=" + quote(kBox) + " -o " + quote(out));
     EXPECT_EQ(run.exit_code, 1) << run.output;

@@ -111,7 +111,8 @@ bool validate_inputs(const ImageBuf& merged, const AovSet& aovs, std::string& er
                     continue;
                 int x = spec.x + int(p % spec.width), y = spec.y + int(p / spec.width);
                 error = format("{}: channel '{}' (role {}) has {} at pixel ({}, {}): "
-                               "fix the render or drop the pass",
+                               "fix the render, drop the pass, or repair it as it is read "
+                               "(mcdntool -i FILE --fixnan box3 ...)",
                                channel_source(spec, spec.channelnames[c]), spec.channelnames[c],
                                role_name(role), problem, x, y);
                 return false;
