@@ -47,12 +47,24 @@ bool find_frames(const std::vector<Command>& commands, const std::string& frames
             std::string normalized, framespec;
             if (frame_patterns(arg) > 1) {
                 error = format("{} {}: {} frame patterns in one name; a name takes one (#, @ "
-                               "or %04d), e.g. out.####.exr",
+                               "or %04d), e.g. out.#.exr",
                                c.name, arg, frame_patterns(arg));
                 return false;
             }
-            if (!is_sequence(arg, normalized, framespec))
+            if (!is_sequence(arg, normalized, framespec)) {
+                // Blender's and Nuke's padding (#### for 4 digits) is not oiiotool's, where
+                // each # is 4 digits: such a name would be taken literally, then not found.
+                if ((c.name == "-i" || c.name == "-o") && arg.find("##") != std::string::npos
+                    && !Filesystem::exists(arg)) {
+                    error = format("{} {}: '#' stands for 4 digits here, as in oiiotool "
+                                   "(and '@' for one), so this name asks for {} digits: "
+                                   "Blender's and Nuke's shot.####.exr is shot.#.exr (or "
+                                   "shot.%04d.exr) here",
+                                   c.name, arg, 4 * std::count(arg.begin(), arg.end(), '#'));
+                    return false;
+                }
                 continue;
+            }
             any_sequence = true;
             if (pattern_range.empty())
                 pattern_range = framespec;
@@ -67,7 +79,7 @@ bool find_frames(const std::vector<Command>& commands, const std::string& frames
             && !is_sequence(c.args[0], normalized, framespec)) {
             error = format("{} {}: the inputs are a frame sequence but this name has no frame "
                            "pattern, so every frame would overwrite it (write e.g. "
-                           "out.####.exr)",
+                           "out.#.exr)",
                            c.name, c.args[0]);
             return false;
         }
@@ -213,7 +225,7 @@ bool shot_frame_inputs(const std::vector<Command>& commands, int frame,
 }
 
 bool run_frame(const std::vector<Command>& commands, const std::string& history, int nthreads,
-               int all_threads, int parallel, bool verbose, std::string& error,
+               int all_threads, int parallel, bool verbose, std::string& error, int frame = -1,
                std::function<bool(int, std::vector<mcdn::InputFile>&)> neighbour_inputs = {})
 {
     if (!check_inputs(commands, error) || !check_outputs(commands, error)
@@ -221,6 +233,7 @@ bool run_frame(const std::vector<Command>& commands, const std::string& history,
         return false;
     Session session;
     session.neighbour_inputs = std::move(neighbour_inputs);
+    session.frame = frame;
     session.nthreads = nthreads;
     session.verbose = verbose;
     session.history = history;
@@ -278,7 +291,7 @@ bool run_frames(const std::vector<Command>& commands, const std::vector<int>& fr
             try {
                 const int number = frames[f];
                 ok = run_frame(frame, line.text, parallel > 1 ? per_frame : nthreads, threads,
-                               parallel, verbose && parallel == 1, error,
+                               parallel, verbose && parallel == 1, error, number,
                                [&commands, number](int offset, std::vector<mcdn::InputFile>& in) {
                                    return shot_frame_inputs(commands, number + offset, in);
                                });
@@ -294,10 +307,15 @@ bool run_frames(const std::vector<Command>& commands, const std::vector<int>& fr
             }
             std::lock_guard<std::mutex> lock(print);
             if (!ok) {
+                // Counted as done too: the next frame's count goes on from this one's.
                 failed = true;
                 bad.push_back(frames[f]);
+                ++done;
                 std::cerr << "mcdntool: error: "
-                          << (frames[f] >= 0 ? format("frame {}: ", frames[f]) : std::string())
+                          << (frames[f] >= 0 && frames.size() > 1 ? format(
+                                  "frame {} ({}/{}): ", frames[f], done.load(), frames.size())
+                              : frames[f] >= 0 ? format("frame {}: ", frames[f])
+                                               : std::string())
                           << error << "\n";
             } else if (frames[f] >= 0)
                 std::cerr << format("mcdntool: frame {} ({}/{}) done in {:.2f} s\n", frames[f],

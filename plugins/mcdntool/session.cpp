@@ -203,9 +203,11 @@ bool Session::read_neighbours(int radius, std::vector<std::shared_ptr<ImageBuf>>
             std::vector<mcdn::InputFile> files;
             if (!neighbour_inputs || !neighbour_inputs(side * k, files)) {
                 if (verbose)
-                    std::cerr << format("mcdntool: cross-frame: no frame {:+d} (its files do "
-                                        "not exist): {} {} of {}\n",
-                                        side * k, k - 1, side < 0 ? "previous" : "next", radius);
+                    std::cerr << format(
+                        "mcdntool: cross-frame: {} (its files do not exist): {} {} of {}\n",
+                        frame >= 0 ? format("no frame {} ({:+d})", frame + side * k, side * k)
+                                   : format("no frame {:+d}", side * k),
+                        k - 1, side < 0 ? "previous" : "next", radius);
                 break;
             }
             auto frame = std::make_shared<ImageBuf>();

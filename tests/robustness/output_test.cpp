@@ -108,9 +108,15 @@ TEST(Output, ADirectoryOrAMissingFolderFailsBeforeAnyWork)
     mcdn_test::Run run = run_mcdntool("-i " + quote(render) + " --nfor -o " + quote(dir + "/sub"));
     EXPECT_EQ(run.exit_code, 1);
     EXPECT_NE(run.output.find("is a directory"), std::string::npos) << run.output;
+    // A missing folder is made as the file is written (mkdir -p): not when the chain fails
+    // first; a file where a folder would be fails before any work.
     run = run_mcdntool("-i " + quote(render) + " --nfor -o " + quote(dir + "/no/such/out.exr"));
     EXPECT_EQ(run.exit_code, 1);
-    EXPECT_NE(run.output.find("does not exist"), std::string::npos) << run.output;
+    EXPECT_NE(run.output.find("nfor needs two half buffers"), std::string::npos) << run.output;
+    EXPECT_FALSE(Filesystem::exists(dir + "/no"));
+    run = run_mcdntool("-i " + quote(render) + " --nfor -o " + quote(render + "/such/out.exr"));
+    EXPECT_EQ(run.exit_code, 1);
+    EXPECT_NE(run.output.find("is not a folder"), std::string::npos) << run.output;
     run = run_mcdntool("-i " + quote(render) + " --nfor --heatmap:ref=" + quote(render) + " "
                        + quote(dir + "/sub"));
     EXPECT_NE(run.output.find("is a directory"), std::string::npos) << run.output;

@@ -520,6 +520,30 @@ TEST(RealFiles, TheSmallerItems)
         EXPECT_TRUE(OIIO::ImageBufAlgo::computePixelStats(repaired).nancount[0] == 0);
         EXPECT_TRUE(std::isfinite(repaired.getchannel(9, 7, 0, red)));
     }
+    // Blender's and Nuke's padding: '#' is oiiotool's 4 digits here, and the error says what
+    // to type (issue 46, item 9).
+    ASSERT_TRUE(OIIO::Filesystem::copy(kBox, dir + "/seq.0001.exr"));
+    run = run_mcdntool("-i " + quote(dir + "/seq.####.exr") + " --cnn -o "
+                       + quote(dir + "/o.####.exr"));
+    EXPECT_EQ(run.exit_code, 1) << run.output;
+    EXPECT_NE(run.output.find("Blender's and Nuke's shot.####.exr is shot.#.exr"),
+              std::string::npos)
+        << run.output;
+    // The output's folder is made (mkdir -p); a file where a folder should be is refused.
+    run = run_mcdntool("-i " + quote(kBox) + " --cnn -o " + quote(dir + "/new/sub/o.exr"));
+    EXPECT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_TRUE(OIIO::Filesystem::exists(dir + "/new/sub/o.exr"));
+    run = run_mcdntool("-i " + quote(kBox) + " --cnn -o " + quote(dir + "/seq.0001.exr/o.exr"));
+    EXPECT_EQ(run.exit_code, 1) << run.output;
+    EXPECT_NE(run.output.find("is not a folder"), std::string::npos) << run.output;
+    // After a bad frame the count goes on from it: frame 3 is the 3rd of 3.
+    ASSERT_TRUE(OIIO::Filesystem::copy(kBox, dir + "/seq.0003.exr"));
+    OIIO::Filesystem::write_text_file(dir + "/seq.0002.exr", "not an image");
+    run = run_mcdntool("--skip-bad-frames -i " + quote(dir + "/seq.#.exr") + " --cnn -o "
+                       + quote(dir + "/o.#.exr"));
+    EXPECT_EQ(run.exit_code, 1) << run.output;
+    EXPECT_NE(run.output.find("frame 2 (2/3): "), std::string::npos) << run.output;
+    EXPECT_NE(run.output.find("frame 3 (3/3) done"), std::string::npos) << run.output;
     // The stage named once.
     run = run_mcdntool("-i " + quote(kBox) + " --cnn:weights=" + quote(kBox) + " -o " + quote(out));
     EXPECT_EQ(run.exit_code, 1) << run.output;

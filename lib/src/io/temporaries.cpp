@@ -140,6 +140,12 @@ void remove_temporary_outputs()
 std::string temporary_for(const std::string& path)
 {
     static std::atomic<int> counter { 0 };
+    // The output's folder is made here, as the first file goes into it (mkdir -p, Blender's
+    // and Nuke's Write do too): check_output_path made sure it can be.
+    const std::filesystem::path dir = std::filesystem::path(path).parent_path();
+    std::error_code ec;
+    if (!dir.empty())
+        std::filesystem::create_directories(dir, ec);
     remove_stale_temporaries(path);
     return format("{}{}-{}-{}", temporary_prefix(path), ::getpid(), counter++, temporary_owner());
 }

@@ -98,8 +98,16 @@ bool check_output_path(const std::string& path, const std::vector<std::string>& 
     fs::path dir = fs::path(path).parent_path();
     if (dir.empty())
         dir = ".";
+    // A folder that does not exist yet is made as the file is written (temporary_for): the
+    // nearest one that exists must be a folder we may write in.
+    while (!fs::exists(dir, ec)) {
+        const fs::path up = dir.parent_path();
+        if (up == dir)
+            break;
+        dir = up.empty() ? fs::path(".") : up;
+    }
     if (!fs::is_directory(dir, ec)) {
-        error = format("{}: folder {} does not exist", path, dir.string());
+        error = format("{}: {} is not a folder", path, dir.string());
         return false;
     }
     if (::access(dir.c_str(), W_OK | X_OK) != 0) {
