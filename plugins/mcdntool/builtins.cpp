@@ -96,14 +96,17 @@ bool heatmap_settings_of(const Command& c, HeatmapSettings& settings, std::strin
 
 bool write_options_of(const Command& c, mcdn::WriteOptions& options, std::string& error)
 {
-    std::string datatype = c.modifier("datatype", "float");
+    // Unless given: each channel's type and the compression as the input had them.
+    const std::string datatype = c.modifier("datatype", "");
     if (datatype == "half")
         options.datatype = OIIO::TypeDesc::HALF;
-    else if (datatype != "float") {
+    else if (datatype == "float")
+        options.datatype = OIIO::TypeDesc::FLOAT;
+    else if (!datatype.empty()) {
         error = format("-o:datatype={} is not half or float", datatype);
         return false;
     }
-    options.compression = c.modifier("compression", "zip");
+    options.compression = c.modifier("compression", "");
     if (!mcdn::check_compression(options.compression, error)) {
         error = "-o:" + error;
         return false;

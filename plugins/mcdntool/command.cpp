@@ -126,8 +126,10 @@ const std::vector<CommandInfo>& command_table()
             { "-o",
               "FILE",
               { "datatype", "compression" },
-              "Write the current image (datatype=half|float, default float; compression=zip, "
-              "or with a level as oiiotool takes it: zip:5, dwaa:45). "
+              "Write the current image. Each channel keeps the pixel type it had in the "
+              "input and the file its compression, as oiiotool keeps them (channels the "
+              "stages add are float); datatype=half|float gives every channel one type, "
+              "compression=zip, piz, dwaa:45, ... another compression. "
               "Written to a temporary name and renamed: never a partial file.",
               run_output,
               false,

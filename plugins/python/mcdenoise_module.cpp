@@ -61,12 +61,15 @@ void bind_files(py::module_& m)
     m.def(
         "write",
         [](const ImageBuf& image, const std::string& path, const std::string& datatype,
-           const std::vector<std::string>& channels) {
-            if (datatype != "half" && datatype != "float")
-                throw std::runtime_error("write: datatype='" + datatype + "' is not half or float");
+           const std::vector<std::string>& channels, const std::string& compression) {
+            if (!datatype.empty() && datatype != "half" && datatype != "float")
+                throw std::runtime_error("write: datatype='" + datatype
+                                         + "' is not half or float ('' keeps the input's)");
             mcdn::WriteOptions o;
-            o.datatype = datatype == "half" ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::FLOAT;
+            if (!datatype.empty())
+                o.datatype = datatype == "half" ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::FLOAT;
             o.channels = channels;
+            o.compression = compression;
             std::string error;
             std::vector<std::string> warnings;
             bool ok;
@@ -81,9 +84,11 @@ void bind_files(py::module_& m)
                 py::module_::import("warnings")
                     .attr("warn")(w, py::module_::import("builtins").attr("RuntimeWarning"));
         },
-        py::arg("image"), py::arg("path"), py::arg("datatype") = "float",
-        py::arg("channels") = std::vector<std::string>(),
-        "Write through a temporary file renamed into place (never a partial file).");
+        py::arg("image"), py::arg("path"), py::arg("datatype") = "",
+        py::arg("channels") = std::vector<std::string>(), py::arg("compression") = "",
+        "Write through a temporary file renamed into place (never a partial file). Each channel "
+        "keeps the type it had in the input and the file its compression unless datatype "
+        "('half', 'float') or compression ('zip', 'dwaa:45', ...) says otherwise.");
 
     m.def(
         "validate",

@@ -2,6 +2,7 @@
 #include "mcdn/io.h"
 
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <limits>
@@ -233,8 +234,43 @@ TEST(Io, FailedWriteLeavesNothingBehind)
     options.channels = { "ViewLayer.Combined.R", "no.such.channel" };
     EXPECT_FALSE(write_image(merged, dir + "/out.exr", options, error));
     EXPECT_NE(error.find("no.such.channel"), std::string::npos) << error;
-    EXPECT_FALSE(write_image(merged, dir + "/missing_dir/out.exr", WriteOptions(), error));
+    // A file where the output's folder would be.
+    ASSERT_TRUE(OIIO::Filesystem::write_text_file(dir + "/file", "x"));
+    EXPECT_FALSE(write_image(merged, dir + "/file/out.exr", WriteOptions(), error));
+    EXPECT_NE(error.find("is not a folder"), std::string::npos) << error;
+    OIIO::Filesystem::remove(dir + "/file");
     EXPECT_TRUE(files_in(dir).empty());
+}
+
+// Unless told otherwise, each channel keeps the type it had in the render's file and the
+// file its compression (a half DWAA beauty with float depth comes back so, as oiiotool
+// keeps them); a missing folder is made.
+TEST(Io, OutputKeepsTheInputsTypesAndCompression)
+{
+    std::string dir = mcdn_test::temp_dir("keeptypes");
+    const std::string depth = "ViewLayer.Depth.Z";
+    ASSERT_EQ(std::system(("oiiotool " + box("box_0016spp.exr") + " -d half -d " + depth
+                           + "=float --compression dwaa:45 -o " + dir + "/in.exr")
+                              .c_str()),
+              0);
+    ImageBuf merged;
+    ASSERT_TRUE(read_inputs(merged, { { dir + "/in.exr", InputKind::Mean } })) << merged.geterror();
+    std::string error;
+    ASSERT_TRUE(write_image(merged, dir + "/sub/out.exr", WriteOptions(), error)) << error;
+    auto in = OIIO::ImageInput::open(dir + "/sub/out.exr");
+    ASSERT_TRUE(in);
+    const OIIO::ImageSpec& spec = in->spec();
+    EXPECT_EQ(spec.get_string_attribute("compression"), "dwaa");
+    EXPECT_EQ(spec.channelformat(spec.channelindex("ViewLayer.Combined.R")), OIIO::TypeHalf);
+    EXPECT_EQ(spec.channelformat(spec.channelindex(depth)), OIIO::TypeFloat);
+    WriteOptions asked;
+    asked.datatype = OIIO::TypeFloat;
+    asked.compression = "piz";
+    ASSERT_TRUE(write_image(merged, dir + "/out2.exr", asked, error)) << error;
+    auto in2 = OIIO::ImageInput::open(dir + "/out2.exr");
+    ASSERT_TRUE(in2);
+    EXPECT_EQ(in2->spec().get_string_attribute("compression"), "piz");
+    EXPECT_EQ(in2->spec().channelformat(0), OIIO::TypeFloat);
 }
 
 // RowWriter writes the file write_image writes, row band by row band; one left unclosed

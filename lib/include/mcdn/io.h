@@ -107,9 +107,13 @@ bool validate_inputs(const ImageBuf& merged, const AovSet& aovs, std::string& er
 bool check_halves(ImageBuf& merged, const AovSet& aovs, int& repaired_tiles, std::string& error);
 
 struct WriteOptions {
-    /// half or float. Half keeps file sizes small; variances may underflow in half.
-    OIIO::TypeDesc datatype = OIIO::TypeDesc::FLOAT;
-    std::string compression = "zip";
+    /// half or float for every channel; UNKNOWN (the default): each channel as the render's
+    /// file had it (a half beauty and float depth stay so, as oiiotool keeps them), float for
+    /// the channels the stages added. Half keeps files small; variances may underflow in half.
+    OIIO::TypeDesc datatype = OIIO::TypeDesc::UNKNOWN;
+    /// An OpenEXR compression (check_compression); empty (the default): the render's own
+    /// (DWAA at its level stays DWAA), zip where it had none OpenEXR knows.
+    std::string compression;
     /// Channels to write, by name; empty = "mcdn:output_channels" or else every channel.
     std::vector<std::string> channels;
     /// Appended to the image's `Software` metadata (after "; ", once), as oiiotool records

@@ -16,6 +16,9 @@ namespace mcdn {
 // the same parts: a line per part, its name then pairs of merged and original channel names,
 // tab-separated.
 constexpr const char* kPartsAttribute = "mcdn:parts";
+// The pixel type each channel of the render (the mean inputs) had in its file, a line per
+// channel, name and type tab-separated: write_image writes each so unless told otherwise.
+constexpr const char* kInputTypesAttribute = "mcdn:input_types";
 // Set when read_inputs read no half-buffer channel (InputSelection::halves false).
 constexpr const char* kHalvesUnread = "mcdn:halves_unread";
 

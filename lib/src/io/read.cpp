@@ -62,6 +62,7 @@ struct FileLayout {
     std::vector<std::string> names;
     std::vector<int> subimages;  // each part's subimage in the file
     bool exr = false;
+    std::vector<TypeDesc> types;  // each of `names`' pixel type in the file
 
     // The merged buffer's spec: the first part's metadata with every part's channels.
     ImageSpec merged_spec() const
@@ -100,7 +101,7 @@ bool read_layout(FileLayout& layout, const std::string& path, const std::string&
         error = format("{}: cannot read: {}", path, one_line(OIIO::geterror()));
         return false;
     }
-    layout = { path, {}, {}, {}, std::string(in->format_name()) == "openexr" };
+    layout = { path, {}, {}, {}, std::string(in->format_name()) == "openexr", {} };
     std::vector<std::string> part_names;
     for (int s = 0; in->seek_subimage(s, 0); ++s) {
         ImageSpec spec = in->spec(s, 0);
@@ -123,6 +124,8 @@ bool read_layout(FileLayout& layout, const std::string& path, const std::string&
                        roi_text(spec.roi()), layout.subimages[0], roi_text(layout.parts[0].roi()));
             return false;
         }
+        for (int c = 0; c < spec.nchannels; ++c)
+            layout.types.push_back(spec.channelformat(c));
         spec.set_format(TypeDesc::FLOAT);
         spec.channelformats.clear();
         layout.parts.push_back(spec);
@@ -362,7 +365,7 @@ bool InputRows::open(const std::vector<InputFile>& inputs, const InputSelection&
     std::vector<ImageBuf>& directories = files->directories;
     layouts.resize(inputs.size());
     directories.resize(inputs.size());
-    std::vector<std::string> names, provenance, output_channels;
+    std::vector<std::string> names, provenance, output_channels, input_types;
     std::map<std::string, std::string> channel_file;
     for (size_t i = 0; i < inputs.size(); ++i) {
         const InputFile& input = inputs[i];
@@ -379,7 +382,10 @@ bool InputRows::open(const std::vector<InputFile>& inputs, const InputSelection&
                 return false;
             }
             const ImageSpec& spec = directories[i].spec();
-            layouts[i] = { input.path, { spec }, spec.channelnames, { 0 } };
+            layouts[i] = {
+                input.path, { spec }, spec.channelnames,
+                { 0 },      false,    std::vector<TypeDesc>(spec.nchannels, TypeDesc::FLOAT)
+            };
         } else if (!read_layout(layouts[i], input.path, input.part, error)) {
             return false;
         }
@@ -389,7 +395,8 @@ bool InputRows::open(const std::vector<InputFile>& inputs, const InputSelection&
                            inputs[0].path, roi_text(first_window));
             return false;
         }
-        for (const auto& ch : layouts[i].names) {
+        for (size_t c = 0; c < layouts[i].names.size(); ++c) {
+            const std::string& ch = layouts[i].names[c];
             std::string name = input_kind_prefix(input.kind) + ch;
             if (channel_file.count(name)) {
                 error = format("{}: channel '{}' is also in {}; give each input once, with "
@@ -399,8 +406,11 @@ bool InputRows::open(const std::vector<InputFile>& inputs, const InputSelection&
             }
             channel_file[name] = input.path;
             names.push_back(name);
-            if (input.kind == InputKind::Mean)
+            if (input.kind == InputKind::Mean) {
                 output_channels.push_back(name);
+                if (c < layouts[i].types.size())
+                    input_types.push_back(name + "\t" + layouts[i].types[c].c_str());
+            }
         }
         provenance.push_back(format("{}={}", input_kind_name(input.kind), input.path));
     }
@@ -454,6 +464,7 @@ bool InputRows::open(const std::vector<InputFile>& inputs, const InputSelection&
     if (layouts[meta_from].parts.size() > 1)
         spec.attribute(kPartsAttribute, parts_text(layouts[meta_from]));
     spec.attribute(kOutputChannelsAttribute, Strutil::join(output_channels, "\n"));
+    spec.attribute(kInputTypesAttribute, Strutil::join(input_types, "\n"));
     m_spec = spec;
     m_files = std::move(files);
     return true;

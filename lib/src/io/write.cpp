@@ -4,6 +4,7 @@
 #include "mcdn/io.h"
 
 #include <algorithm>
+#include <map>
 #include <atomic>
 #include <cctype>
 #include <cerrno>
@@ -161,8 +162,9 @@ namespace {
 struct ValueCounts {
     std::vector<size_t> nan, inf, clamped;
 
-    /// Counts (and, to half, clamps) `pixels` interleaved pixels of nch channels.
-    void inspect(float* values, size_t pixels, int nch, bool to_half)
+    /// Counts (and, in the channels written as half, clamps) `pixels` interleaved pixels of
+    /// nch channels.
+    void inspect(float* values, size_t pixels, int nch, const std::vector<bool>& to_half)
     {
         nan.resize(nch, 0);
         inf.resize(nch, 0);
@@ -175,7 +177,7 @@ struct ValueCounts {
                     ++nan[c];
                 else if (std::isinf(v))
                     ++inf[c];
-                else if (to_half && std::fabs(v) > kHalfMax) {
+                else if (to_half[c] && std::fabs(v) > kHalfMax) {
                     v = std::copysign(kHalfMax, v);
                     ++clamped[c];
                 }
@@ -203,6 +205,7 @@ struct ValueCounts {
 // image's), and for a multi-part render (an EXR only) its parts.
 struct OutputLayout {
     ImageSpec spec;
+    std::vector<bool> half;  // per written channel: written as half
     std::vector<int> order;
     std::vector<Part> parts;
     std::vector<std::vector<std::string>> part_channels;  // original names, per part
@@ -263,10 +266,34 @@ bool output_layout(OutputLayout& layout, const ImageSpec& in_spec, const std::st
     spec.nchannels = int(wanted.size());
     spec.channelnames = wanted;
     for (const auto& name : { kInputsAttribute, kOutputChannelsAttribute, kPartsAttribute,
-                              kHalvesUnread, kDenoiserTilesAttribute })
+                              kHalvesUnread, kDenoiserTilesAttribute, kInputTypesAttribute })
         spec.erase_attribute(name);
-    spec.set_format(options.datatype);
+    // Each channel's type: as asked, or as the render's file had it (float for the channels
+    // the stages added, and for types OpenEXR has not: an 8-bit PNG's).
+    std::map<std::string, TypeDesc> input_types;
+    for (const auto& line :
+         Strutil::splits(in_spec.get_string_attribute(kInputTypesAttribute), "\n"))
+        if (const auto fields = Strutil::splits(line, "\t"); fields.size() == 2)
+            input_types[fields[0]] = TypeDesc(fields[1]);
+    std::vector<TypeDesc> types;
+    for (const auto& name : wanted) {
+        TypeDesc type = options.datatype;
+        if (type == TypeDesc::UNKNOWN) {
+            const auto found = input_types.find(name);
+            type = found != input_types.end()
+                           && (found->second == TypeDesc::HALF || found->second == TypeDesc::UINT)
+                       ? found->second
+                       : TypeDesc::FLOAT;
+        }
+        types.push_back(type);
+        layout.half.push_back(type == TypeDesc::HALF);
+    }
+    const bool one_type =
+        std::all_of(types.begin(), types.end(), [&](TypeDesc t) { return t == types.front(); });
+    spec.set_format(types.empty() || !one_type ? TypeDesc::FLOAT : types.front());
     spec.channelformats.clear();
+    if (!one_type)
+        spec.channelformats = types;
     // Written in scanlines, as the stages make rows: a tiled or MIP-mapped input (Arnold's
     // and RenderMan's usual EXRs) gives a plain image of its level 0, as oiiotool's -o
     // without --tile does.
@@ -275,7 +302,16 @@ bool output_layout(OutputLayout& layout, const ImageSpec& in_spec, const std::st
     for (const char* name :
          { "openexr:levelmode", "openexr:roundingmode", "textureformat", "wrapmodes" })
         spec.erase_attribute(name);
-    spec.attribute("compression", options.compression);
+    // The render's own compression unless asked for another (one OpenEXR does not have, a
+    // PNG's, gives zip).
+    std::string compression = options.compression;
+    if (compression.empty()) {
+        std::string unused;
+        compression = in_spec.get_string_attribute("compression");
+        if (compression.empty() || !check_compression(compression, unused))
+            compression = "zip";
+    }
+    spec.attribute("compression", compression);
     if (!options.software.empty()) {
         std::string software = spec.get_string_attribute("Software");
         if (!Strutil::ends_with(software, options.software))
@@ -317,7 +353,7 @@ bool write_image(const ImageBuf& src, const std::string& path, const WriteOption
     if (out.spec().format == TypeDesc::FLOAT && out.localpixels()) {
         ValueCounts counts;
         counts.inspect(static_cast<float*>(out.localpixels()), out.spec().image_pixels(),
-                       out.nchannels(), options.datatype == TypeDesc::HALF);
+                       out.nchannels(), layout.half);
         counts.warn(path, out.spec().channelnames, found);
     }
     if (warnings)
@@ -344,6 +380,9 @@ bool write_image(const ImageBuf& src, const std::string& path, const WriteOption
         ImageSpec part = spec;
         part.nchannels = n;
         part.channelnames = layout.part_channels[p];
+        if (!spec.channelformats.empty())
+            part.channelformats.assign(spec.channelformats.begin() + first,
+                                       spec.channelformats.begin() + first + n);
         part.attribute("name", parts[p].name);
         part.attribute("oiio:subimagename", parts[p].name);
         part.alpha_channel = part.channelindex("A");
@@ -373,7 +412,7 @@ struct RowWriter::State {
     OutputLayout layout;
     std::unique_ptr<ImageOutput> output;
     std::unique_ptr<TemporaryRegistration> registration;
-    bool to_half = false;
+    std::vector<bool> to_half;  // per channel
     int next_row = 0;
     ValueCounts counts;
     std::vector<float> rows;
@@ -413,7 +452,7 @@ bool RowWriter::open(const ImageSpec& image, const std::string& path, const Writ
         Filesystem::remove(m->tmp);
         return false;
     }
-    m->to_half = options.datatype == TypeDesc::HALF;
+    m->to_half = m->layout.half;
     m->next_row = image.y;
     return true;
 }
