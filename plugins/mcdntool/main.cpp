@@ -224,6 +224,41 @@ bool shot_frame_inputs(const std::vector<Command>& commands, int frame,
     return !inputs.empty();
 }
 
+// The commands [begin, end) in order.
+bool run_commands(Session& session, const std::vector<Command>& commands, size_t begin, size_t end,
+                  std::string& error)
+{
+    for (size_t i = begin; i < end; ++i) {
+        const CommandInfo* info = find_command(commands[i].name);
+        if (info->run && !info->run(session, commands[i], error))
+            return false;
+    }
+    return true;
+}
+
+// The Blender view layers to denoise in turn: every layer of the first render input when it
+// has several and no --aov picks a layer, names channels or another preset.
+std::vector<std::string> layers_to_denoise(const std::vector<Command>& commands)
+{
+    std::string first_input;
+    for (const auto& c : commands) {
+        if (c.name == "--aov"
+            && (c.has("layer") || !c.args.empty()
+                || (c.has("preset") && c.modifier("preset") != "cycles"
+                    && c.modifier("preset") != "auto")))
+            return {};
+        if (c.name == "-i" && first_input.empty() && c.modifier("as", "mean") == "mean")
+            first_input = c.args[0];
+    }
+    auto in = first_input.empty() ? nullptr : OIIO::ImageInput::open(first_input);
+    if (!in) {
+        OIIO::geterror();  // reading says what is wrong, naming the file
+        return {};
+    }
+    std::vector<std::string> layers = mcdn::blender_view_layers(in->spec());
+    return layers.size() > 1 ? layers : std::vector<std::string>();
+}
+
 bool run_frame(const std::vector<Command>& commands, const std::string& history, int nthreads,
                int all_threads, int parallel, bool verbose, std::string& error, int frame = -1,
                std::function<bool(int, std::vector<mcdn::InputFile>&)> neighbour_inputs = {})
@@ -239,7 +274,37 @@ bool run_frame(const std::vector<Command>& commands, const std::string& history,
     session.history = history;
     session.selection = input_selection(commands);
     size_t next = 0;  // the first command not yet run
-    if (const size_t first_stage = streamed_chain_start(commands)) {
+    // A file of several Blender view layers: the stages up to the first -o run once per
+    // layer, each on its own AOV set (the other layers' channels pass through).
+    const std::vector<std::string> layers = layers_to_denoise(commands);
+    if (!layers.empty()) {
+        session.selection.layers = layers;
+        size_t first_stage = 0, end = commands.size();
+        while (first_stage < commands.size() && !is_stage(commands[first_stage].name))
+            ++first_stage;
+        for (size_t i = first_stage; i < commands.size(); ++i)
+            if (commands[i].name == "-o") {
+                end = i;
+                break;
+            }
+        if (first_stage < end) {
+            if (verbose)
+                std::cerr << format("mcdntool: view layers {}: each denoised in turn "
+                                    "(--aov:layer=NAME for one)\n",
+                                    Strutil::join(layers, ", "));
+            if (!run_commands(session, commands, 0, first_stage, error))
+                return false;
+            for (size_t k = 0; k < layers.size(); ++k) {
+                if (verbose)
+                    std::cerr << format("mcdntool: view layer '{}' ({} of {})\n", layers[k], k + 1,
+                                        layers.size());
+                if (!session.switch_layer(layers[k], error)
+                    || !run_commands(session, commands, first_stage, end, error))
+                    return false;
+            }
+            next = end;
+        }
+    } else if (const size_t first_stage = streamed_chain_start(commands)) {
         bool streamed = false;
         if (!run_streamed_chain(session, commands, first_stage, streamed, error))
             return false;
@@ -247,12 +312,8 @@ bool run_frame(const std::vector<Command>& commands, const std::string& history,
             return true;
         next = first_stage;
     }
-    for (; next < commands.size(); ++next) {
-        const Command& c = commands[next];
-        const CommandInfo* info = find_command(c.name);
-        if (info->run && !info->run(session, c, error))
-            return false;
-    }
+    if (!run_commands(session, commands, next, commands.size(), error))
+        return false;
     // Denoisers queued after the last command that needed pixels still run: their result
     // is what a following -o would have written, and errors must not pass silently.
     return session.load(error);

@@ -296,6 +296,20 @@ bool Session::open_rows(mcdn::InputRows& rows, std::string& error)
     return true;
 }
 
+bool Session::switch_layer(const std::string& layer, std::string& error)
+{
+    if (!load(error) || !restore_input_features(error))
+        return false;
+    m_input_features = ImageBuf();
+    m_feature_names.clear();
+    m_applied.clear();
+    m_chain_input = ImageBuf();
+    aov_spec.layer = layer;
+    // load() checked the first layer's values: this one's are checked here.
+    return mcdn::resolve_aovs(m_aovs, aov_spec, m_image.spec(), error)
+           && mcdn::validate_inputs(m_image, m_aovs, error);
+}
+
 bool Session::replace_image(ImageBuf result, std::string& error)
 {
     m_image = std::move(result);

@@ -86,6 +86,10 @@ public:
     mcdn::ProgressCallback progress() const;
     /// Marks the current image stale (a new -i or --aov arrived).
     void invalidate() { m_loaded = false; }
+    /// The next stages work on Blender view layer `layer` of the current image (loaded, the
+    /// queued stages run first): its AOV set resolved on it, a new chain starting from it
+    /// (for --sure), the previous layer's features put back if a prefilter changed them.
+    bool switch_layer(const std::string& layer, std::string& error);
     bool loaded() const { return m_loaded; }
 
     OIIO::ImageBuf& image() { return m_image; }

@@ -456,3 +456,42 @@ TEST(Pipeline, CrossFrameReadsNeighboursAcrossTheChunkAndWritesNone)
             << run.output;
     }
 }
+
+// A file of two Blender view layers (BG, and FG with other pixels): --denoise with no other
+// flag denoises both, each exactly as --aov:layer=NAME alone does, and -v names each
+// (issue 46, item 1; before, FG came out as it went in).
+TEST(Pipeline, EveryViewLayerIsDenoised)
+{
+    std::string dir = mcdn_test::temp_dir("pipeline_layers");
+    for (const char* face : { "", "_var" }) {
+        OIIO::ImageBuf bg(mcdn_test::test_data(std::string("box16/box_0016spp") + face + ".exr"));
+        ASSERT_TRUE(bg.read(0, 0, true, OIIO::TypeFloat));
+        OIIO::ImageBuf fg = OIIO::ImageBufAlgo::flip(bg);  // other pixels, same statistics
+        OIIO::ImageBuf both = OIIO::ImageBufAlgo::channel_append(bg, fg);
+        std::vector<std::string> names;
+        for (int layer = 0; layer < 2; ++layer)
+            for (const auto& name : bg.spec().channelnames)
+                names.push_back(OIIO::Strutil::replace(name, "ViewLayer.", layer ? "FG." : "BG."));
+        both.specmod().channelnames = names;
+        ASSERT_TRUE(both.write(dir + "/layers" + face + ".exr"));
+    }
+    const std::string in =
+        "-i " + quote(dir + "/layers.exr") + " -i:as=variance " + quote(dir + "/layers_var.exr");
+    auto run = run_mcdntool("-v " + in + " --denoise -o " + quote(dir + "/all.exr"));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_NE(run.output.find("view layer 'BG' (1 of 2)"), std::string::npos) << run.output;
+    EXPECT_NE(run.output.find("view layer 'FG' (2 of 2)"), std::string::npos) << run.output;
+    OIIO::ImageBuf input(dir + "/layers.exr"), all(dir + "/all.exr");
+    for (const char* layer : { "BG", "FG" }) {
+        run = run_mcdntool(in + " --aov:layer=" + layer + " --denoise -o "
+                           + quote(dir + "/" + layer + ".exr"));
+        ASSERT_EQ(run.exit_code, 0) << run.output;
+        OIIO::ImageBuf alone(dir + "/" + layer + ".exr");
+        const std::string red = std::string(layer) + ".Combined.R";
+        const int c = all.spec().channelindex(red);
+        ASSERT_GE(c, 0);
+        const OIIO::ROI channel(0, 64, 0, 64, 0, 1, c, c + 1);
+        EXPECT_EQ(OIIO::ImageBufAlgo::compare(all, alone, 0, 0, channel).maxerror, 0.0) << layer;
+        EXPECT_GT(OIIO::ImageBufAlgo::compare(all, input, 0, 0, channel).maxerror, 0.01) << layer;
+    }
+}

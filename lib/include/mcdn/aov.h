@@ -173,6 +173,11 @@ private:
     std::vector<Extra> m_extras;
 };
 
+/// Blender's view layers in a merged buffer's channels: each "<layer>" with an un-prefixed
+/// "<layer>.Combined.R", in channel order (the cycles preset takes the first unless
+/// AovSpec::layer names one).
+std::vector<std::string> blender_view_layers(const ImageSpec& merged);
+
 /// The preset whose names a merged buffer's channels follow: cycles (a Blender view layer's
 /// "<layer>.Combined.R"), renderman (Ci.r), tungsten (a buffer directory among the inputs),
 /// arnold (RGBA.R, a variance layer in the render, RGBA_<group>, denoise_albedo), oidn (a

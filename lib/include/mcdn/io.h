@@ -52,6 +52,9 @@ struct InputSelection {
     bool light_split = true;
     AovSpec aovs;
     std::vector<std::string> extra_features;
+    /// Blender view layers whose faces are read too, each as `aovs` with its layer (a
+    /// file's every layer denoised in turn: mcdntool).
+    std::vector<std::string> layers;
 };
 bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs,
                  const InputSelection& selection);

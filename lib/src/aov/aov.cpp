@@ -127,6 +127,16 @@ bool has_input_of_kind(const ImageSpec& merged, InputKind kind)
 
 }  // namespace
 
+std::vector<std::string> blender_view_layers(const ImageSpec& spec)
+{
+    const std::string suffix = ".Combined.R";
+    std::vector<std::string> layers;
+    for (const auto& name : spec.channelnames)
+        if (OIIO::Strutil::ends_with(name, suffix) && !starts_with_any_prefix(name))
+            layers.push_back(name.substr(0, name.size() - suffix.size()));
+    return layers;
+}
+
 std::string detect_aov_preset(const ImageSpec& merged, std::string* why)
 {
     auto said = [&](const char* preset, std::string reason) {

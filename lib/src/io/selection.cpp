@@ -26,6 +26,19 @@ std::set<std::string> selected_faces(const ImageSpec& spec, const InputSelection
                                      std::string& error)
 {
     std::set<std::string> wanted;
+    // Several view layers: the union of each layer's faces.
+    if (!selection.layers.empty()) {
+        for (const std::string& layer : selection.layers) {
+            InputSelection one = selection;
+            one.layers.clear();
+            one.aovs.layer = layer;
+            const std::set<std::string> faces = selected_faces(spec, one, error);
+            if (!error.empty())
+                return {};
+            wanted.insert(faces.begin(), faces.end());
+        }
+        return wanted;
+    }
     AovSet aovs;
     std::string unresolved;
     if (!resolve_aovs(aovs, selection.aovs, spec, unresolved)) {
