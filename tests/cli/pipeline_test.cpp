@@ -495,3 +495,45 @@ TEST(Pipeline, EveryViewLayerIsDenoised)
         EXPECT_GT(OIIO::ImageBufAlgo::compare(all, input, 0, 0, channel).maxerror, 0.01) << layer;
     }
 }
+
+// Blender's File Output node (multilayer) names its channels by its sockets: Image.R,
+// Denoising Albedo.R, Denoising Depth.V, no view layer. Read as the cycles preset, denoised
+// exactly as the view layer's names are (issue 46, item 2; before, --info and --denoise
+// failed with "role 'color' not found").
+TEST(Pipeline, BlendersFileOutputNamesAreTheCyclesPreset)
+{
+    std::string dir = mcdn_test::temp_dir("pipeline_file_output");
+    for (const char* face : { "", "_var" }) {
+        OIIO::ImageBuf in(mcdn_test::test_data(std::string("box16/box_0016spp") + face + ".exr"));
+        ASSERT_TRUE(in.read(0, 0, true, OIIO::TypeFloat));
+        std::vector<std::string> names;
+        for (std::string name : in.spec().channelnames) {
+            name = OIIO::Strutil::replace(name, "ViewLayer.", "");
+            name = OIIO::Strutil::replace(name, "Combined.", "Image.");
+            name = OIIO::Strutil::replace(name, "Depth.Z", "Depth.V");
+            names.push_back(name);
+        }
+        in.specmod().channelnames = names;
+        ASSERT_TRUE(in.write(dir + "/fo" + face + ".exr"));
+    }
+    auto run = run_mcdntool("-i " + quote(dir + "/fo.exr") + " --info");
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_NE(run.output.find("AOV preset 'cycles'"), std::string::npos) << run.output;
+    run = run_mcdntool("-v -i " + quote(dir + "/fo.exr") + " -i:as=variance "
+                       + quote(dir + "/fo_var.exr") + " --denoise -o " + quote(dir + "/out.exr"));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_NE(run.output.find("File Output node names"), std::string::npos) << run.output;
+    run = run_mcdntool("-i " + box("box_0016spp.exr") + " -i:as=variance "
+                       + box("box_0016spp_var.exr") + " --denoise -o " + quote(dir + "/vl.exr"));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    OIIO::ImageBuf fo(dir + "/out.exr"), vl(dir + "/vl.exr");
+    for (const char* c : { "R", "G", "B" }) {
+        const int a = fo.spec().channelindex(std::string("Image.") + c);
+        const int b = vl.spec().channelindex(std::string("ViewLayer.Combined.") + c);
+        ASSERT_GE(a, 0);
+        ASSERT_GE(b, 0);
+        OIIO::ImageBuf fa = OIIO::ImageBufAlgo::channels(fo, 1, { a });
+        OIIO::ImageBuf vb = OIIO::ImageBufAlgo::channels(vl, 1, { b });
+        EXPECT_EQ(OIIO::ImageBufAlgo::compare(fa, vb, 0, 0).maxerror, 0.0) << c;
+    }
+}

@@ -109,6 +109,15 @@ bool has_channel(const ImageSpec& spec, const char* name)
     return spec.channelindex(name) >= 0;
 }
 
+// Blender's File Output node (multilayer), its default socket names: the beauty as Image
+// beside Blender's own pass names, no view layer.
+bool file_output_names(const ImageSpec& spec)
+{
+    return has_channel(spec, "Image.R")
+           && (has_channel(spec, "Denoising Albedo.R") || has_channel(spec, "Denoising Normal.X")
+               || has_channel(spec, "DiffCol.R") || has_channel(spec, "Denoising Depth.V"));
+}
+
 bool has_channel_starting(const ImageSpec& spec, const char* stem)
 {
     for (const auto& name : spec.channelnames)
@@ -147,6 +156,9 @@ std::string detect_aov_preset(const ImageSpec& merged, std::string* why)
     const std::string layer = find_cycles_layer(merged);
     if (!layer.empty())
         return said("cycles", "Blender view layer '" + layer + "' (" + layer + ".Combined.R)");
+    if (file_output_names(merged))
+        return said("cycles", "Blender's File Output node names (Image.R beside Blender's "
+                              "passes, no view layer)");
     if (has_channel(merged, "Ci.r") || has_channel(merged, "Ci.R"))
         return said("renderman", "RenderMan's Ci channels");
     for (const InputFile& file : merged_input_files(merged))

@@ -19,8 +19,11 @@ std::vector<std::string> with_suffixes(const std::string& stem, const char* suff
 // The renderers' names, from their documentation:
 // - Cycles (Blender's multilayer EXR, "<layer>.<pass>.<channel>"): Combined, Denoising
 //   Albedo/Normal/Depth, DiffCol/Dir/Ind, GlossCol/Dir/Ind, Emit, Env; light groups
-//   Combined_<group> (blender intern/cycles/blender/sync.cpp). No variance pass: K seeds give
-//   the mean, the variance of the mean and halves A/B (training/datagen).
+//   Combined_<group> (blender intern/cycles/blender/sync.cpp). The compositor's File Output
+//   node (multilayer) names channels by its input sockets, by default the passes' names with
+//   "Image" for the beauty and no layer: Image.R, Denoising Albedo.R, Denoising Depth.V. No
+//   variance pass: K seeds give the mean, the variance of the mean and halves A/B
+//   (training/datagen).
 // - Arnold (help.autodesk.com, Arnold User Guide: AOVs, Expression AOVs, Arnold Denoiser):
 //   the beauty RGBA as R,G,B,A, or RGBA.R,... with "Preserve Layer Name"; N, Z; the albedo
 //   LPE AOVs albedo, denoise_albedo, diffuse_albedo; light groups RGBA_<group>. The variance
@@ -34,12 +37,20 @@ std::vector<std::string> with_suffixes(const std::string& stem, const char* suff
 Candidates preset_candidates(const std::string& preset, const std::string& layer, Role role)
 {
     if (preset == "cycles") {
-        const std::string L = layer + ".";
+        // A view layer's passes "<layer>.<pass>.<channel>"; without a layer, the File Output
+        // node's multilayer names: each input socket's name, the beauty's "Image", floats
+        // ".V" (Blender's compositor).
+        const std::string L = layer.empty() ? "" : layer + ".";
         switch (role) {
-        case Role::Color: return { with_suffixes(L + "Combined", "RGB") };
+        case Role::Color:
+            return { with_suffixes(L + "Combined", "RGB"), with_suffixes(L + "Image", "RGB") };
         case Role::Albedo: return { with_suffixes(L + "Denoising Albedo", "RGB") };
         case Role::Normal: return { with_suffixes(L + "Denoising Normal", "XYZ") };
-        case Role::Depth: return { { L + "Denoising Depth.Z" }, { L + "Depth.Z" } };
+        case Role::Depth:
+            return { { L + "Denoising Depth.Z" },
+                     { L + "Depth.Z" },
+                     { L + "Denoising Depth.V" },
+                     { L + "Depth.V" } };
         case Role::DiffuseColor: return { with_suffixes(L + "DiffCol", "RGB") };
         case Role::DiffuseDirect: return { with_suffixes(L + "DiffDir", "RGB") };
         case Role::DiffuseIndirect: return { with_suffixes(L + "DiffInd", "RGB") };
