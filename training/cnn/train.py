@@ -27,7 +27,10 @@ specular and recombined colour, divided by the output's own square + 0.01 with n
 through the divisor (Lehtinen et al. 2018, Noise2Noise §3.4): its expectation over the
 target's noise is the loss against the clean image plus a constant, so a noisy independent
 target trains as a clean one would. `l1log` (the default with `full`): L1 in log(1 + x),
-KPCN §5.2, for clean references only (it is biased under target noise). Adam.
+KPCN §5.2, for clean references only (it is biased under target noise). `n2n_capped`: n2n
+with each pixel's term at most 1, so that a target's firefly does not set the step (the best
+of the three on the validation families: models/README-kpcn.md). Adam. --init starts from
+exported weights (a fine-tune).
 
 Run state in $CACHE/cnn/<--run>/ (default `run`): checkpoint.pt (model, optimizer, step,
 elapsed, curve, arguments; written every 50 steps and at the end, atomically), loss.csv
@@ -236,7 +239,16 @@ def loss_n2n(out, ref):
     return rel(diffuse, ref_diffuse) + rel(specular, ref_specular) + rel(colour, ref_colour)
 
 
-LOSSES = {"n2n": loss_n2n, "l1log": loss_l1log}
+def loss_n2n_capped(out, ref):
+    """loss_n2n with each pixel's term at most 1: a target's firefly no longer outweighs the
+    batch (biased where it caps, which a converged pixel of a 128-spp target rarely needs)."""
+    diffuse, specular, colour = out
+    ref_colour, ref_diffuse, ref_specular = ref
+    rel = lambda a, b: ((a - b) ** 2 / (a.detach() ** 2 + 0.01)).clamp(max=1.0).mean()  # noqa: E731
+    return rel(diffuse, ref_diffuse) + rel(specular, ref_specular) + rel(colour, ref_colour)
+
+
+LOSSES = {"n2n": loss_n2n, "n2n_capped": loss_n2n_capped, "l1log": loss_l1log}
 
 
 def relmse(image, reference, reference_var=None):
@@ -286,6 +298,19 @@ def validate_patches(net, patch_set, device, batch=16):
     return float(torch.cat(errors).mean()), float(torch.cat(noisy).mean())
 
 
+def load_weights(path):
+    """A state dict from an exported model (.mcdnw, training/common/weights.py) or a run's
+    model_*.npz."""
+    if path.endswith(".mcdnw"):
+        sys.path.insert(0, os.path.join(HERE, "..", "common"))
+        from weights import read_weights
+        _, tensors = read_weights(path)
+    else:
+        with np.load(path) as f:
+            tensors = {k: f[k] for k in f.files}
+    return {k: torch.from_numpy(np.ascontiguousarray(v)) for k, v in tensors.items()}
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--resume", action="store_true", help="continue from $CACHE/cnn/<run>/checkpoint.pt")
@@ -296,6 +321,8 @@ def main():
     ap.add_argument("--val-patches", help="validate on this patch set (patches.py --split val) "
                     "instead of the validation crops")
     ap.add_argument("--loss", choices=sorted(LOSSES), help="default: n2n, l1log for --dataset full")
+    ap.add_argument("--init", help="start from these weights (an exported .mcdnw or a run's "
+                    ".npz) instead of random ones: a fine-tune (their widths are used)")
     ap.add_argument("--widths", default=",".join(str(w) for w in kpcn.WIDTHS),
                     help="UNet widths at full, 1/2, 1/4 resolution (default %(default)s)")
     ap.add_argument("--no-split", type=float, default=0.25,
@@ -334,8 +361,15 @@ def main():
         widths = tuple(state["args"].get("widths_used", kpcn.WIDTHS))
     elif os.path.exists(checkpoint_path) and not args.resume:
         sys.exit("%s exists: pass --resume to continue it, or remove it to start over" % checkpoint_path)
+    init = None
+    if args.init and ck is None:
+        init = load_weights(args.init)
+        widths = tuple(int(init["diffuse.%s.weight" % n].shape[0]) for n in ("enc1", "enc2a", "bottleneck_a"))
     state["args"]["widths_used"] = list(widths)
     net = kpcn.KPCN(widths).to(device)
+    if init is not None:
+        net.load_state_dict({k: v.to(device) for k, v in init.items()})
+        print("initialised from %s" % args.init, flush=True)
     opt = torch.optim.Adam(net.parameters(), lr=args.lr)
     if ck is not None:
         net.load_state_dict(ck["model"])
