@@ -218,7 +218,11 @@ class PatchSet:
         p = self.patches[idx].float()
         size = min(patch, p.shape[-1]) // 4 * 4
         y0, x0 = (random.randint(0, p.shape[-1] - size) for _ in range(2))
-        p = p[..., y0:y0 + size, x0:x0 + size]
+        return self.planes(p[..., y0:y0 + size, x0:x0 + size])
+
+    def planes(self, p):
+        """A batch of stored patches [N, C, P, P] as (raw planes, [colour, diffuse, specular]
+        of the target)."""
         raws = {name: p[:, s] for name, s in self.slices.items() if not name.startswith("target_")}
         raws["specular"] = raws["color"] - raws["diffuse"]
         colour, diffuse = p[:, self.slices["target_color"]], p[:, self.slices["target_diffuse"]]
@@ -287,10 +291,7 @@ def validate_patches(net, patch_set, device, batch=16):
     errors, noisy = [], []
     with torch.no_grad():
         for i in range(0, len(patch_set), batch):
-            p = patch_set.patches[i:i + batch].float()
-            raws = {n: p[:, s] for n, s in patch_set.slices.items() if not n.startswith("target_")}
-            raws["specular"] = raws["color"] - raws["diffuse"]
-            target = p[:, patch_set.slices["target_color"]]
+            raws, (target, _, _) = patch_set.planes(patch_set.patches[i:i + batch].float())
             _, _, colour = net(raws)
             errors.append(((colour - target) ** 2 / (target ** 2 + 0.01)).mean((1, 2, 3)))
             noisy.append(((raws["color"] - target) ** 2 / (target ** 2 + 0.01)).mean((1, 2, 3)))
