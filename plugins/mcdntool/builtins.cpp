@@ -33,11 +33,18 @@ namespace Strutil = OIIO::Strutil;
 
 namespace {
 
-bool input_kind_of(const Command& c, mcdn::InputKind& kind, std::string& error)
+// -i:as=seed: one of K renders of the frame with different seeds (mcdn::combine_seeds).
+bool input_kind_of(const Command& c, mcdn::InputKind& kind, bool& seed, std::string& error)
 {
-    auto named = mcdn::input_kind_from_name(c.modifier("as", "mean"));
+    seed = c.modifier("as") == "seed";
+    auto named = mcdn::input_kind_from_name(seed ? "mean" : c.modifier("as", "mean"));
     if (!named) {
-        error = format("-i:as={} is not one of mean, variance, halfA, halfB", c.modifier("as"));
+        error =
+            format("-i:as={} is not one of mean, variance, halfA, halfB, seed", c.modifier("as"));
+        return false;
+    }
+    if (seed && c.has("part")) {
+        error = format("-i:as=seed:part={}: a seed is read whole", c.modifier("part"));
         return false;
     }
     kind = *named;
@@ -49,10 +56,21 @@ bool input_kind_of(const Command& c, mcdn::InputKind& kind, std::string& error)
 bool input_file_of(const Command& c, mcdn::InputFile& file, std::string& error)
 {
     mcdn::InputKind kind;
-    if (!input_kind_of(c, kind, error))
+    bool seed = false;
+    if (!input_kind_of(c, kind, seed, error))
         return false;
     file = { c.args[0], kind, c.modifier("part") };
+    if (seed)
+        file.seeds = { c.args[0] };
     return true;
+}
+
+void add_input(std::vector<mcdn::InputFile>& inputs, const mcdn::InputFile& file)
+{
+    if (!file.seeds.empty() && !inputs.empty() && !inputs.back().seeds.empty())
+        inputs.back().seeds.push_back(file.path);
+    else
+        inputs.push_back(file);
 }
 
 namespace {
@@ -117,7 +135,8 @@ bool write_options_of(const Command& c, mcdn::WriteOptions& options, std::string
 bool check_input(const Command& c, std::string& error)
 {
     mcdn::InputKind kind;
-    return input_kind_of(c, kind, error);
+    bool seed = false;
+    return input_kind_of(c, kind, seed, error);
 }
 
 bool check_aov(const Command& c, std::string& error)
@@ -152,7 +171,7 @@ bool run_input(Session& s, const Command& c, std::string& error)
     mcdn::InputFile file;
     if (!input_file_of(c, file, error))
         return false;
-    s.inputs.push_back(file);
+    add_input(s.inputs, file);
     s.invalidate();
     return true;
 }

@@ -64,7 +64,11 @@ const std::vector<CommandInfo>& command_table()
               "FILE",
               { "as", "part" },
               "Add an input: the render (as=mean, the default), the per-pixel variance of its "
-              "mean (as=variance), or a half buffer (as=halfA, as=halfB). A directory is read "
+              "mean (as=variance), or a half buffer (as=halfA, as=halfB). as=seed: one of "
+              "K renders of the frame that differ only in their seed (Cycles' Seed, Arnold's "
+              "AA_seed), given one after another: read as one render, their mean, with the "
+              "variance of the mean and, for an even K, two halves (what Blender does not "
+              "write; --nfor, --sure, --mix and frames=N need them). A directory is read "
               "as a Tungsten buffer set (color.pfm, colorA.pfm, colorVariance.pfm, ...). "
               "A multi-part EXR is read as one set of channels (the first part's as they "
               "are, the others' behind their part's name) and written back with the same "

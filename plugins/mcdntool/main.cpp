@@ -195,7 +195,8 @@ mcdn::InputSelection input_selection(const std::vector<Command>& commands)
         const mcdn::StageInfo* reads = stage_of_command(c.name);
         selection.light_split |= (reads && reads->reads_light_split) || c.name == "--info";
         halves |= reads && reads->reads_halves;
-        variance |= c.name == "-i" && c.modifier("as") == "variance";
+        variance |=
+            c.name == "-i" && (c.modifier("as") == "variance" || c.modifier("as") == "seed");
         if (reads && c.has("features"))  // a stage's extra feature channels
             for (const std::string& f : Strutil::splits(c.modifier("features"), ","))
                 selection.extra_features.push_back(f);
@@ -219,7 +220,7 @@ bool shot_frame_inputs(const std::vector<Command>& commands, int frame,
             std::string error;
             if (!input_file_of(c, file, error) || !Filesystem::exists(file.path))
                 return false;
-            inputs.push_back(file);
+            add_input(inputs, file);
         }
     return !inputs.empty();
 }
@@ -247,7 +248,8 @@ std::vector<std::string> layers_to_denoise(const std::vector<Command>& commands)
                 || (c.has("preset") && c.modifier("preset") != "cycles"
                     && c.modifier("preset") != "auto")))
             return {};
-        if (c.name == "-i" && first_input.empty() && c.modifier("as", "mean") == "mean")
+        if (c.name == "-i" && first_input.empty()
+            && (c.modifier("as", "mean") == "mean" || c.modifier("as") == "seed"))
             first_input = c.args[0];
     }
     auto in = first_input.empty() ? nullptr : OIIO::ImageInput::open(first_input);

@@ -144,7 +144,11 @@ bool check_memory(const std::vector<Command>& commands, int threads, int paralle
             file_channels += spec.nchannels;
         }
         in_files += file_channels;
-        channels += kind == "mean" ? file_channels : std::min(file_channels, 3);
+        // K seeds are read whole, then combined into the mean, its variance and halves:
+        // K + 4 frames of their channels, at most 3 a seed (K = 2).
+        channels += kind == "mean"   ? file_channels
+                    : kind == "seed" ? 3 * file_channels
+                                     : std::min(file_channels, 3);
     }
     double available = 0;
     if (!available_bytes(available, error))

@@ -137,6 +137,9 @@ bool run_fixnan(Session&, const Command&, std::string& error);
 
 /// The file an -i command reads: its path, kind and part.
 bool input_file_of(const Command& c, mcdn::InputFile& file, std::string& error);
+/// Adds an -i command's file to `inputs`: -i:as=seed files one after another are the seeds
+/// of one render (mcdn::InputFile::seeds).
+void add_input(std::vector<mcdn::InputFile>& inputs, const mcdn::InputFile& file);
 
 /// Checks of the built-in commands' modifier values (session.cpp), run before any command.
 bool check_input(const Command&, std::string& error);

@@ -37,11 +37,18 @@ void bind_files(py::module_& m)
         [](const std::vector<std::pair<std::string, std::string>>& files) {
             std::vector<mcdn::InputFile> inputs;
             for (const auto& [path, kind] : files) {
-                auto k = mcdn::input_kind_from_name(kind);
+                // 'seed' files one after another: one render's seeds (mcdn::combine_seeds).
+                if (kind == "seed" && !inputs.empty() && !inputs.back().seeds.empty()) {
+                    inputs.back().seeds.push_back(path);
+                    continue;
+                }
+                auto k = mcdn::input_kind_from_name(kind == "seed" ? "mean" : kind);
                 if (!k)
                     throw std::runtime_error(path + ": kind '" + kind
-                                             + "' is not mean, variance, halfA or halfB");
+                                             + "' is not mean, variance, halfA, halfB or seed");
                 inputs.push_back({ path, *k });
+                if (kind == "seed")
+                    inputs.back().seeds = { path };
             }
             ImageBuf merged;
             bool ok;
@@ -54,9 +61,11 @@ void bind_files(py::module_& m)
             return merged;
         },
         py::arg("files"),
-        "Read [(path, 'mean'|'variance'|'halfA'|'halfB'), ...] into one ImageBuf (variance "
-        "channels prefixed 'variance.', halves 'A.' and 'B.'). A directory path reads a "
-        "Tungsten buffer set.");
+        "Read [(path, 'mean'|'variance'|'halfA'|'halfB'|'seed'), ...] into one ImageBuf "
+        "(variance channels prefixed 'variance.', halves 'A.' and 'B.'). 'seed' files one "
+        "after another are K renders of the frame with different seeds: read as their mean "
+        "with its variance and, for an even K, halves. A directory path reads a Tungsten "
+        "buffer set.");
 
     m.def(
         "write",

@@ -537,3 +537,47 @@ TEST(Pipeline, BlendersFileOutputNamesAreTheCyclesPreset)
         EXPECT_EQ(OIIO::ImageBufAlgo::compare(fa, vb, 0, 0).maxerror, 0.0) << c;
     }
 }
+
+// Blender writes no variance: K renders with different seeds, given as -i:as=seed, are read
+// as their mean with its variance and halves, so that every chain runs on a plain Cycles
+// render. The box's two halves are two such seeds (8 samples each).
+TEST(Pipeline, SeedRendersGiveTheVarianceAndHalvesBlenderDoesNotWrite)
+{
+    std::string dir = mcdn_test::temp_dir("pipeline_seeds");
+    const std::string seeds =
+        "-i:as=seed " + box("box_0016spp_A.exr") + " -i:as=seed " + box("box_0016spp_B.exr");
+    auto run = run_mcdntool(seeds + " --info");
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_NE(run.output.find("variance"), std::string::npos) << run.output;
+    for (const char* stage : { "--nfor", "--denoise", "--cnn --sure --mix" }) {
+        run = run_mcdntool(seeds + " " + stage + " -o " + quote(dir + "/out.exr"));
+        ASSERT_EQ(run.exit_code, 0) << stage << ": " << run.output;
+    }
+    // Without a stage the output is the seeds' mean: the render the halves came from, in the
+    // render's own channels (no variance or half channel), each of its type.
+    run = run_mcdntool(seeds + " -o " + quote(dir + "/mean.exr"));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    OIIO::ImageBuf mean(dir + "/mean.exr"), render(mcdn_test::test_data("box16/box_0016spp.exr"));
+    ASSERT_TRUE(mean.read(0, 0, true, OIIO::TypeFloat) && render.read(0, 0, true, OIIO::TypeFloat));
+    EXPECT_EQ(mean.spec().channelnames, render.spec().channelnames);
+    const int r = render.spec().channelindex("ViewLayer.Combined.R");
+    OIIO::ImageBuf mr = OIIO::ImageBufAlgo::channels(mean, 1, { r });
+    OIIO::ImageBuf rr = OIIO::ImageBufAlgo::channels(render, 1, { r });
+    EXPECT_LT(OIIO::ImageBufAlgo::compare(mr, rr, 1e-3f, 1e-3f).maxerror, 1e-3);
+    // One seed gives no variance; seeds of different passes are not one frame's.
+    run = run_mcdntool("-i:as=seed " + box("box_0016spp_A.exr") + " --denoise -o "
+                       + quote(dir + "/one.exr"));
+    EXPECT_NE(run.exit_code, 0);
+    EXPECT_NE(run.output.find("two or more"), std::string::npos) << run.output;
+    EXPECT_NE(run.output.find("box_0016spp_A.exr"), std::string::npos) << run.output;
+    OIIO::ImageBuf other(mcdn_test::test_data("box16/box_0016spp_B.exr"));
+    ASSERT_TRUE(other.read(0, 0, true, OIIO::TypeFloat));
+    other.specmod().channelnames[3] = "ViewLayer.Shadow.R";
+    ASSERT_TRUE(other.write(dir + "/other.exr"));
+    run = run_mcdntool("-i:as=seed " + box("box_0016spp_A.exr") + " -i:as=seed "
+                       + quote(dir + "/other.exr") + " --denoise -o " + quote(dir + "/two.exr"));
+    EXPECT_NE(run.exit_code, 0);
+    EXPECT_NE(run.output.find("other.exr: channel "), std::string::npos) << run.output;
+    EXPECT_FALSE(OIIO::Filesystem::exists(dir + "/one.exr"));
+    EXPECT_FALSE(OIIO::Filesystem::exists(dir + "/two.exr"));
+}

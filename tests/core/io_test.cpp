@@ -420,3 +420,46 @@ TEST(Io, EveryExrCodecReadsAsTheCxxLibraryReadsIt)
                     << path;
             }
 }
+
+// K seed renders: the mean, the variance of the mean (sample variance over K), the means of
+// the first and last K/2 seeds; identifiers (Cryptomatte) are the first seed's, without faces.
+TEST(Io, SeedsAreTheirMeanWithItsVarianceAndHalves)
+{
+    const std::string dir = mcdn_test::temp_dir("io_seeds");
+    const std::vector<std::string> names = { "R", "G", "B", "CryptoObject00.R" };
+    const float values[4] = { 1.0f, 2.0f, 4.0f, 9.0f };
+    std::vector<std::string> seeds;
+    for (int s = 0; s < 4; ++s) {
+        seeds.push_back(dir + "/seed" + std::to_string(s) + ".exr");
+        ImageBuf seed = make_image(3, 2, names, [&](int x, int, int c) {
+            return c == 3 ? float(100 + s) : values[s] * float(c + 1) + float(x);
+        });
+        ASSERT_TRUE(seed.write(seeds.back()));
+    }
+    InputFile input(seeds[0]);
+    input.seeds = seeds;
+    ImageBuf merged;
+    ASSERT_TRUE(read_inputs(merged, { input })) << merged.geterror();
+    const ImageSpec& spec = merged.spec();
+    for (const char* name : { "variance.R", "A.G", "B.B" })
+        EXPECT_GE(spec.channelindex(name), 0) << name;
+    EXPECT_LT(spec.channelindex("variance.CryptoObject00.R"), 0);
+    EXPECT_EQ(spec.get_string_attribute("mcdn:output_channels"), "R\nG\nB\nCryptoObject00.R");
+    // Channel G (c = 1) at x = 2: seeds 2*{1,2,4,9} + 2 = 4, 6, 10, 20.
+    auto at = [&](const char* name) { return merged.getchannel(2, 1, 0, spec.channelindex(name)); };
+    const double mean = (4 + 6 + 10 + 20) / 4.0;
+    const double var = ((4 - mean) * (4 - mean) + (6 - mean) * (6 - mean)
+                        + (10 - mean) * (10 - mean) + (20 - mean) * (20 - mean))
+                       / 3.0 / 4.0;
+    EXPECT_FLOAT_EQ(at("G"), float(mean));
+    EXPECT_FLOAT_EQ(at("variance.G"), float(var));
+    EXPECT_FLOAT_EQ(at("A.G"), 5.0f);
+    EXPECT_FLOAT_EQ(at("B.G"), 15.0f);
+    EXPECT_FLOAT_EQ(at("CryptoObject00.R"), 100.0f);
+    // An odd K: no halves (they would not have the same samples), the variance all the same.
+    input.seeds.pop_back();
+    ImageBuf three;
+    ASSERT_TRUE(read_inputs(three, { input })) << three.geterror();
+    EXPECT_GE(three.spec().channelindex("variance.R"), 0);
+    EXPECT_LT(three.spec().channelindex("A.R"), 0);
+}

@@ -36,6 +36,20 @@ class OpsTakeAndReturnImageBufs(unittest.TestCase):
         self.assertEqual(self.render.spec().width, 64)
         self.assertIn("variance.ViewLayer.Combined.R", self.render.spec().channelnames)
 
+    def test_seed_renders_are_read_with_their_variance(self):
+        seeds = mcdenoise.read_inputs([
+            (os.path.join(BOX, "box_0016spp_A.exr"), "seed"),
+            (os.path.join(BOX, "box_0016spp_B.exr"), "seed"),
+        ])
+        names = seeds.spec().channelnames
+        self.assertIn("variance.ViewLayer.Combined.R", names)
+        self.assertIn("A.ViewLayer.Combined.R", names)
+        denoised = mcdenoise.nfor(seeds, preset="cycles")
+        self.assertLess(mcdenoise.metrics(denoised, self.reference)["relmse"],
+                        0.5 * mcdenoise.metrics(seeds, self.reference)["relmse"])
+        with self.assertRaisesRegex(RuntimeError, "two or more"):
+            mcdenoise.read_inputs([(os.path.join(BOX, "box_0016spp_A.exr"), "seed")])
+
     def test_nfor_denoises(self):
         noisy = mcdenoise.metrics(self.render, self.reference)
         denoised = mcdenoise.nfor(self.render, preset="cycles")

@@ -96,6 +96,10 @@ struct InputFile {
     InputKind kind = InputKind::Mean;
     /// A multi-part EXR's part to read alone (-i:part=NAME); empty: every part.
     std::string part;
+    /// Renders of this frame that differ only in their seed (-i:as=seed), read as one render
+    /// with its variance and halves (mcdn/io.h combine_seeds); `path` is the first of them
+    /// and `kind` Mean. Empty: `path` is the one file.
+    std::vector<std::string> seeds;
 
     InputFile() = default;
     InputFile(std::string path_, InputKind kind_ = InputKind::Mean, std::string part_ = {})

@@ -31,6 +31,15 @@ bool read_image(ImageBuf& dst, const std::string& path);
 /// R,G,B / albedo.* / N.X,Y,Z / Z / visibility, with variance.*, A.*, B.* faces.
 bool read_tungsten_directory(ImageBuf& dst, const std::string& dir);
 
+/// K >= 2 renders of one frame that differ only in their sampling seed (Cycles' Seed,
+/// Arnold's AA_seed), read as one render: every channel's mean (the render at K times the
+/// samples), then "variance." + name, the variance of that mean (the seeds' sample
+/// variance over K), and for an even K "A." / "B." + name, the means of the first and of
+/// the last K/2 seeds (two independent halves). Identifier channels (Cryptomatte, Blender's
+/// IndexOB/IndexMA) are the first seed's, with no faces. Every seed must have the same
+/// channels and data window; errors on `dst` name the file and the channel.
+bool combine_seeds(ImageBuf& dst, const std::vector<std::string>& seeds);
+
 /// Reads all inputs and merges them into one float buffer: channels of `InputKind::Mean`
 /// files keep their names, the others get the prefix of their kind (aov.h). Sizes and data
 /// windows must agree. Sets kInputsAttribute (mcdn/aov.h: which file gave which prefix) and

@@ -471,9 +471,12 @@ StageInfo denoise_stage()
              "--oidn finds them, --oidn in the CNN's place. -v prints which and why. "
              "To choose stages and their settings, name them instead. In a sequence, frames=2 "
              "is cross-frame: the CNN's input is this frame combined with 2 previous and 2 next "
-             "ones where they agree (as --cnn:frames=2), against flicker.";
-    s.needs = "the colour (any preset); with its variance (the renderer's variance AOV, Cycles "
-              "via -i:as=variance, a Tungsten folder) the mixed chain. Albedo, normal and depth "
+             "ones where they agree (as --cnn:frames=2), against flicker; the agreement is "
+             "weighed by the colour's variance or halves, so frames=N needs them and the motion "
+             "vectors (Blender's Vector pass).";
+    s.needs = "the colour (any preset); with its variance (the renderer's variance AOV, a "
+              "Tungsten folder; Cycles writes none: render K seeds, -i:as=seed each) the mixed "
+              "chain and frames=N. Albedo, normal and depth "
               "help the CNN; missing ones are zero (-v names them).";
     return s;
 }

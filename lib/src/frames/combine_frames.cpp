@@ -23,7 +23,8 @@ bool read_color(ColorPlanes& out, const ImageBuf& frame, const AovSet& aovs, std
     const bool halves = aovs.has(Role::ColorA) && aovs.has(Role::ColorB);
     if (!aovs.has(Role::ColorVariance) && !halves) {
         error = "weighing the frames needs the colour's variance or two half buffers "
-                "(-i:as=variance, -i:as=halfA, -i:as=halfB)";
+                "(-i:as=variance, -i:as=halfA, -i:as=halfB; a renderer without them, as "
+                "Cycles: K renders with other seeds, -i:as=seed each)";
         return false;
     }
     read_color_planes(out, frame, aovs, !aovs.has(Role::ColorVariance));

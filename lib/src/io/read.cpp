@@ -6,6 +6,7 @@
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
+#include <limits>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -367,6 +368,8 @@ bool InputRows::open(const std::vector<InputFile>& inputs, const InputSelection&
     directories.resize(inputs.size());
     std::vector<std::string> names, provenance, output_channels, input_types;
     std::map<std::string, std::string> channel_file;
+    // How many of each file's channels are the render's own (a seed set's faces are not).
+    std::vector<size_t> own(inputs.size(), std::numeric_limits<size_t>::max());
     for (size_t i = 0; i < inputs.size(); ++i) {
         const InputFile& input = inputs[i];
         bool is_dir = Filesystem::is_directory(input.path);
@@ -376,7 +379,26 @@ bool InputRows::open(const std::vector<InputFile>& inputs, const InputSelection&
                            input.path);
             return false;
         }
-        if (is_dir) {
+        if (!input.seeds.empty()) {
+            // Read whole, like a buffer directory: the faces exist only once combined.
+            FileLayout seed;
+            if (!input.part.empty()) {
+                error =
+                    format("{}: -i:part does not apply to seeds: each is read whole", input.path);
+                return false;
+            }
+            if (!read_layout(seed, input.seeds[0], "", error))
+                return false;
+            if (!combine_seeds(directories[i], input.seeds)) {
+                error = directories[i].geterror();
+                return false;
+            }
+            const ImageSpec& spec = directories[i].spec();
+            std::vector<TypeDesc> types = seed.types;
+            types.resize(spec.nchannels, TypeDesc::FLOAT);
+            layouts[i] = { input.path, { spec }, spec.channelnames, { 0 }, false, types };
+            own[i] = seed.names.size();
+        } else if (is_dir) {
             if (!read_tungsten_directory(directories[i], input.path)) {
                 error = directories[i].geterror();
                 return false;
@@ -406,13 +428,16 @@ bool InputRows::open(const std::vector<InputFile>& inputs, const InputSelection&
             }
             channel_file[name] = input.path;
             names.push_back(name);
-            if (input.kind == InputKind::Mean) {
+            // A seed set's faces are made here, not the render's: -o writes its means.
+            if (input.kind == InputKind::Mean && c < own[i]) {
                 output_channels.push_back(name);
                 if (c < layouts[i].types.size())
                     input_types.push_back(name + "\t" + layouts[i].types[c].c_str());
             }
         }
-        provenance.push_back(format("{}={}", input_kind_name(input.kind), input.path));
+        for (const std::string& path :
+             input.seeds.empty() ? std::vector<std::string> { input.path } : input.seeds)
+            provenance.push_back(format("{}={}", input_kind_name(input.kind), path));
     }
 
     // Only the variance and half channels the selection wants (the render's: all of them).
