@@ -5,7 +5,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
+#include <memory>
 #include <iostream>
+#include <mutex>
+#include <set>
 #include <tuple>
 
 #include <fnmatch.h>
@@ -51,10 +55,44 @@ bool Session::load(std::string& error)
     return true;
 }
 
+void say_once(const std::string& line)
+{
+    static std::mutex mutex;
+    static std::set<std::string> said;
+    std::lock_guard<std::mutex> lock(mutex);
+    if (said.insert(line).second)
+        std::cerr << line;
+}
+
 mcdn::ProgressCallback Session::progress() const
 {
-    if (!verbose || !isatty(STDERR_FILENO))
+    if (!verbose)
         return {};
+    if (!isatty(STDERR_FILENO)) {
+        // A log (a farm's): a line every $MCDN_LOG_PROGRESS_SECONDS (default 10) of a long
+        // stage, none for a short one; the stage's own line with its time ends it.
+        const char* every = std::getenv("MCDN_LOG_PROGRESS_SECONDS");
+        double seconds = 10;
+        if (every && !mcdn::parse_finite(every, seconds))
+            seconds = 10;
+        struct Since {
+            std::string stage;
+            OIIO::Timer timer;
+        };
+        auto since = std::make_shared<Since>();
+        return [since, seconds](const std::string& stage, float fraction) {
+            if (stage != since->stage) {
+                since->stage = stage;
+                since->timer.reset();
+                since->timer.start();
+            } else if (fraction < 1 && since->timer() >= seconds) {
+                std::fprintf(stderr, "mcdntool: %s %d%%\n", stage.c_str(), int(100 * fraction));
+                std::fflush(stderr);
+                since->timer.reset();
+                since->timer.start();
+            }
+        };
+    }
     return [](const std::string& stage, float fraction) {
         // One line, rewritten in place and cleared when the stage is done.
         std::fprintf(stderr, "\rmcdntool: %s %3d%%\033[K", stage.c_str(), int(100 * fraction));
@@ -270,13 +308,14 @@ bool Session::open_rows(mcdn::InputRows& rows, std::string& error)
         error = inputs[0].path + ": " + error;
         return false;
     }
-    if (verbose)
-        std::cerr << format("mcdntool: colour space '{}' ({}); the stages run in '{}'\n",
-                            colorspace, colorspace_why, mcdn::working_colorspace())
-                  << format("mcdntool: AOV preset '{}'{}\n", m_aovs.preset(),
-                            m_aovs.detected_because().empty()
-                                ? std::string()
-                                : " (detected: " + m_aovs.detected_because() + ")");
+    if (verbose) {
+        say_once(format("mcdntool: colour space '{}' ({}); the stages run in '{}'\n", colorspace,
+                        colorspace_why, mcdn::working_colorspace()));
+        say_once(format("mcdntool: AOV preset '{}'{}\n", m_aovs.preset(),
+                        m_aovs.detected_because().empty()
+                            ? std::string()
+                            : " (detected: " + m_aovs.detected_because() + ")"));
+    }
     // The stages after this one resolve the same preset, whatever channels they add.
     if (aov_spec.preset.empty())
         aov_spec.preset = m_aovs.preset();
@@ -286,12 +325,12 @@ bool Session::open_rows(mcdn::InputRows& rows, std::string& error)
         for (Role r :
              { Role::Albedo, Role::Normal, Role::Depth, Role::DiffuseColor, Role::GlossyColor })
             (m_aovs.has(r) ? found : missing).push_back(mcdn::role_name(r));
-        std::cerr << format("mcdntool: features found: {}; missing: {}{}\n",
-                            found.empty() ? "none" : Strutil::join(found, ", "),
-                            missing.empty() ? "none" : Strutil::join(missing, ", "),
-                            missing.empty() ? ""
-                                            : " (nfor and prefilter leave them out, the "
-                                              "cnn reads them as zeros)");
+        say_once(format("mcdntool: features found: {}; missing: {}{}\n",
+                        found.empty() ? "none" : Strutil::join(found, ", "),
+                        missing.empty() ? "none" : Strutil::join(missing, ", "),
+                        missing.empty() ? ""
+                                        : " (nfor and prefilter leave them out, the "
+                                          "cnn reads them as zeros)"));
     }
     return true;
 }

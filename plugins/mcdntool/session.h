@@ -119,6 +119,11 @@ private:
     mcdn::AovSet m_aovs;
 };
 
+/// Prints a -v header line (colour space, preset, features) to stderr unless this run has
+/// printed it already: once for a sequence, not per frame or per part; a line that differs
+/// (another layer's, a frame detected otherwise) is printed.
+void say_once(const std::string& line);
+
 /// Repairs the non-finite values of every channel of `image` by `mode` (--fixnan's
 /// strategies, `name` as given); false with the first such value by channel and pixel where
 /// the mode is error. `fixed`: the pixels repaired.

@@ -581,3 +581,48 @@ TEST(Pipeline, SeedRendersGiveTheVarianceAndHalvesBlenderDoesNotWrite)
     EXPECT_FALSE(OIIO::Filesystem::exists(dir + "/one.exr"));
     EXPECT_FALSE(OIIO::Filesystem::exists(dir + "/two.exr"));
 }
+
+// A farm's log is no terminal: with -v a long stage still says how far it is, a line at a
+// time (every $MCDN_LOG_PROGRESS_SECONDS), never the terminal's rewritten line.
+TEST(Pipeline, ProgressLinesGoToLogsToo)
+{
+    std::string dir = mcdn_test::temp_dir("pipeline_log_progress");
+    // 512x512: the CNN's tiles report progress.
+    OIIO::ImageBuf big =
+        OIIO::ImageBufAlgo::resize(OIIO::ImageBuf(mcdn_test::test_data("box16/box_0016spp.exr")),
+                                   "", 0.0f, OIIO::ROI(0, 512, 0, 512));
+    ASSERT_TRUE(big.write(dir + "/big.exr"));
+    const std::string args = "-i " + quote(dir + "/big.exr") + " --cnn -o " + quote(dir + "/o.exr");
+    auto run = run_mcdntool("-v " + args, "MCDN_LOG_PROGRESS_SECONDS=0");
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_NE(run.output.find("mcdntool: cnn "), std::string::npos) << run.output;
+    EXPECT_NE(run.output.find("%\n"), std::string::npos) << run.output;
+    EXPECT_EQ(run.output.find('\r'), std::string::npos) << run.output;
+    // Without -v, a log holds no progress.
+    run = run_mcdntool(args, "MCDN_LOG_PROGRESS_SECONDS=0");
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_EQ(run.output.find('%'), std::string::npos) << run.output;
+}
+
+// -v's header (colour space, preset, features) once for a sequence, not once per frame.
+TEST(Pipeline, VerboseHeaderIsSaidOncePerRun)
+{
+    std::string dir = mcdn_test::temp_dir("pipeline_header_once");
+    for (int f = 1; f <= 3; ++f)
+        OIIO::Filesystem::copy(mcdn_test::test_data("box16/box_0016spp.exr"),
+                               dir + "/s.000" + std::to_string(f) + ".exr");
+    auto run =
+        run_mcdntool("-v -i " + quote(dir + "/s.#.exr") + " --cnn -o " + quote(dir + "/o.#.exr"));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    auto count = [&](const std::string& what) {
+        size_t n = 0;
+        for (size_t at = run.output.find(what); at != std::string::npos;
+             at = run.output.find(what, at + 1))
+            ++n;
+        return n;
+    };
+    EXPECT_EQ(count("AOV preset 'cycles'"), 1u) << run.output;
+    EXPECT_EQ(count("features found"), 1u) << run.output;
+    EXPECT_EQ(count("colour space '"), 1u) << run.output;
+    EXPECT_TRUE(OIIO::Filesystem::exists(dir + "/o.0003.exr"));
+}

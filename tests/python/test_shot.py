@@ -137,6 +137,19 @@ class Shot(unittest.TestCase):
                                         os.path.join(self.expected, name)), name)
 
 
+class WithoutDask(unittest.TestCase):
+    def test_a_missing_distributed_is_said_with_what_to_install(self):
+        # As on a machine without python3-distributed: the import fails.
+        code = ("import sys; sys.modules['distributed'] = None; from mcdenoise import shot; "
+                "sys.exit(shot.main(['--mcdntool', sys.argv[1], '--frames', '1', '--', "
+                "'-i', 'x.#.exr', '-o', 'y.#.exr']))")
+        tool = os.path.join(ARGS.build, "bin", "mcdntool")
+        run = subprocess.run([sys.executable, "-c", code, tool], capture_output=True, text=True)
+        self.assertEqual(run.returncode, 2, run.stderr)
+        self.assertIn("python3-distributed", run.stderr)
+        self.assertNotIn("Traceback", run.stderr)
+
+
 if __name__ == "__main__":
     ap = argparse.ArgumentParser()
     ap.add_argument("--build", required=True)

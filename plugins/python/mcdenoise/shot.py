@@ -127,7 +127,13 @@ def main(argv=None):
         ap.error(f"{mcdntool}: not found on PATH (give --mcdntool)")
     logs = os.path.abspath(args.logs)
 
-    from distributed import Client, LocalCluster, as_completed
+    try:
+        from distributed import Client, LocalCluster, as_completed
+    except ImportError:
+        print("mcdenoise.shot: error: the shot runner needs Dask's distributed "
+              "(apt-get install python3-distributed, or pip install distributed); "
+              "mcdntool --frames runs a shot on one machine without it", file=sys.stderr)
+        return 2
     cluster = None
     if args.scheduler:
         client = Client(args.scheduler)
