@@ -93,6 +93,31 @@ TEST(Color, MatricesAndNonLinearSpaces)
     EXPECT_NE(error.find("unknown colour space 'no_such_space'"), std::string::npos) << error;
 }
 
+// An 8-bit PNG's sRGB: no matrix, OCIO's curve per pixel, there and back; a variance in
+// such a space cannot be converted.
+TEST(Color, DisplayEncodedColourIsConvertedPerPixelAndItsVarianceRefused)
+{
+    ImageBuf ldr = mcdn_test::make_image(2, 1, { "R", "G", "B" },
+                                         [](int x, int, int c) { return x ? 1.0f : 0.5f; });
+    AovSpec spec;
+    spec.preset = "generic";
+    AovSet set;
+    std::string error;
+    ASSERT_TRUE(resolve_aovs(set, spec, ldr.spec(), error)) << error;
+    ASSERT_TRUE(convert_color_channels(ldr, set, "srgb_display", "lin_rec709", error)) << error;
+    EXPECT_NEAR(ldr.getchannel(0, 0, 0, 1), 0.2140, 1e-3);  // the sRGB curve, not a matrix
+    EXPECT_NEAR(ldr.getchannel(1, 0, 0, 1), 1.0, 1e-4);
+    ASSERT_TRUE(convert_color_channels(ldr, set, "lin_rec709", "srgb_display", error)) << error;
+    EXPECT_NEAR(ldr.getchannel(0, 0, 0, 1), 0.5, 1e-4);
+
+    ImageBuf with_variance =
+        mcdn_test::make_image(2, 1, { "R", "G", "B", "variance.R", "variance.G", "variance.B" },
+                              [](int, int, int) { return 0.5f; });
+    ASSERT_TRUE(resolve_aovs(set, spec, with_variance.spec(), error)) << error;
+    EXPECT_FALSE(convert_color_channels(with_variance, set, "srgb_display", "lin_rec709", error));
+    EXPECT_NE(error.find("'srgb_display' is not linear"), std::string::npos) << error;
+}
+
 TEST(Color, ConvertsColorAndVarianceButNeverData)
 {
     ImageBuf box = box16();

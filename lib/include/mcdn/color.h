@@ -43,6 +43,9 @@ bool linear_transform(std::array<double, 9>& matrix, const std::string& from, co
                       std::string& error);
 
 /// Converts the colour channels of `aovs` in `buf` (a float buffer) from `from` to `to`.
+/// A display or log encoding on either side (an 8-bit PNG's sRGB, linearised for the ops and
+/// encoded again after them) is converted per pixel by OCIO, curve included; a variance has
+/// no such conversion: false with `error`.
 bool convert_color_channels(ImageBuf& buf, const AovSet& aovs, const std::string& from,
                             const std::string& to, std::string& error);
 

@@ -1,6 +1,7 @@
-// Colour management through OpenColorIO (see mcdn/color.h). The conversions the ops need
-// are scene-linear, i.e. 3x3 matrices: we read the matrix off the OCIO processor once and
-// apply it (and its square, to variances) ourselves, to exactly the channels we mean.
+// Colour management through OpenColorIO (see mcdn/color.h). Conversions between
+// scene-linear spaces are 3x3 matrices: we read the matrix off the OCIO processor once and
+// apply it (and its square, to variances) ourselves, to exactly the channels we mean. From a
+// display or log encoding (an LDR file's sRGB) OCIO converts each colour pixel itself.
 #include "mcdn/color.h"
 
 #include <cmath>
@@ -193,25 +194,63 @@ std::string input_colorspace(const AovSpec& aovs, const ImageSpec& image)
     return input_colorspace(name, why, aovs, image, error) ? name : working_colorspace();
 }
 
-bool linear_transform(std::array<double, 9>& m, const std::string& from, const std::string& to,
-                      std::string& error)
+namespace {
+
+// OCIO's CPU conversion between two spaces of the config.
+OCIO::ConstCPUProcessorRcPtr cpu_processor(const std::string& from, const std::string& to,
+                                           std::string& error)
 {
     auto config = load_config(error);
     if (!config)
-        return false;
+        return {};
     for (const auto& name : { from, to })
         if (!config->getColorSpace(name.c_str())) {
             error = format("unknown colour space '{}' in {}", name, ocio_config_path());
-            return false;
+            return {};
         }
-    OCIO::ConstCPUProcessorRcPtr cpu;
     try {
-        cpu = config->getProcessor(from.c_str(), to.c_str())->getDefaultCPUProcessor();
+        return config->getProcessor(from.c_str(), to.c_str())->getDefaultCPUProcessor();
     } catch (const OCIO::Exception& e) {
         error = format("no conversion from '{}' to '{}': {}", from, to, e.what());
-        return false;
+        return {};
     }
-    // Columns of M are the images of the unit vectors; linearity checked at 0 and 4x.
+}
+
+// A display or log encoding (an 8-bit PNG's sRGB) has no matrix: OCIO converts each pixel of
+// the colour channels itself, the encoding's curve included. A variance has no such
+// conversion (the curve's slope differs per value): an error.
+bool convert_encoded(ImageBuf& buf, const AovSet& aovs, const std::string& from,
+                     const std::string& to, const OCIO::ConstCPUProcessorRcPtr& cpu,
+                     std::string& error)
+{
+    const auto groups = color_groups(buf, aovs);
+    for (const auto& group : groups)
+        if (group.variance) {
+            error = format("'{}' is not linear (a display or log encoding): a variance in it "
+                           "cannot be converted to '{}'; give the render in a linear space",
+                           from == working_colorspace() ? to : from,
+                           from == working_colorspace() ? from : to);
+            return false;
+        }
+    const int nch = buf.nchannels();
+    float* pixels = static_cast<float*>(buf.localpixels());
+    const size_t npixels = buf.spec().image_pixels();
+    for (const auto& group : groups) {
+        const int* c = group.channels.data();
+        for (size_t p = 0; p < npixels; ++p) {
+            float* px = pixels + p * nch;
+            float rgb[3] = { px[c[0]], px[c[1]], px[c[2]] };
+            cpu->applyRGB(rgb);
+            for (int i = 0; i < 3; ++i)
+                px[c[i]] = sanitize(rgb[i]);
+        }
+    }
+    return true;
+}
+
+// The matrix of a linear conversion; false (error unset) when it is not linear.
+bool matrix_of(std::array<double, 9>& m, const OCIO::ConstCPUProcessorRcPtr& cpu)
+{
     for (int j = 0; j < 3; ++j) {
         float e[3] = { 0, 0, 0 }, big[3] = { 0, 0, 0 };
         e[j] = 1.0f;
@@ -220,19 +259,27 @@ bool linear_transform(std::array<double, 9>& m, const std::string& from, const s
         cpu->applyRGB(big);
         for (int i = 0; i < 3; ++i) {
             m[i * 3 + j] = e[i];
-            if (std::fabs(big[i] - 4.0 * e[i]) > 1e-4 * (1.0 + std::fabs(big[i]))) {
-                error = format("the conversion from '{}' to '{}' is not scene-linear: mcdn "
-                               "ops need linear radiance (convert display/log images first)",
-                               from, to);
+            if (std::fabs(big[i] - 4.0 * e[i]) > 1e-4 * (1.0 + std::fabs(big[i])))
                 return false;
-            }
         }
     }
     float zero[3] = { 0, 0, 0 };
     cpu->applyRGB(zero);
-    if (std::fabs(zero[0]) + std::fabs(zero[1]) + std::fabs(zero[2]) > 1e-6) {
-        error =
-            format("the conversion from '{}' to '{}' has an offset: not scene-linear", from, to);
+    return std::fabs(zero[0]) + std::fabs(zero[1]) + std::fabs(zero[2]) <= 1e-6;
+}
+
+}  // namespace
+
+bool linear_transform(std::array<double, 9>& m, const std::string& from, const std::string& to,
+                      std::string& error)
+{
+    auto cpu = cpu_processor(from, to, error);
+    if (!cpu)
+        return false;
+    if (!matrix_of(m, cpu)) {
+        error = format("the conversion from '{}' to '{}' is not scene-linear: mcdn ops need "
+                       "linear radiance",
+                       from, to);
         return false;
     }
     return true;
@@ -243,8 +290,8 @@ bool convert_color_channels(ImageBuf& buf, const AovSet& aovs, const std::string
 {
     if (from == to)
         return true;
-    std::array<double, 9> m;
-    if (!linear_transform(m, from, to, error))
+    auto cpu = cpu_processor(from, to, error);
+    if (!cpu)
         return false;
     const int nch = buf.nchannels();
     float* pixels = static_cast<float*>(buf.localpixels());
@@ -252,6 +299,9 @@ bool convert_color_channels(ImageBuf& buf, const AovSet& aovs, const std::string
         error = "colour conversion needs a local float buffer";
         return false;
     }
+    std::array<double, 9> m;
+    if (!matrix_of(m, cpu))
+        return convert_encoded(buf, aovs, from, to, cpu, error);
     const size_t npixels = buf.spec().image_pixels();
     for (const auto& group : color_groups(buf, aovs)) {
         std::array<double, 9> w = m;
