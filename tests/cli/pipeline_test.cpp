@@ -230,13 +230,21 @@ TEST(Pipeline, ColorSpaceIsSaidAndNeverGuessed)
     EXPECT_NE(run.output.find("colour space 'acescg' (the file's chromaticities (ACES AP1"),
               std::string::npos)
         << run.output;
-    // Other primaries are an error, not Rec.709.
+    // Other primaries (P3) by their own matrix, not as Rec.709; none that make no primaries.
     const float p3[8] = { 0.680f, 0.320f, 0.265f, 0.690f, 0.150f, 0.060f, 0.3127f, 0.3290f };
     render.specmod().attribute("chromaticities", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 8), p3);
     ASSERT_TRUE(render.write(dir + "/p3.exr"));
-    run = run_mcdntool("-i " + quote(dir + "/p3.exr") + " --cnn -o " + quote(dir + "/e.exr"));
+    run = run_mcdntool("-v -i " + quote(dir + "/p3.exr") + " --cnn -o " + quote(dir + "/e.exr"));
+    EXPECT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_NE(run.output.find("colour space 'primaries 0.68,0.32"), std::string::npos)
+        << run.output;
+    const float flat[8] = { 0.3f, 0.3f, 0.3f, 0.3f, 0.3f, 0.3f, 0.3127f, 0.3290f };
+    render.specmod().attribute("chromaticities", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 8), flat);
+    ASSERT_TRUE(render.write(dir + "/flat.exr"));
+    run = run_mcdntool("-i " + quote(dir + "/flat.exr") + " --cnn -o " + quote(dir + "/f.exr"));
     EXPECT_EQ(run.exit_code, 1);
-    EXPECT_NE(run.output.find("chromaticities"), std::string::npos) << run.output;
+    EXPECT_NE(run.output.find("are not three primaries"), std::string::npos) << run.output;
+    EXPECT_FALSE(OIIO::Filesystem::exists(dir + "/f.exr"));
 }
 
 TEST(Pipeline, HelpPerCommandAndInfoSayWhatEachStageNeeds)

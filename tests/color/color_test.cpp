@@ -118,6 +118,43 @@ TEST(Color, DisplayEncodedColourIsConvertedPerPixelAndItsVarianceRefused)
     EXPECT_NE(error.find("'srgb_display' is not linear"), std::string::npos) << error;
 }
 
+// EXR chromaticities of other primaries: their own matrix. P3-D65's red in Rec.709 is the
+// first column of the published P3 -> Rec.709 matrix; XYZ (white E) keeps white white.
+TEST(Color, OtherPrimariesAreConvertedByTheirMatrix)
+{
+    ImageSpec p3(2, 1, 3);
+    const float xy[8] = { 0.680f, 0.320f, 0.265f, 0.690f, 0.150f, 0.060f, 0.3127f, 0.3290f };
+    p3.attribute("chromaticities", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 8), xy);
+    std::string name, why, error;
+    ASSERT_TRUE(input_colorspace(name, why, AovSpec(), p3, error)) << error;
+    EXPECT_EQ(name.rfind("primaries ", 0), 0u) << name;
+    ImageBuf red = mcdn_test::make_image(
+        2, 1, { "R", "G", "B" }, [](int x, int, int c) { return x ? 1.0f : float(c == 0); });
+    AovSpec generic;
+    generic.preset = "generic";
+    AovSet set;
+    ASSERT_TRUE(resolve_aovs(set, generic, red.spec(), error)) << error;
+    ASSERT_TRUE(convert_color_channels(red, set, name, "lin_rec709", error)) << error;
+    EXPECT_NEAR(red.getchannel(0, 0, 0, 0), 1.2249, 2e-3);
+    EXPECT_NEAR(red.getchannel(0, 0, 0, 1), -0.0421, 2e-3);
+    EXPECT_NEAR(red.getchannel(0, 0, 0, 2), -0.0196, 2e-3);
+    for (int c = 0; c < 3; ++c)
+        EXPECT_NEAR(red.getchannel(1, 0, 0, c), 1.0, 1e-4) << "white stays white";
+    ASSERT_TRUE(convert_color_channels(red, set, "lin_rec709", name, error)) << error;
+    EXPECT_NEAR(red.getchannel(0, 0, 0, 0), 1.0, 1e-4);
+    EXPECT_NEAR(red.getchannel(0, 0, 0, 1), 0.0, 1e-4);
+
+    const float xyz[8] = { 1, 0, 0, 1, 0, 0, 1.0f / 3, 1.0f / 3 };
+    ImageSpec e(2, 1, 3);
+    e.attribute("chromaticities", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 8), xyz);
+    ASSERT_TRUE(input_colorspace(name, why, AovSpec(), e, error)) << error;
+    ImageBuf white =
+        mcdn_test::make_image(1, 1, { "R", "G", "B" }, [](int, int, int) { return 1.0f; });
+    ASSERT_TRUE(convert_color_channels(white, set, name, "lin_rec709", error)) << error;
+    for (int c = 0; c < 3; ++c)
+        EXPECT_NEAR(white.getchannel(0, 0, 0, c), 1.0, 1e-4) << "E white is D65 white";
+}
+
 TEST(Color, ConvertsColorAndVarianceButNeverData)
 {
     ImageBuf box = box16();

@@ -28,10 +28,13 @@ std::string working_colorspace();
 
 /// The space the input is in, and `why` (for -v): AovSpec::colorspace when set; else the
 /// image's "oiio:ColorSpace" unless it only says "Linear" (OIIO's EXR reader tags every file
-/// so); else EXR's `chromaticities` when they are Rec.709, ACES AP1 or AP0 primaries; else
-/// the config's scene_linear role. False with `error` naming the name and the config when a
-/// name is not in the config, the chromaticities are other primaries, or the config cannot
-/// be read: nothing falls back to the working space unsaid.
+/// so); else EXR's `chromaticities`: Rec.709, ACES AP1 or AP0 primaries by the config's name,
+/// other primaries (P3, XYZ, a camera's) as a space of their own, "primaries rx,ry gx,gy
+/// bx,by wx,wy", converted by the matrix of those primaries to Rec.709 (white adapted to D65
+/// by Bradford) and by OCIO from there; else the config's scene_linear role. False with
+/// `error` naming the name and the config when a name is not in the config, the
+/// chromaticities are no three primaries and a white, or the config cannot be read: nothing
+/// falls back to the working space unsaid.
 bool input_colorspace(std::string& name, std::string& why, const AovSpec& aovs,
                       const ImageSpec& image, std::string& error);
 /// The same, the working space on error (for callers that checked it before).

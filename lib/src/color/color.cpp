@@ -5,7 +5,9 @@
 #include "mcdn/color.h"
 
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <map>
 #include <mutex>
 
@@ -126,6 +128,108 @@ bool says_only_linear(const std::string& tag)
     return OIIO::Strutil::iequals(tag, "linear") || OIIO::Strutil::iequals(tag, "scene_linear");
 }
 
+// The space of an EXR's own primaries, by name: kPrimariesName then "rx,ry gx,gy bx,by wx,wy".
+constexpr const char* kPrimariesName = "primaries ";
+constexpr const char* kRec709 = "lin_rec709";
+
+using Matrix = std::array<double, 9>;
+
+Matrix multiply(const Matrix& a, const Matrix& b)
+{
+    Matrix m {};
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            for (int k = 0; k < 3; ++k)
+                m[i * 3 + j] += a[i * 3 + k] * b[k * 3 + j];
+    return m;
+}
+
+bool invert(Matrix& inv, const Matrix& m)
+{
+    const double det = m[0] * (m[4] * m[8] - m[5] * m[7]) - m[1] * (m[3] * m[8] - m[5] * m[6])
+                       + m[2] * (m[3] * m[7] - m[4] * m[6]);
+    if (!(std::fabs(det) > 1e-12))
+        return false;
+    inv = { (m[4] * m[8] - m[5] * m[7]) / det, (m[2] * m[7] - m[1] * m[8]) / det,
+            (m[1] * m[5] - m[2] * m[4]) / det, (m[5] * m[6] - m[3] * m[8]) / det,
+            (m[0] * m[8] - m[2] * m[6]) / det, (m[2] * m[3] - m[0] * m[5]) / det,
+            (m[3] * m[7] - m[4] * m[6]) / det, (m[1] * m[6] - m[0] * m[7]) / det,
+            (m[0] * m[4] - m[1] * m[3]) / det };
+    return true;
+}
+
+// RGB -> XYZ of primaries and white (xy each): the primaries' xyz columns scaled so that
+// RGB (1,1,1) is the white at Y = 1 (no division by a primary's y: XYZ's own have y = 0).
+bool rgb_to_xyz(Matrix& m, const float xy[8])
+{
+    const Matrix p = { xy[0],
+                       xy[2],
+                       xy[4],
+                       xy[1],
+                       xy[3],
+                       xy[5],
+                       1.0 - xy[0] - xy[1],
+                       1.0 - xy[2] - xy[3],
+                       1.0 - xy[4] - xy[5] };
+    Matrix inv;
+    if (!invert(inv, p) || !(xy[7] > 0))
+        return false;
+    const double w[3] = { xy[6] / xy[7], 1.0, (1.0 - xy[6] - xy[7]) / xy[7] };
+    for (int j = 0; j < 3; ++j) {
+        const double scale = inv[j * 3] * w[0] + inv[j * 3 + 1] * w[1] + inv[j * 3 + 2] * w[2];
+        for (int i = 0; i < 3; ++i)
+            m[i * 3 + j] = p[i * 3 + j] * scale;
+    }
+    return true;
+}
+
+// Bradford's chromatic adaptation between two whites (xy), in XYZ.
+Matrix bradford(const float from[2], const float to[2])
+{
+    const Matrix b = { 0.8951, 0.2664, -0.1614, -0.7502, 1.7135, 0.0367, 0.0389, -0.0685, 1.0296 };
+    Matrix b_inv;
+    invert(b_inv, b);
+    auto cone = [&](const float xy[2]) {
+        const double w[3] = { xy[0] / xy[1], 1.0, (1.0 - xy[0] - xy[1]) / xy[1] };
+        std::array<double, 3> c {};
+        for (int i = 0; i < 3; ++i)
+            c[i] = b[i * 3] * w[0] + b[i * 3 + 1] * w[1] + b[i * 3 + 2] * w[2];
+        return c;
+    };
+    const auto s = cone(from), d = cone(to);
+    Matrix scale = { d[0] / s[0], 0, 0, 0, d[1] / s[1], 0, 0, 0, d[2] / s[2] };
+    return multiply(b_inv, multiply(scale, b));
+}
+
+// The matrix from the primaries named `name` (kPrimariesName ...) to linear Rec.709, white
+// adapted to D65 (Bradford).
+bool primaries_to_rec709(Matrix& m, const std::string& name, std::string& error)
+{
+    float xy[8];
+    if (std::sscanf(name.c_str() + std::strlen(kPrimariesName), "%f,%f %f,%f %f,%f %f,%f", &xy[0],
+                    &xy[1], &xy[2], &xy[3], &xy[4], &xy[5], &xy[6], &xy[7])
+        != 8) {
+        error = format("'{}' is no set of primaries", name);
+        return false;
+    }
+    Matrix src, rec709, rec709_inv;
+    if (!rgb_to_xyz(src, xy) || !(xy[7] > 0)) {
+        error = format("the file's chromaticities (red {},{} green {},{} blue {},{} white {},{}) "
+                       "are not three primaries and a white: give --aov:colorspace=NAME",
+                       xy[0], xy[1], xy[2], xy[3], xy[4], xy[5], xy[6], xy[7]);
+        return false;
+    }
+    rgb_to_xyz(rec709, kPrimaries[0].xy);
+    invert(rec709_inv, rec709);
+    m = multiply(rec709_inv, multiply(bradford(xy + 6, kPrimaries[0].xy + 6), src));
+    return true;
+}
+
+bool is_primaries(const std::string& name)
+{
+    return OIIO::Strutil::starts_with(name, kPrimariesName);
+}
+
 }  // namespace
 
 bool input_colorspace(std::string& name, std::string& why, const AovSpec& aovs,
@@ -177,10 +281,14 @@ bool input_colorspace(std::string& name, std::string& why, const AovSpec& aovs,
                 return true;
             }
         }
-        error = format("the file's chromaticities (red {},{} green {},{} blue {},{} white {},{}) "
-                       "are none of Rec.709, ACES AP1, AP0: give --aov:colorspace=NAME",
-                       xy[0], xy[1], xy[2], xy[3], xy[4], xy[5], xy[6], xy[7]);
-        return false;
+        // Other primaries (P3, XYZ, a camera's): their own matrix (primaries_to_rec709).
+        std::array<double, 9> m;
+        name = format("{}{},{} {},{} {},{} {},{}", kPrimariesName, xy[0], xy[1], xy[2], xy[3],
+                      xy[4], xy[5], xy[6], xy[7]);
+        if (!primaries_to_rec709(m, name, error))
+            return false;
+        why = "the file's chromaticities: converted by the matrix of their primaries";
+        return true;
     }
     name = working_colorspace();
     why = tagged.empty() ? "no colour-space tag: the config's scene_linear"
@@ -204,11 +312,35 @@ OCIO::ConstCPUProcessorRcPtr cpu_processor(const std::string& from, const std::s
     if (!config)
         return {};
     for (const auto& name : { from, to })
-        if (!config->getColorSpace(name.c_str())) {
+        if (!is_primaries(name) && !config->getColorSpace(name.c_str())) {
             error = format("unknown colour space '{}' in {}", name, ocio_config_path());
             return {};
         }
     try {
+        if (is_primaries(from) || is_primaries(to)) {
+            // A file's own primaries: their matrix to Rec.709, then OCIO from there.
+            Matrix m, inverse;
+            if (!primaries_to_rec709(m, is_primaries(from) ? from : to, error))
+                return {};
+            invert(inverse, m);
+            const Matrix& use = is_primaries(from) ? m : inverse;
+            double m44[16] = { use[0], use[1], use[2], 0, use[3], use[4], use[5], 0,
+                               use[6], use[7], use[8], 0, 0,      0,      0,      1 };
+            auto matrix = OCIO::MatrixTransform::Create();
+            matrix->setMatrix(m44);
+            auto space = OCIO::ColorSpaceTransform::Create();
+            space->setSrc(is_primaries(from) ? kRec709 : from.c_str());
+            space->setDst(is_primaries(from) ? to.c_str() : kRec709);
+            auto group = OCIO::GroupTransform::Create();
+            if (is_primaries(from)) {
+                group->appendTransform(matrix);
+                group->appendTransform(space);
+            } else {
+                group->appendTransform(space);
+                group->appendTransform(matrix);
+            }
+            return config->getProcessor(group)->getDefaultCPUProcessor();
+        }
         return config->getProcessor(from.c_str(), to.c_str())->getDefaultCPUProcessor();
     } catch (const OCIO::Exception& e) {
         error = format("no conversion from '{}' to '{}': {}", from, to, e.what());
