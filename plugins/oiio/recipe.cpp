@@ -21,8 +21,19 @@ namespace Strutil = OIIO::Strutil;
 
 namespace {
 
-const std::vector<std::string> kKeys = { "in",    "variance",   "halfA", "halfB",    "preset",
-                                         "layer", "colorspace", "chain", "channels", "threads" };
+const std::vector<std::string> kKeys = { "in",    "seeds",    "variance", "halfA",
+                                         "halfB", "preset",   "layer",    "colorspace",
+                                         "chain", "channels", "threads" };
+
+// seeds = a.exr,b.exr,...: K renders with different seeds (mcdn::combine_seeds).
+std::vector<std::string> seed_paths(const std::string& value)
+{
+    std::vector<std::string> paths;
+    for (const auto& p : Strutil::splits(value, ","))
+        if (!Strutil::strip(p).empty())
+            paths.push_back(std::string(Strutil::strip(p)));
+    return paths;
+}
 
 bool is_hex(char c)
 {
@@ -77,6 +88,13 @@ bool parse_recipe_lines(std::istream& in, const std::string& file, Recipe& recip
         bool is_path = key == "in" || key == "variance" || key == "halfA" || key == "halfB";
         if (is_path && !value.empty() && value[0] != '/' && !dir.empty())
             value = dir + "/" + value;
+        if (key == "seeds" && !dir.empty()) {
+            std::vector<std::string> paths = seed_paths(value);
+            for (auto& path : paths)
+                if (path[0] != '/')
+                    path = dir + "/" + path;
+            value = Strutil::join(paths, ",");
+        }
         recipe[key] = value;
     }
     return true;
@@ -130,11 +148,18 @@ bool job_from_recipe(const Recipe& recipe, Job& job, std::string& error)
         auto it = recipe.find(key);
         return it == recipe.end() ? fallback : it->second;
     };
-    if (get("in").empty()) {
-        error = "no render given: add in=FILE";
+    if (get("in").empty() == get("seeds").empty()) {
+        error = get("in").empty() ? "no render given: add in=FILE (or seeds=A,B,...)"
+                                  : "give in=FILE or seeds=A,B,..., not both";
         return false;
     }
-    job.inputs = { { get("in"), mcdn::InputKind::Mean } };
+    if (get("in").empty()) {
+        const std::vector<std::string> seeds = seed_paths(get("seeds"));
+        job.inputs = { mcdn::InputFile(seeds.empty() ? std::string() : seeds[0]) };
+        job.inputs[0].seeds = seeds;
+    } else {
+        job.inputs = { { get("in"), mcdn::InputKind::Mean } };
+    }
     for (auto [key, kind] : { std::pair { "variance", mcdn::InputKind::Variance },
                               std::pair { "halfA", mcdn::InputKind::HalfA },
                               std::pair { "halfB", mcdn::InputKind::HalfB } })
@@ -186,6 +211,9 @@ void add_stamps(const std::string& name, int depth, std::string& stamps)
     std::string error;
     if (!parse_recipe(name, recipe, error))
         return;
+    if (auto seeds = recipe.find("seeds"); seeds != recipe.end())
+        for (const std::string& seed : seed_paths(seeds->second))
+            stamps += file_stamp(seed) + ";";
     for (const char* key : { "in", "variance", "halfA", "halfB" }) {
         auto it = recipe.find(key);
         if (it == recipe.end())

@@ -77,6 +77,37 @@ TEST(OiioPlugin, RecipeFileWithRelativePaths)
     EXPECT_EQ(out.spec().nchannels, 3);
 }
 
+// seeds = A,B: renders with different seeds, read with their variance and halves (the
+// box's two halves are two 8-sample seeds); NFOR runs on them, closer than the render.
+TEST(OiioPlugin, RecipeSeedsAreOneRenderWithItsVariance)
+{
+    if (system("command -v oiiotool > /dev/null") != 0)
+        GTEST_SKIP() << "oiiotool not installed";
+    std::string dir = mcdn_test::temp_dir("plugin_seeds");
+    for (const char* f : { "box_0016spp_A.exr", "box_0016spp_B.exr" })
+        OIIO::Filesystem::copy(mcdn_test::test_data(std::string("box16/") + f), dir + "/" + f);
+    std::ofstream(dir + "/shot.mcdn")
+        << "seeds = box_0016spp_A.exr, box_0016spp_B.exr\nchain = prefilter,nfor\n"
+           "channels = ViewLayer.Combined.R,ViewLayer.Combined.G,ViewLayer.Combined.B\n";
+    auto run = oiiotool(quote(dir + "/shot.mcdn")
+                        + " --ch R=ViewLayer.Combined.R,G=ViewLayer.Combined.G,"
+                          "B=ViewLayer.Combined.B -o "
+                        + quote(dir + "/out.exr"));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    std::string noisy = dir + "/noisy.exr";
+    auto copy =
+        oiiotool(quote(mcdn_test::test_data("box16/box_0016spp.exr"))
+                 + " --ch R=ViewLayer.Combined.R,G=ViewLayer.Combined.G,B=ViewLayer.Combined.B -o "
+                 + quote(noisy));
+    ASSERT_EQ(copy.exit_code, 0) << copy.output;
+    EXPECT_LT(relmse_of(dir + "/out.exr"), 0.5 * relmse_of(noisy));
+    // in and seeds together: which is the render?
+    std::ofstream(dir + "/both.mcdn") << "in = box_0016spp_A.exr\nseeds = box_0016spp_A.exr\n";
+    run = oiiotool(quote(dir + "/both.mcdn") + " -o " + quote(dir + "/both.exr"));
+    EXPECT_NE(run.exit_code, 0);
+    EXPECT_NE(run.output.find("not both"), std::string::npos) << run.output;
+}
+
 TEST(OiioPlugin, ErrorsAreOiiotoolErrorsNotCrashes)
 {
     if (system("command -v oiiotool > /dev/null") != 0)
