@@ -85,14 +85,16 @@ bool parse_recipe_lines(std::istream& in, const std::string& file, Recipe& recip
         }
         std::string key = Strutil::strip(line.substr(0, eq));
         std::string value = Strutil::strip(line.substr(eq + 1));
-        bool is_path = key == "in" || key == "variance" || key == "halfA" || key == "halfB";
-        if (is_path && !value.empty() && value[0] != '/' && !dir.empty())
-            value = dir + "/" + value;
-        if (key == "seeds" && !dir.empty()) {
+        // Paths are the recipe's folder's unless absolute.
+        auto beside_recipe = [&](const std::string& path) {
+            return !path.empty() && path[0] != '/' && !dir.empty() ? dir + "/" + path : path;
+        };
+        if (key == "in" || key == "variance" || key == "halfA" || key == "halfB")
+            value = beside_recipe(value);
+        if (key == "seeds") {
             std::vector<std::string> paths = seed_paths(value);
             for (auto& path : paths)
-                if (path[0] != '/')
-                    path = dir + "/" + path;
+                path = beside_recipe(path);
             value = Strutil::join(paths, ",");
         }
         recipe[key] = value;

@@ -130,7 +130,6 @@ bool says_only_linear(const std::string& tag)
 
 // The space of an EXR's own primaries, by name: kPrimariesName then "rx,ry gx,gy bx,by wx,wy".
 constexpr const char* kPrimariesName = "primaries ";
-constexpr const char* kRec709 = "lin_rec709";
 
 using Matrix = std::array<double, 9>;
 
@@ -213,7 +212,7 @@ bool primaries_to_rec709(Matrix& m, const std::string& name, std::string& error)
         return false;
     }
     Matrix src, rec709, rec709_inv;
-    if (!rgb_to_xyz(src, xy) || !(xy[7] > 0)) {
+    if (!rgb_to_xyz(src, xy)) {
         error = format("the file's chromaticities (red {},{} green {},{} blue {},{} white {},{}) "
                        "are not three primaries and a white: give --aov:colorspace=NAME",
                        xy[0], xy[1], xy[2], xy[3], xy[4], xy[5], xy[6], xy[7]);
@@ -329,8 +328,9 @@ OCIO::ConstCPUProcessorRcPtr cpu_processor(const std::string& from, const std::s
             auto matrix = OCIO::MatrixTransform::Create();
             matrix->setMatrix(m44);
             auto space = OCIO::ColorSpaceTransform::Create();
-            space->setSrc(is_primaries(from) ? kRec709 : from.c_str());
-            space->setDst(is_primaries(from) ? to.c_str() : kRec709);
+            const char* rec709 = kPrimaries[0].colorspace;
+            space->setSrc(is_primaries(from) ? rec709 : from.c_str());
+            space->setDst(is_primaries(from) ? to.c_str() : rec709);
             auto group = OCIO::GroupTransform::Create();
             if (is_primaries(from)) {
                 group->appendTransform(matrix);

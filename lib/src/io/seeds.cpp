@@ -71,15 +71,13 @@ bool combine_seeds(ImageBuf& dst, const std::vector<std::string>& seeds)
             averaged.push_back(c);
     const bool halves = k % 2 == 0;
     ImageSpec spec = first;
-    for (const char* prefix : { "variance.", "A.", "B." }) {
-        if (prefix[0] != 'v' && !halves)
-            continue;
+    std::vector<const char*> faces = { "variance." };
+    if (halves)
+        faces.insert(faces.end(), { "A.", "B." });
+    for (const char* prefix : faces)
         for (int c : averaged)
             spec.channelnames.push_back(prefix + first.channelnames[c]);
-    }
     spec.nchannels = int(spec.channelnames.size());
-    spec.alpha_channel = first.alpha_channel;
-    spec.z_channel = first.z_channel;
     spec.attribute("mcdn:seeds", k);
     ImageBuf out;
     if (!allocate_frame(out, spec, false)) {
