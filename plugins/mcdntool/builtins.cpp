@@ -211,8 +211,15 @@ bool run_info(Session& s, const Command& c, std::string& error)
             std::cout << format("  {:<20} {}\n", mcdn::role_name(role),
                                 Strutil::join(s.aovs().names(role), ", "));
     }
-    for (const auto& extra : s.aovs().extras())
-        std::cout << format("  extra {:<14} {}\n", extra.name, Strutil::join(extra.names, ", "));
+    for (const auto& extra : s.aovs().extras()) {
+        std::vector<std::string> factor;
+        for (int ch : extra.factor)
+            factor.push_back(spec.channelnames[size_t(ch)]);
+        std::cout << format("  extra {:<14} {}{}\n", extra.name, Strutil::join(extra.names, ", "),
+                            factor.empty() ? std::string()
+                                           : " (denoised as light: x "
+                                                 + factor[0].substr(0, factor[0].rfind('.')) + ")");
+    }
     if (!s.aovs().detected_because().empty())
         std::cout << "  preset detected from " << s.aovs().detected_because() << "\n";
     std::cout << "  stages:\n";

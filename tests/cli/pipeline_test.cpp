@@ -328,7 +328,9 @@ TEST(Pipeline, StagesAndOneOutputStreamInBands)
         EXPECT_EQ(a.spec().get_string_attribute("Software"),
                   b.spec().get_string_attribute("Software"));
         const auto d = OIIO::ImageBufAlgo::compare(a, b, 0, 0);
-        EXPECT_LE(d.maxerror, std::string(chain) == "--denoise" ? 1e-4 : 0.0) << chain;
+        // The stage commands take the light passes into light and back stage by stage, the
+        // streamed chain once: last-bit differences there (mcdn/color.h).
+        EXPECT_LE(d.maxerror, std::string(chain) == "--denoise" ? 1e-4 : 1e-6) << chain;
     }
     // A chain that fails leaves neither the output nor a temporary.
     auto run = run_mcdntool("-i " + box("box_0016spp.exr") + " --nfor -o " + quote(dir + "/f.exr"));

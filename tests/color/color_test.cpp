@@ -218,3 +218,52 @@ TEST(Color, OpsSeeTheWorkingSpaceAndResultsGoBack)
     }
     EXPECT_EQ(out.spec().get_int_attribute("mcdn:in_working_space"), 0);
 }
+
+// Blender's light passes hold light divided by their colour pass (DiffDir = diffuse direct
+// light / DiffCol): the ops see the light, factor × pass, and the way back divides it out,
+// by Cycles' rule where a factor channel is 0 (the other channels' mean quotient).
+TEST(Color, LightPassesAreLightInTheWorkingSpace)
+{
+    const std::vector<std::string> names = {
+        "L.Combined.R", "L.Combined.G",         "L.Combined.B",         "L.DiffCol.R",
+        "L.DiffCol.G",  "L.DiffCol.B",          "L.DiffDir.R",          "L.DiffDir.G",
+        "L.DiffDir.B",  "variance.L.DiffDir.R", "variance.L.DiffDir.G", "variance.L.DiffDir.B",
+    };
+    // Pixel 0: an ordinary albedo; pixel 1: a red material (DiffCol's G and B are 0).
+    const float values[2][12] = { { 1, 1, 1, 0.5f, 0.25f, 0.8f, 2, 3, 4, 0.1f, 0.2f, 0.3f },
+                                  { 1, 0, 0, 0.6f, 0, 0, 1.5f, 1.5f, 1.5f, 0.1f, 0.1f, 0.1f } };
+    ImageBuf buf =
+        mcdn_test::make_image(2, 1, names, [&](int x, int, int c) { return values[x][c]; });
+    AovSpec spec;
+    spec.preset = "cycles";
+    AovSet set;
+    std::string error;
+    ASSERT_TRUE(resolve_aovs(set, spec, buf.spec(), error)) << error;
+    ASSERT_TRUE(set.has_factored_extras());
+    ASSERT_TRUE(needs_working_conversion(buf.spec(), "lin_rec709", set));
+    ASSERT_TRUE(into_working_space(buf, set, "lin_rec709", error)) << error;
+    EXPECT_FALSE(needs_working_conversion(buf.spec(), "lin_rec709", set)) << "converted once";
+    EXPECT_FLOAT_EQ(buf.getchannel(0, 0, 0, 6), 1.0f);                   // 0.5 · 2
+    EXPECT_FLOAT_EQ(buf.getchannel(0, 0, 0, 8), 3.2f);                   // 0.8 · 4
+    EXPECT_FLOAT_EQ(buf.getchannel(0, 0, 0, 10), 0.2f * 0.25f * 0.25f);  // variance · factor²
+    EXPECT_FLOAT_EQ(buf.getchannel(1, 0, 0, 7), 0.0f);  // no green light on a red material
+    // A denoiser moved the light: the way back divides the factor out again.
+    buf.setpixel(1, 0, std::vector<float> { 1, 0, 0, 0.6f, 0, 0, 1.2f, 0.1f, 0.0f, 0, 0, 0 }.data(),
+                 12);
+    ASSERT_TRUE(out_of_working_space(buf, set, "lin_rec709", error)) << error;
+    for (int c = 0; c < 3; ++c)
+        EXPECT_NEAR(buf.getchannel(0, 0, 0, 6 + c), values[0][6 + c], 1e-6) << c;
+    EXPECT_NEAR(buf.getchannel(0, 0, 0, 10), 0.2f, 1e-6);
+    EXPECT_FLOAT_EQ(buf.getchannel(1, 0, 0, 6), 2.0f);  // 1.2 / 0.6
+    EXPECT_FLOAT_EQ(buf.getchannel(1, 0, 0, 7), 2.0f);  // Cycles: the red quotient
+    EXPECT_FLOAT_EQ(buf.getchannel(1, 0, 0, 8), 2.0f);
+    EXPECT_EQ(buf.spec().get_int_attribute("mcdn:in_working_space"), 0);
+
+    // Without its colour pass a DiffDir is not light: not an extra, left as rendered.
+    ImageBuf alone = mcdn_test::make_image(1, 1,
+                                           { "L.Combined.R", "L.Combined.G", "L.Combined.B",
+                                             "L.DiffDir.R", "L.DiffDir.G", "L.DiffDir.B" },
+                                           [](int, int, int) { return 1.0f; });
+    ASSERT_TRUE(resolve_aovs(set, spec, alone.spec(), error)) << error;
+    EXPECT_TRUE(set.extras().empty());
+}

@@ -1,5 +1,7 @@
 // Extra AOVs (light groups) denoised with the beauty's regression weights add up to the
 // denoised beauty, with or without half buffers of their own, and are denoised, not copied.
+#include <algorithm>
+
 #include <OpenImageIO/imagebufalgo.h>
 
 #include "fixtures.h"
@@ -137,10 +139,16 @@ TEST(NforExtras, AnEmptyLightGroupIsLeftAsRendered)
     AovSet aovs;
     std::string error;
     ASSERT_TRUE(resolve_aovs(aovs, p.spec, with_empty.spec(), error)) << error;
-    ASSERT_EQ(aovs.extras().size(), 3u);
+    // The light groups (box16's light passes are extras too: DiffDir, ..., Emit and Env,
+    // which are 0 over the frame).
+    auto groups = [](const auto& list) {
+        return std::count_if(list.begin(), list.end(),
+                             [](const auto& e) { return e.partition == "light groups"; });
+    };
+    ASSERT_EQ(groups(aovs.extras()), 3);
     std::vector<ExtraPlanes> extras;
     ASSERT_TRUE(read_extras(extras, with_empty, aovs, true, error)) << error;
-    EXPECT_EQ(extras.size(), 2u);  // key and fill
+    EXPECT_EQ(groups(extras), 2);  // key and fill
     ImageBuf lit;
     lit.copy(with_empty);
     std::vector<float> pixel(lit.nchannels());
@@ -148,7 +156,7 @@ TEST(NforExtras, AnEmptyLightGroupIsLeftAsRendered)
     pixel[empty[1]] = 0.5f;
     lit.setpixel(5, 7, pixel.data());
     ASSERT_TRUE(read_extras(extras, lit, aovs, true, error)) << error;
-    EXPECT_EQ(extras.size(), 3u);
+    EXPECT_EQ(groups(extras), 3);
     for (const std::vector<std::string>& stages :
          { std::vector<std::string> { "nfor" }, { "cnn" }, { "prefilter", "nfor", "sure", "mix" } })
         for (size_t band_pixels : { size_t(0), size_t(128 * 32) }) {

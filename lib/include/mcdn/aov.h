@@ -149,17 +149,32 @@ public:
 
     /// An extra AOV and, where the inputs have them, its own variance and half buffers
     /// ("variance.<channel>", "A.<channel>", "B.<channel>"; empty when absent).
+    ///
+    /// `factor`: the colour pass the extra's light was divided by when rendered (Blender's
+    /// DiffDir is diffuse direct light / DiffCol), and `factor_a`/`factor_b` its halves where
+    /// the inputs have them; empty when the extra is light itself (a light group, Arnold's
+    /// `diffuse`). The working space holds such an extra as light, factor × pass, so that
+    /// every op denoises what adds up to the beauty (mcdn/color.h into_working_space).
     struct Extra {
         std::string name;
         std::vector<std::string> names;
         std::vector<int> channels;
         std::vector<int> variance, half_a, half_b;
+        std::vector<int> factor, factor_a, factor_b;
+        /// The set of extras it belongs to, which may add up to the beauty and whose sum the
+        /// denoisers then keep: "light groups", the preset's light passes ("light passes",
+        /// Arnold's "direct/indirect" and "by lobe and path", RenderMan's "by path"), or
+        /// "extras" (named with extra.NAME=). Sets may overlap each other's light.
+        std::string partition;
     };
     const std::vector<Extra>& extras() const { return m_extras; }
     /// The preset the roles were resolved with, and why it was chosen when it was detected
     /// (empty when the spec named it).
     const std::string& preset() const { return m_preset; }
     const std::string& detected_because() const { return m_detected_because; }
+
+    /// True when an extra holds light divided by a factor (Extra::factor).
+    bool has_factored_extras() const;
 
     /// True when the light is split into diffuse and specular components (KPCN §4).
     bool has_component_split() const;

@@ -52,9 +52,26 @@ bool linear_transform(std::array<double, 9>& matrix, const std::string& from, co
 bool convert_color_channels(ImageBuf& buf, const AovSet& aovs, const std::string& from,
                             const std::string& to, std::string& error);
 
-/// Runs `op` in the working space: converts a copy of src in (if it is not already there),
-/// runs op, converts dst's colour channels back. The common case (input already in the
-/// working space) costs nothing.
+/// Whether `image`, its colour in `from`, needs into_working_space: not converted already,
+/// and another space or extras that hold light divided by a factor (Blender's light passes,
+/// AovSet::Extra).
+bool needs_working_conversion(const ImageSpec& image, const std::string& from, const AovSet& aovs);
+
+/// What every op sees: the colour channels converted from `from` to the working space, and
+/// each extra that holds light divided by a factor (Blender's DiffDir = light / DiffCol) as
+/// light, factor × pass (before the conversion: the product is what adds up to the beauty),
+/// so that the denoisers filter light and a comp rebuilt from the passes adds up to the
+/// denoised beauty. Marks buf as converted (input_colorspace then says the working space).
+bool into_working_space(ImageBuf& buf, const AovSet& aovs, const std::string& from,
+                        std::string& error);
+/// The way back: colour to `to`, then each factored extra divided by its factor again, by
+/// Cycles' rule where a factor channel is (near) 0: the mean of the other channels' quotients.
+bool out_of_working_space(ImageBuf& buf, const AovSet& aovs, const std::string& to,
+                          std::string& error);
+
+/// Runs `op` in the working space: converts a copy of src in (into_working_space; when
+/// needs_working_conversion says so), runs op, converts dst's channels back. The common case
+/// (input already in the working space, no factored extras) costs nothing.
 bool run_in_working_space(ImageBuf& dst, const ImageBuf& src, const AovSpec& aovs,
                           const char* op_name,
                           const std::function<bool(ImageBuf& dst, const ImageBuf& src)>& op);

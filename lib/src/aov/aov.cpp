@@ -377,7 +377,7 @@ bool resolve_aovs(AovSet& set, const AovSpec& spec, const ImageSpec& merged, std
                 channel_list(merged));
             return false;
         }
-        set.m_extras.push_back({ name, names, indices, {}, {}, {} });
+        set.m_extras.push_back({ name, names, indices, {}, {}, {}, {}, {}, {}, "extras" });
     }
     // Light groups are denoised alongside: Blender's "<layer>.Combined_<group>.RGB",
     // Arnold's "RGBA_<group>.RGB".
@@ -388,20 +388,58 @@ bool resolve_aovs(AovSet& set, const AovSpec& spec, const ImageSpec& merged, std
                 std::string group = ch.substr(0, ch.size() - 2);
                 std::vector<std::string> names = with_suffixes(group, "RGB");
                 std::vector<int> indices = find_channels(merged, names);
-                if (!indices.empty() && !spec.extras.count(group))
-                    set.m_extras.push_back({ group, names, indices, {}, {}, {} });
+                // (Arnold's RGBA_variance is the beauty's variance, not a group.)
+                if (!indices.empty() && !spec.extras.count(group)
+                    && indices != set.m_channels[int(Role::ColorVariance)])
+                    set.m_extras.push_back(
+                        { group, names, indices, {}, {}, {}, {}, {}, {}, "light groups" });
             }
         }
     }
+    // The renderer's light passes too (aov/presets.h), each once; a Cycles pass only with
+    // the colour pass its light was divided by (else it is not light: left as rendered).
+    for (const LightPass& pass : preset_light_passes(preset, layer)) {
+        for (const std::vector<std::string>& names : pass.names) {
+            std::vector<int> indices = find_channels(merged, names);
+            if (indices.empty())
+                continue;
+            const bool taken =
+                std::any_of(set.m_extras.begin(), set.m_extras.end(),
+                            [&](const AovSet::Extra& e) { return e.channels == indices; });
+            if (!taken && (pass.factor.empty() || !find_channels(merged, pass.factor).empty())) {
+                AovSet::Extra extra;
+                extra.name = names[0].substr(0, names[0].rfind('.'));
+                extra.names = names;
+                extra.channels = indices;
+                extra.partition = pass.partition;
+                set.m_extras.push_back(extra);
+            }
+            break;
+        }
+    }
+    const bool cycles = preset == "cycles";
     for (AovSet::Extra& extra : set.m_extras) {
-        extra.variance =
-            find_channels(merged, prefixed(input_kind_prefix(InputKind::Variance), extra.names));
-        extra.half_a =
-            find_channels(merged, prefixed(input_kind_prefix(InputKind::HalfA), extra.names));
-        extra.half_b =
-            find_channels(merged, prefixed(input_kind_prefix(InputKind::HalfB), extra.names));
+        auto face = [&](InputKind kind, const std::vector<std::string>& names) {
+            return find_channels(merged, prefixed(input_kind_prefix(kind), names));
+        };
+        extra.variance = face(InputKind::Variance, extra.names);
+        extra.half_a = face(InputKind::HalfA, extra.names);
+        extra.half_b = face(InputKind::HalfB, extra.names);
+        const std::vector<std::string> factor =
+            cycles ? cycles_light_factor(extra.names) : std::vector<std::string> {};
+        if (!factor.empty()) {
+            extra.factor = find_channels(merged, factor);
+            extra.factor_a = face(InputKind::HalfA, factor);
+            extra.factor_b = face(InputKind::HalfB, factor);
+        }
     }
     return true;
+}
+
+bool AovSet::has_factored_extras() const
+{
+    return std::any_of(m_extras.begin(), m_extras.end(),
+                       [](const Extra& e) { return !e.factor.empty(); });
 }
 
 bool AovSet::has_component_split() const

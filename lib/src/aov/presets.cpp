@@ -147,4 +147,110 @@ Candidates preset_face_candidates(const std::string& preset, Role base, Face fac
     return {};
 }
 
+namespace {
+
+// Cycles' light passes and the colour pass each was divided by ("" for none).
+constexpr const char* kCyclesLightPasses[][2] = {
+    { "DiffDir", "DiffCol" },
+    { "DiffInd", "DiffCol" },
+    { "GlossDir", "GlossCol" },
+    { "GlossInd", "GlossCol" },
+    { "TransDir", "TransCol" },
+    { "TransInd", "TransCol" },
+    { "VolumeDir", "" },
+    { "VolumeInd", "" },
+    { "Emit", "" },
+    { "Env", "" },
+};
+
+// Arnold's built-in light-path AOVs (Arnold User Guide: AOVs), each an additive part of the
+// beauty in its units, in three sets that each add up to it (with emission and background):
+// by lobe, by path, and by both.
+struct NamedPass {
+    const char* name;
+    const char* partition;
+};
+constexpr NamedPass kArnoldLightPasses[] = {
+    { "diffuse", "light passes" },
+    { "specular", "light passes" },
+    { "coat", "light passes" },
+    { "sheen", "light passes" },
+    { "transmission", "light passes" },
+    { "sss", "light passes" },
+    { "volume", "light passes" },
+    { "emission", "light passes" },
+    { "background", "light passes" },
+    { "direct", "direct/indirect" },
+    { "indirect", "direct/indirect" },
+    { "diffuse_direct", "by lobe and path" },
+    { "diffuse_indirect", "by lobe and path" },
+    { "specular_direct", "by lobe and path" },
+    { "specular_indirect", "by lobe and path" },
+    { "coat_direct", "by lobe and path" },
+    { "coat_indirect", "by lobe and path" },
+    { "sheen_direct", "by lobe and path" },
+    { "sheen_indirect", "by lobe and path" },
+    { "transmission_direct", "by lobe and path" },
+    { "transmission_indirect", "by lobe and path" },
+    { "sss_direct", "by lobe and path" },
+    { "sss_indirect", "by lobe and path" },
+    { "volume_direct", "by lobe and path" },
+    { "volume_indirect", "by lobe and path" },
+};
+
+// RenderMan's LPE AOVs of its denoising setup (rmanwiki: Denoising, LPE AOVs).
+constexpr NamedPass kRendermanLightPasses[] = {
+    { "diffuse", "light passes" },     { "specular", "light passes" },
+    { "subsurface", "light passes" },  { "transmissive", "light passes" },
+    { "emissive", "light passes" },    { "directDiffuse", "by path" },
+    { "indirectDiffuse", "by path" },  { "directSpecular", "by path" },
+    { "indirectSpecular", "by path" },
+};
+
+}  // namespace
+
+std::vector<LightPass> preset_light_passes(const std::string& preset, const std::string& layer)
+{
+    std::vector<LightPass> passes;
+    if (preset == "cycles") {
+        const std::string L = layer.empty() ? "" : layer + ".";
+        for (const auto& [pass, factor] : kCyclesLightPasses)
+            passes.push_back(
+                { { with_suffixes(L + pass, "RGB") },
+                  *factor ? with_suffixes(L + factor, "RGB") : std::vector<std::string> {},
+                  "light passes" });
+    } else if (preset == "arnold") {
+        for (const NamedPass& pass : kArnoldLightPasses)
+            passes.push_back({ { with_suffixes(pass.name, "RGB") }, {}, pass.partition });
+    } else if (preset == "renderman") {
+        for (const NamedPass& pass : kRendermanLightPasses)
+            passes.push_back({ { with_suffixes(pass.name, "rgb"), with_suffixes(pass.name, "RGB") },
+                               {},
+                               pass.partition });
+    }
+    return passes;
+}
+
+std::vector<std::string> cycles_light_factor(const std::vector<std::string>& names)
+{
+    for (const auto& [pass, factor] : kCyclesLightPasses) {
+        if (!*factor)
+            continue;
+        std::vector<std::string> out;
+        const std::string dotted = std::string(".") + pass + ".";
+        for (const std::string& name : names) {
+            const std::string padded = "." + name;
+            const size_t at = padded.rfind(dotted);
+            if (at == std::string::npos)
+                break;
+            std::string f = padded;
+            f.replace(at + 1, std::string(pass).size(), factor);
+            out.push_back(f.substr(1));
+        }
+        if (!out.empty() && out.size() == names.size())
+            return out;
+    }
+    return {};
+}
+
 }  // namespace mcdn

@@ -21,4 +21,20 @@ Candidates preset_candidates(const std::string& preset, const std::string& layer
 /// besides the input-kind prefix of a separate file; empty where it writes none.
 Candidates preset_face_candidates(const std::string& preset, Role base, Face face);
 
+/// A light pass a renderer writes beside the beauty, denoised with it as an extra AOV
+/// (AovSet::Extra): the channel names to try, and the names of the colour pass its light was
+/// divided by (empty: the pass is light).
+struct LightPass {
+    Candidates names;
+    std::vector<std::string> factor;
+    std::string partition;  // AovSet::Extra::partition
+};
+
+/// The light passes of `preset` (Cycles: in view layer `layer`).
+std::vector<LightPass> preset_light_passes(const std::string& preset, const std::string& layer);
+
+/// The factor's channel names of a Cycles light pass named by `names` ("<layer>.DiffDir.R",
+/// ...: DiffCol for DiffDir and DiffInd, GlossCol, TransCol); empty for any other channels.
+std::vector<std::string> cycles_light_factor(const std::vector<std::string>& names);
+
 }  // namespace mcdn

@@ -10,6 +10,7 @@
 #include "core/attributes.h"
 #include "core/frame_facts.h"
 #include "core/op_prepare.h"
+#include "mcdn/color.h"
 #include "mcdn/denoise.h"
 #include "mcdn/settings.h"
 #include "mcdn/stages.h"
@@ -227,6 +228,43 @@ bool run_chain_on_own(ImageBuf& dst, ImageBuf& src, const ChainOptions& o, int n
 
 namespace {
 
+// A frame not in the working space (mcdn/color.h) goes there once for the whole chain, each
+// stage would convert its input and result otherwise: our own input in place, else a copy;
+// the result comes back. False when there is nothing to convert (dst untouched), else true
+// with dst the result or its error.
+bool run_in_working_space_once(ImageBuf& dst, const ImageBuf& src, ImageBuf* own,
+                               const ChainOptions& o, ROI roi, int nthreads)
+{
+    std::string from, why, error;
+    AovSet aovs;
+    if (!input_colorspace(from, why, o.aovs, src.spec(), error)
+        || !resolve_aovs(aovs, o.aovs, src.spec(), error)
+        || !needs_working_conversion(src.spec(), from, aovs))
+        return false;  // the stages say what is wrong
+    ImageBuf copy;
+    ImageBuf* converted = own;
+    if (!own || own->spec().format != OIIO::TypeDesc::FLOAT || !own->localpixels()) {
+        ImageSpec spec = src.spec();
+        spec.set_format(OIIO::TypeDesc::FLOAT);
+        spec.channelformats.clear();
+        if (!allocate_frame(copy, spec, false) || !copy.copy_pixels(src)) {
+            dst.errorfmt("chain: {}", copy.geterror());
+            return true;
+        }
+        converted = &copy;
+    }
+    if (!into_working_space(*converted, aovs, from, error)) {
+        dst.errorfmt("chain: colorspace {}: {}", from, error);
+        return true;
+    }
+    if (!run_chain_impl(dst, *converted, converted, o, roi, nthreads))
+        return true;
+    if (!resolve_aovs(aovs, o.aovs, dst.spec(), error)
+        || !out_of_working_space(dst, aovs, from, error))
+        dst.errorfmt("chain: colorspace {}: {}", from, error);
+    return true;
+}
+
 bool run_chain_impl(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOptions& o,
                     ROI roi, int nthreads)
 {
@@ -234,6 +272,8 @@ bool run_chain_impl(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const Cha
     const bool whole_frame = (!roi.defined() || roi == src.roi()) && !is_frame_band(src.spec());
     if (o.band_pixels > 0 && whole_frame && int64_t(src.roi().npixels()) > o.band_pixels)
         return run_chain_into(dst, src, o, nthreads);
+    if (run_in_working_space_once(dst, src, own, o, roi, nthreads))
+        return !dst.has_error();
     const bool put_back = !keeps_prefiltered_features(o);
     AovSet aovs;
     std::string error;

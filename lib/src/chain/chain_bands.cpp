@@ -251,14 +251,14 @@ std::vector<std::string> sure_room(const ImageSpec& frame, const ChainOptions& o
 }
 
 // The bands of a frame through the chain, once the frame's facts are known: `rows` gives a
-// band's rows (its cut), every channel, in the working space.
+// band's rows (its cut), every channel, in the working space; with `convert`, converted
+// there from `from` (each result goes back).
 bool run_bands(const std::vector<Band>& bands, const ROI& whole, const FrameFacts& facts,
                const std::function<bool(ImageBuf&, const Band&, std::string&)>& rows,
-               const std::string& from, const ChainOptions& o, const BandSink& sink,
+               const std::string& from, bool convert, const ChainOptions& o, const BandSink& sink,
                std::string& error, int nthreads)
 {
     StageTrace trace("chain");
-    const bool convert = from != working_colorspace();
     ChainOptions band_options = o;
     band_options.band_pixels = 0;
     for (size_t b = 0; b < bands.size(); ++b) {
@@ -279,9 +279,8 @@ bool run_bands(const std::vector<Band>& bands, const ROI& whole, const FrameFact
         result.specmod().erase_attribute(kFrameFactsAttribute);
         if (convert) {
             AovSet result_aovs;
-            result.specmod().erase_attribute("mcdn:in_working_space");
             if (!resolve_aovs(result_aovs, o.aovs, result.spec(), error)
-                || !convert_color_channels(result, result_aovs, working_colorspace(), from, error))
+                || !out_of_working_space(result, result_aovs, from, error))
                 return false;
         }
         ROI own = whole;
@@ -305,6 +304,18 @@ std::vector<Band> chain_bands(const ImageSpec& spec, const ChainOptions& o)
 
 // A frame of one band: the chain on the whole of it, handed on at once. `own`: input
 // itself, when it is ours (read for the chain), else null.
+// The input's colour space and the frame's resolved AOVs, for a chain in bands.
+bool band_setup(std::string& from, AovSet& aovs, const ImageSpec& spec, const ChainOptions& o,
+                std::string& error)
+{
+    std::string why;
+    if (!input_colorspace(from, why, o.aovs, spec, error)) {
+        error = "chain: " + error;
+        return false;
+    }
+    return resolve_aovs(aovs, o.aovs, spec, error);
+}
+
 bool run_whole(const ImageBuf& input, ImageBuf* own, const ChainOptions& o, const BandSink& sink,
                std::string& error, int nthreads)
 {
@@ -318,18 +329,6 @@ bool run_whole(const ImageBuf& input, ImageBuf* own, const ChainOptions& o, cons
         return false;
     }
     return sink(result, whole, error);
-}
-
-// The input's colour space and the frame's resolved AOVs, for a chain in bands.
-bool band_setup(std::string& from, AovSet& aovs, const ImageSpec& spec, const ChainOptions& o,
-                std::string& error)
-{
-    std::string why;
-    if (!input_colorspace(from, why, o.aovs, spec, error)) {
-        error = "chain: " + error;
-        return false;
-    }
-    return resolve_aovs(aovs, o.aovs, spec, error);
 }
 
 }  // namespace
@@ -347,13 +346,12 @@ bool run_chain(const ImageBuf& input, const ChainOptions& o, const BandSink& sin
     AovSet aovs;
     if (!band_setup(from, aovs, input.spec(), o, error))
         return false;
-    const bool convert = from != working_colorspace();
+    const bool convert = needs_working_conversion(input.spec(), from, aovs);
     ImageBuf converted;
     if (convert) {
         converted = input.copy(OIIO::TypeDesc::FLOAT);
-        if (!convert_color_channels(converted, aovs, from, working_colorspace(), error))
+        if (!into_working_space(converted, aovs, from, error))
             return false;
-        converted.specmod().attribute("mcdn:in_working_space", 1);
     }
     const ImageBuf& src = convert ? converted : input;
     StageTrace trace("chain");
@@ -370,7 +368,7 @@ bool run_chain(const ImageBuf& input, const ChainOptions& o, const BandSink& sin
         band = copy_with_channels(src, {}, cut.cut, nthreads);
         return true;
     };
-    return run_bands(bands, whole, facts, rows, from, o, sink, error, nthreads);
+    return run_bands(bands, whole, facts, rows, from, convert, o, sink, error, nthreads);
 }
 
 bool run_chain(const ImageSpec& frame, const RowReader& read, const ChainOptions& o,
@@ -401,16 +399,15 @@ bool run_chain(const ImageSpec& frame, const RowReader& read, const ChainOptions
     AovSet aovs;
     if (!band_setup(from, aovs, frame, o, error))
         return false;
-    const bool convert = from != working_colorspace();
+    const bool convert = needs_working_conversion(frame, from, aovs);
     // Rows [y0, y1) in the working space: what the chain on a buffer sees.
     auto read_working = [&](ImageBuf& rows, int y0, int y1, const std::vector<bool>& channels,
                             std::string& error) {
         if (!read(rows, y0, y1, channels, error))
             return false;
         if (convert) {
-            if (!convert_color_channels(rows, aovs, from, working_colorspace(), error))
+            if (!into_working_space(rows, aovs, from, error))
                 return false;
-            rows.specmod().attribute("mcdn:in_working_space", 1);
         }
         return true;
     };
@@ -434,7 +431,7 @@ bool run_chain(const ImageSpec& frame, const RowReader& read, const ChainOptions
     auto rows = [&](ImageBuf& band, const Band& cut, std::string& error) {
         return read_working(band, cut.cut.ybegin, cut.cut.yend, {}, error);
     };
-    return run_bands(bands, whole, facts, rows, from, o, sink, error, nthreads);
+    return run_bands(bands, whole, facts, rows, from, convert, o, sink, error, nthreads);
 }
 
 }  // namespace mcdn

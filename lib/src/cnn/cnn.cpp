@@ -168,12 +168,13 @@ bool network_tiles(std::vector<nn::Tile>& tiles, const nn::Net& net,
 // In place, the colour made in a frame of its own (colour channels 0-2) into the output's
 // colour channels, inside `where`.
 void copy_color(kpcn::OutputFrame& frame, const std::vector<int>& out_color,
-                kpcn::OutputFrame& color_frame, const ImageBuf& dst, const ROI& where)
+                kpcn::OutputFrame& color_frame, const ImageBuf& dst, const ROI& where,
+                int first = 0)
 {
     for (int y = where.ybegin - dst.spec().y; y < where.yend - dst.spec().y; ++y)
         for (int x = where.xbegin - dst.spec().x; x < where.xend - dst.spec().x; ++x)
             for (int c = 0; c < 3; ++c)
-                frame.pixel(x, y)[out_color[c]] = color_frame.pixel(x, y)[c];
+                frame.pixel(x, y)[out_color[c]] = color_frame.pixel(x, y)[first + c];
 }
 
 // §4.2 on one tile's window: its inputs (§5.1), then the diffuse and specular networks (the
@@ -247,6 +248,28 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
         dst.errorfmt("cnn: could not make the colour frame");
         return false;
     }
+    // In place, extras that are roles the tiles read around them (Blender's DiffDir, Arnold's
+    // diffuse: the split) are made in a frame of their own too, written into dst after.
+    ImageBuf made_extras;
+    std::vector<std::vector<int>> extra_channels;  // dst's, while the extras are aside
+    if (in_place && extras_are_roles(aovs) && !extras.empty()) {
+        ImageSpec spec = dst.spec();
+        spec.nchannels = 3 * int(extras.size());
+        spec.channelnames.clear();
+        spec.channelformats.clear();
+        spec.alpha_channel = spec.z_channel = -1;
+        spec.extra_attribs.clear();
+        spec.default_channel_names();
+        if (!allocate_frame(made_extras, spec, true)) {
+            dst.errorfmt("cnn: {}", made_extras.geterror());
+            return false;
+        }
+        for (size_t e = 0; e < extras.size(); ++e) {
+            extra_channels.push_back(extras[e].channels);
+            extras[e].channels = { 3 * int(e), 3 * int(e) + 1, 3 * int(e) + 2 };
+        }
+    }
+    kpcn::OutputFrame extras_frame(made_extras.initialized() ? made_extras : dst);
     const std::string path = options.weights.empty() ? default_cnn_weights() : options.weights;
     const int image_channels = extras.empty() ? 3 : 3 * (2 + int(extras.size()));
     // Workers of earlier calls when there are (worker_pool.h), handed back at the end.
@@ -303,8 +326,8 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
                     error = "cnn: '" + path + "': " + tile_error;
                 return false;
             }
-            recombine(color_frame, frame, output_rect(tile.core, dst, where), tile.window, k, split,
-                      src, aovs, color_channels, extras, converged);
+            recombine(color_frame, extras_frame, output_rect(tile.core, dst, where), tile.window, k,
+                      split, src, aovs, color_channels, extras, converged);
             progress.advance();
             return true;
         };
@@ -317,6 +340,10 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
     trace.mark("network tiles (4.2, eq. 4)");
     if (in_place)
         copy_color(frame, out_color, color_frame, dst, where);
+    for (size_t e = 0; e < extra_channels.size(); ++e) {
+        copy_color(frame, extra_channels[e], extras_frame, dst, where, extras[e].channels[0]);
+        extras[e].channels = extra_channels[e];
+    }
     // Converged tiles keep the render (sanitized), the extras' too.
     pass_through_color(frame, dst, out_color, where, converged);
     pass_through_extras(dst, where, extras, converged);

@@ -9,6 +9,7 @@
 
 #include "aov/transmission.h"
 #include "cnn/cnn_steps.h"
+#include "core/extra_aovs.h"
 
 namespace mcdn {
 namespace kpcn {
@@ -104,9 +105,14 @@ bool read_pass(const WindowReader& src, const std::vector<std::string>& names, P
 /// Adds the value and delta-method variance of colour·(direct + indirect) to the sums:
 /// Var[C (D + I)] ~ C² (Var D + Var I) + (D + I)² Var C. False when a pass or one of its
 /// variances is missing (nothing is added then).
-bool add_product(const WindowReader& src, const std::vector<std::string> names[3], Plane value[3],
-                 Plane variance[3], bool& variance_complete)
+bool add_product(const WindowReader& src, const AovSet& aovs,
+                 const std::vector<std::string> names[3], Plane value[3], Plane variance[3],
+                 bool& variance_complete)
 {
+    // In the working space the light passes hold C·D and C·I already (mcdn/color.h
+    // into_working_space), their variances C²·Var: the product is their sum.
+    const bool light = extra_holds_light(src.spec(), aovs, names[1])
+                       && extra_holds_light(src.spec(), aovs, names[2]);
     Plane mean[3][3], var[3][3];
     bool have_variance = true;
     for (int p = 0; p < 3; ++p) {
@@ -120,11 +126,19 @@ bool add_product(const WindowReader& src, const std::vector<std::string> names[3
     for (int c = 0; c < 3; ++c)
         for (size_t i = 0; i < value[c].size(); ++i) {
             const float color = mean[0][c].px[i];
-            const float light = mean[1][c].px[i] + mean[2][c].px[i];
-            value[c].px[i] += color * light;
+            const float sum = mean[1][c].px[i] + mean[2][c].px[i];
+            if (light) {
+                value[c].px[i] += sum;
+                const float passes = std::abs(color) > 1e-12f ? sum / color : 0.0f;
+                if (have_variance)
+                    variance[c].px[i] +=
+                        var[1][c].px[i] + var[2][c].px[i] + passes * passes * var[0][c].px[i];
+                continue;
+            }
+            value[c].px[i] += color * sum;
             if (have_variance)
                 variance[c].px[i] += color * color * (var[1][c].px[i] + var[2][c].px[i])
-                                     + light * light * var[0][c].px[i];
+                                     + sum * sum * var[0][c].px[i];
         }
     return true;
 }
@@ -219,7 +233,7 @@ bool read_raw_planes(RawPlanes& raw, const ImageBuf& src, const AovSet& aovs, st
         const std::vector<std::string> diffuse[3] = { aovs.names(Role::DiffuseColor),
                                                       aovs.names(Role::DiffuseDirect),
                                                       aovs.names(Role::DiffuseIndirect) };
-        add_product(reader, diffuse, raw.diffuse, raw.diffuse_var, diffuse_var_complete);
+        add_product(reader, aovs, diffuse, raw.diffuse, raw.diffuse_var, diffuse_var_complete);
         // Specular = Combined − diffuse: glossy and transmission products, emission,
         // environment. Only their variances are needed (the value is the difference).
         Plane unused[3] = { Plane(w, h), Plane(w, h), Plane(w, h) };
@@ -228,7 +242,7 @@ bool read_raw_planes(RawPlanes& raw, const ImageBuf& src, const AovSet& aovs, st
             const std::vector<std::string> glossy[3] = { aovs.names(Role::GlossyColor),
                                                          aovs.names(Role::GlossyDirect),
                                                          aovs.names(Role::GlossyIndirect) };
-            add_product(reader, glossy, unused, raw.specular_var, specular_var_complete);
+            add_product(reader, aovs, glossy, unused, raw.specular_var, specular_var_complete);
         }
         // Cycles' transmission passes have no role; they sit beside DiffCol (aov/transmission.h).
         const std::vector<std::string> trans[3] = {
@@ -236,7 +250,7 @@ bool read_raw_planes(RawPlanes& raw, const ImageBuf& src, const AovSet& aovs, st
             transmission_channels(diffuse[0], kTransmissionPasses[1]),
             transmission_channels(diffuse[0], kTransmissionPasses[2])
         };
-        add_product(reader, trans, unused, raw.specular_var, specular_var_complete);
+        add_product(reader, aovs, trans, unused, raw.specular_var, specular_var_complete);
         for (Role added : { Role::Emission, Role::Environment }) {
             if (!aovs.has(added))
                 continue;

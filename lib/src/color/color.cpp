@@ -14,6 +14,8 @@
 #include <OpenColorIO/OpenColorIO.h>
 #include <OpenImageIO/strutil.h>
 
+#include "core/attributes.h"
+#include "core/op_prepare.h"
 #include "core/planar.h"
 #include "mcdn/version.h"
 
@@ -54,21 +56,29 @@ struct ColorGroup {
 std::vector<ColorGroup> color_groups(const ImageBuf& buf, const AovSet& aovs)
 {
     std::vector<ColorGroup> groups;
+    // Each group once: a light pass may be a role (Blender's DiffDir, Arnold's diffuse) and
+    // an extra.
+    auto push_back = [&groups](ColorGroup group) {
+        for (const ColorGroup& g : groups)
+            if (g.channels == group.channels)
+                return;
+        groups.push_back(std::move(group));
+    };
     for (Role r : { Role::Color, Role::ColorA, Role::ColorB, Role::Albedo, Role::AlbedoA,
                     Role::AlbedoB, Role::Diffuse, Role::Specular, Role::DiffuseColor,
                     Role::DiffuseDirect, Role::DiffuseIndirect, Role::GlossyColor,
                     Role::GlossyDirect, Role::GlossyIndirect, Role::Emission, Role::Environment })
         if (aovs.has(r))
-            groups.push_back({ aovs.channels(r), false });
+            push_back({ aovs.channels(r), false });
     for (Role r : { Role::ColorVariance, Role::AlbedoVariance })
         if (aovs.has(r))
-            groups.push_back({ aovs.channels(r), true });
+            push_back({ aovs.channels(r), true });
     for (const auto& extra : aovs.extras())
         if (extra.channels.size() == 3)
             for (const auto* face :
                  { &extra.channels, &extra.half_a, &extra.half_b, &extra.variance })
                 if (!face->empty())
-                    groups.push_back({ *face, face == &extra.variance });
+                    push_back({ *face, face == &extra.variance });
     for (const auto& extra : aovs.extras())
         if (extra.channels.size() == 3) {
             std::vector<int> noisy;
@@ -76,14 +86,14 @@ std::vector<ColorGroup> color_groups(const ImageBuf& buf, const AovSet& aovs)
                 if (buf.spec().channelindex("noisy." + name) >= 0)
                     noisy.push_back(buf.spec().channelindex("noisy." + name));
             if (noisy.size() == 3)
-                groups.push_back({ noisy, false });
+                push_back({ noisy, false });
         }
     std::vector<int> noisy;
     for (const char* name : { "noisy.R", "noisy.G", "noisy.B" })
         if (buf.spec().channelindex(name) >= 0)
             noisy.push_back(buf.spec().channelindex(name));
     if (noisy.size() == 3)
-        groups.push_back({ noisy, false });
+        push_back({ noisy, false });
     return groups;
 }
 
@@ -239,7 +249,7 @@ bool input_colorspace(std::string& name, std::string& why, const AovSpec& aovs,
         return false;
     auto known = [&](const std::string& n) { return config->getColorSpace(n.c_str()); };
     // A buffer run_in_working_space converted is in the working space, whatever the spec says.
-    if (image.get_int_attribute("mcdn:in_working_space") == 1) {
+    if (image.get_int_attribute(kInWorkingSpaceAttribute) == 1) {
         name = working_colorspace();
         why = "converted already";
         return true;
@@ -452,6 +462,113 @@ bool convert_color_channels(ImageBuf& buf, const AovSet& aovs, const std::string
     return true;
 }
 
+namespace {
+
+// Below this a factor channel holds no light to divide out: Cycles' own rule then gives the
+// pass the mean of the other channels' quotients (its safe_divide_even_color), 0 without any.
+constexpr float kSmallestFactor = 1e-4f;
+
+/// Extras that hold light divided by a factor (AovSet::Extra::factor), as light: each face
+/// (mean, halves: by their own factor where the inputs have it; variance: by its square)
+/// times the factor, or with `divide` the way back.
+void scale_factored_extras(ImageBuf& buf, const AovSet& aovs, bool divide)
+{
+    const int nch = buf.nchannels();
+    float* pixels = static_cast<float*>(buf.localpixels());
+    const size_t npixels = buf.spec().image_pixels();
+    for (const AovSet::Extra& extra : aovs.extras()) {
+        if (extra.factor.size() != 3 || extra.channels.size() != 3)
+            continue;
+        struct Face {
+            const std::vector<int>& pass;
+            const std::vector<int>& factor;
+            bool variance;
+        };
+        const bool own_halves = extra.factor_a.size() == 3 && extra.factor_b.size() == 3;
+        // sure's record of the extra's input (noisy.<name>, which mix reads beside the result)
+        std::vector<int> noisy;
+        for (const std::string& name : extra.names)
+            if (buf.spec().channelindex("noisy." + name) >= 0)
+                noisy.push_back(buf.spec().channelindex("noisy." + name));
+        const Face faces[] = { { extra.channels, extra.factor, false },
+                               { extra.half_a, own_halves ? extra.factor_a : extra.factor, false },
+                               { extra.half_b, own_halves ? extra.factor_b : extra.factor, false },
+                               { extra.variance, extra.factor, true },
+                               { noisy, extra.factor, false } };
+        for (const Face& face : faces) {
+            if (face.pass.size() != 3)
+                continue;
+            const float smallest =
+                face.variance ? kSmallestFactor * kSmallestFactor : kSmallestFactor;
+            for (size_t p = 0; p < npixels; ++p) {
+                float* px = pixels + p * nch;
+                float f[3], v[3];
+                bool lit[3];
+                for (int c = 0; c < 3; ++c) {
+                    f[c] = px[face.factor[c]];
+                    if (face.variance)
+                        f[c] *= f[c];
+                    lit[c] = std::abs(f[c]) > smallest;
+                    v[c] = !divide  ? px[face.pass[c]] * f[c]
+                           : lit[c] ? px[face.pass[c]] / f[c]
+                                    : 0.0f;
+                }
+                for (int c = 0; c < 3 && divide && !face.variance; ++c) {
+                    if (lit[c])
+                        continue;
+                    float sum = 0.0f;
+                    int n = 0;
+                    for (int k = 0; k < 3; ++k)
+                        if (lit[k]) {
+                            sum += v[k];
+                            ++n;
+                        }
+                    v[c] = n ? sum / float(n) : 0.0f;
+                }
+                for (int c = 0; c < 3; ++c)
+                    px[face.pass[c]] = face.variance ? sanitize_variance(v[c]) : sanitize(v[c]);
+            }
+        }
+    }
+}
+
+}  // namespace
+
+bool needs_working_conversion(const ImageSpec& image, const std::string& from, const AovSet& aovs)
+{
+    if (image.get_int_attribute(kInWorkingSpaceAttribute) == 1)
+        return false;
+    return from != working_colorspace() || aovs.has_factored_extras();
+}
+
+bool into_working_space(ImageBuf& buf, const AovSet& aovs, const std::string& from,
+                        std::string& error)
+{
+    if (buf.spec().format != OIIO::TypeDesc::FLOAT || !buf.localpixels()) {
+        error = "colour conversion needs a local float buffer";
+        return false;
+    }
+    scale_factored_extras(buf, aovs, false);
+    if (!convert_color_channels(buf, aovs, from, working_colorspace(), error))
+        return false;
+    buf.specmod().attribute(kInWorkingSpaceAttribute, 1);
+    return true;
+}
+
+bool out_of_working_space(ImageBuf& buf, const AovSet& aovs, const std::string& to,
+                          std::string& error)
+{
+    if (buf.spec().format != OIIO::TypeDesc::FLOAT || !buf.localpixels()) {
+        error = "colour conversion needs a local float buffer";
+        return false;
+    }
+    buf.specmod().erase_attribute(kInWorkingSpaceAttribute);
+    if (!convert_color_channels(buf, aovs, working_colorspace(), to, error))
+        return false;
+    scale_factored_extras(buf, aovs, true);
+    return true;
+}
+
 bool run_in_working_space(ImageBuf& dst, const ImageBuf& src, const AovSpec& spec,
                           const char* op_name,
                           const std::function<bool(ImageBuf& dst, const ImageBuf& src)>& op)
@@ -461,22 +578,29 @@ bool run_in_working_space(ImageBuf& dst, const ImageBuf& src, const AovSpec& spe
         dst.errorfmt("{}: {}", op_name, error);
         return false;
     }
-    const std::string working = working_colorspace();
-    if (from == working)
-        return op(dst, src);
     AovSet aovs;
-    ImageBuf converted = src.copy(OIIO::TypeDesc::FLOAT);
-    if (!resolve_aovs(aovs, spec, converted.spec(), error)
-        || !convert_color_channels(converted, aovs, from, working, error)) {
+    if (!resolve_aovs(aovs, spec, src.spec(), error)) {
+        dst.errorfmt("{}: {}", op_name, error);
+        return false;
+    }
+    if (!needs_working_conversion(src.spec(), from, aovs))
+        return op(dst, src);
+    ImageSpec float_spec = src.spec();
+    float_spec.set_format(OIIO::TypeDesc::FLOAT);
+    float_spec.channelformats.clear();
+    ImageBuf converted;
+    if (!allocate_frame(converted, float_spec, false) || !converted.copy_pixels(src)) {
+        dst.errorfmt("{}: {}", op_name, converted.geterror());
+        return false;
+    }
+    if (!into_working_space(converted, aovs, from, error)) {
         dst.errorfmt("{}: colorspace {}: {}", op_name, from, error);
         return false;
     }
-    converted.specmod().attribute("mcdn:in_working_space", 1);
     if (!op(dst, converted))
         return false;
-    dst.specmod().erase_attribute("mcdn:in_working_space");
     if (!resolve_aovs(aovs, spec, dst.spec(), error)
-        || !convert_color_channels(dst, aovs, working, from, error)) {
+        || !out_of_working_space(dst, aovs, from, error)) {
         dst.errorfmt("{}: colorspace {}: {}", op_name, from, error);
         return false;
     }

@@ -36,4 +36,9 @@ constexpr const char* kDenoiserTilesAttribute = "mcdn:denoiser_tiles";
 /// one name a line — the render's own, and those a stage was asked to add (add_channels).
 constexpr const char* kOutputChannelsAttribute = "mcdn:output_channels";
 
+/// On a buffer mcdn::into_working_space converted (mcdn/color.h): its colour channels are in
+/// the working space and its factored extras hold light, whatever its other attributes say;
+/// ops do not convert it again. out_of_working_space drops it.
+constexpr const char* kInWorkingSpaceAttribute = "mcdn:in_working_space";
+
 }  // namespace mcdn

@@ -59,6 +59,26 @@ bool denoises_extras(bool asked, const ImageBuf& src)
     return asked && src.spec().get_int_attribute(kProbeAttribute, 0) == 0;
 }
 
+bool extra_holds_light(const ImageSpec& spec, const AovSet& aovs,
+                       const std::vector<std::string>& names)
+{
+    if (spec.get_int_attribute(kInWorkingSpaceAttribute) != 1)
+        return false;
+    return std::any_of(aovs.extras().begin(), aovs.extras().end(), [&](const AovSet::Extra& e) {
+        return !e.factor.empty() && e.names == names;
+    });
+}
+
+bool extras_are_roles(const AovSet& aovs)
+{
+    for (const AovSet::Extra& e : aovs.extras())
+        for (int r = 0; r < kRoleCount; ++r)
+            for (int ch : aovs.channels(Role(r)))
+                if (std::find(e.channels.begin(), e.channels.end(), ch) != e.channels.end())
+                    return true;
+    return false;
+}
+
 bool read_extras(std::vector<ExtraPlanes>& extras, const ImageBuf& src, const AovSet& aovs,
                  bool halves, std::string& error)
 {
@@ -72,6 +92,7 @@ bool read_extras(std::vector<ExtraPlanes>& extras, const ImageBuf& src, const Ao
         }
         ExtraPlanes planes;
         planes.name = extra.name;
+        planes.partition = extra.partition;
         planes.channels = extra.channels;
         for (int c = 0; c < 3; ++c)
             planes.mean[c] = read_plane(src, extra.channels[c]);

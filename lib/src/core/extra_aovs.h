@@ -15,6 +15,7 @@ namespace mcdn {
 /// One 3-channel extra AOV as planes (sanitized), and the channels its result goes to.
 struct ExtraPlanes {
     std::string name;
+    std::string partition;  // AovSet::Extra::partition
     std::vector<int> channels;
     Plane mean[3], half_a[3], half_b[3];
 };
@@ -22,6 +23,16 @@ struct ExtraPlanes {
 /// Whether an op denoises the extras of src: asked for, and src is not a SURE probe (whose
 /// result only counts for the colour; sure.h).
 bool denoises_extras(bool asked, const ImageBuf& src);
+
+/// Whether the channels `names` of a buffer with `spec` hold light, factor × pass: an extra
+/// with a factor (AovSet::Extra::factor) in a buffer mcdn::into_working_space converted.
+bool extra_holds_light(const ImageSpec& spec, const AovSet& aovs,
+                       const std::vector<std::string>& names);
+
+/// Whether an extra's channels are also a role's (Arnold's `diffuse` is the CNN's split and
+/// a light pass to denoise): an op that reads roles as it writes extras cannot then work in
+/// place.
+bool extras_are_roles(const AovSet& aovs);
 
 /// Reads the extras of `aovs` from src; with `halves`, also their half buffers. An extra
 /// without halves of its own takes its share of the beauty's: E_A = E + (C_A − C)·E/C (and

@@ -53,8 +53,10 @@ std::set<std::string> selected_faces(const ImageSpec& spec, const InputSelection
     for (int r = 0; r < kRoleCount; ++r)
         if (selection.light_split || !is_light_split(Role(r)))
             add(aovs.channels(Role(r)));
-    for (const AovSet::Extra& e : aovs.extras())
+    for (const AovSet::Extra& e : aovs.extras()) {
         add(e.channels);
+        add(e.factor);  // a light pass is denoised as factor × pass (mcdn/color.h)
+    }
     // Cycles' transmission passes, which the CNN reads by name (aov/transmission.h): without
     // their faces it would see an incomplete split, and a run would denoise differently from
     // one that reads every channel (a --ch of the variance file's).

@@ -1,5 +1,7 @@
 #include "nfor/extras_regression.h"
 
+#include <algorithm>
+
 namespace mcdn {
 
 namespace {
@@ -89,25 +91,36 @@ void ExtraAovs::blend_is_result()
 void ExtraAovs::share_rounding(const Plane color[3], const std::vector<Plane>& denoised_color)
 {
     constexpr double kAddsUp = 1e-5;  // relative to the pixel's magnitude
-    for (int c = 0; c < 3; ++c)
-        for (size_t i = 0; i < color[c].size(); ++i) {
-            double input_sum = 0, input_scale = std::abs(color[c].px[i]);
-            double output_sum = 0, output_scale = 0;
-            for (const Extra& e : m_extras) {
-                input_sum += e.planes.mean[c].px[i];
-                input_scale += std::abs(e.planes.mean[c].px[i]);
-                output_sum += e.denoised[c].px[i];
-                output_scale += std::abs(e.denoised[c].px[i]);
+    std::vector<std::string> partitions;
+    for (const Extra& e : m_extras)
+        if (std::find(partitions.begin(), partitions.end(), e.planes.partition) == partitions.end())
+            partitions.push_back(e.planes.partition);
+    std::vector<Extra*> set;
+    for (const std::string& partition : partitions) {
+        set.clear();
+        for (Extra& e : m_extras)
+            if (e.planes.partition == partition)
+                set.push_back(&e);
+        for (int c = 0; c < 3; ++c)
+            for (size_t i = 0; i < color[c].size(); ++i) {
+                double input_sum = 0, input_scale = std::abs(color[c].px[i]);
+                double output_sum = 0, output_scale = 0;
+                for (const Extra* e : set) {
+                    input_sum += e->planes.mean[c].px[i];
+                    input_scale += std::abs(e->planes.mean[c].px[i]);
+                    output_sum += e->denoised[c].px[i];
+                    output_scale += std::abs(e->denoised[c].px[i]);
+                }
+                if (!(std::abs(input_sum - color[c].px[i]) <= kAddsUp * input_scale)
+                    || !(output_scale > 0))
+                    continue;
+                const double residual = denoised_color[c].px[i] - output_sum;
+                for (Extra* e : set) {
+                    float& v = e->denoised[c].px[i];
+                    v = sanitize(float(v + residual * (std::abs(v) / output_scale)));
+                }
             }
-            if (!(std::abs(input_sum - color[c].px[i]) <= kAddsUp * input_scale)
-                || !(output_scale > 0))
-                continue;
-            const double residual = denoised_color[c].px[i] - output_sum;
-            for (Extra& e : m_extras) {
-                float& v = e.denoised[c].px[i];
-                v = sanitize(float(v + residual * (std::abs(v) / output_scale)));
-            }
-        }
+    }
 }
 
 void ExtraAovs::put_back_outliers(const OutlierPixels& outliers)

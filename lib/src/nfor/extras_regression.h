@@ -39,9 +39,9 @@ public:
 
     /// Linear in exact arithmetic, the regressions round their float sums differently for
     /// each AOV, and ill-conditioned windows amplify that (well above float epsilon of the
-    /// beauty). Where the extras' input adds up to the beauty's (to 1e-5), the residual
-    /// beauty − Σ extras of the result is shared out in proportion to |extra|, so that they
-    /// add up there as well.
+    /// beauty). Where the input of a set of extras (AovSet::Extra::partition: light groups,
+    /// light passes) adds up to the beauty's (to 1e-5), the residual beauty − Σ set of the
+    /// result is shared out in proportion to |extra|, so that they add up there as well.
     void share_rounding(const Plane color[3], const std::vector<Plane>& denoised_color);
     /// Adds each extra's share of the outliers' excess back at their pixels (after
     /// share_rounding, which sees the inputs without it).

@@ -4,6 +4,7 @@
 // output's colour — one tile per worker thread, each with its own copy of the network.
 #include "mcdn/oidn.h"
 
+#include <algorithm>
 #include <array>
 #include <cstdlib>
 #include <map>
@@ -167,16 +168,18 @@ void tile_input(nn::Tensor& input, const ImageBuf& src, const Inputs& in, const 
 /// One run of the network over the frame: the beauty, or an extra AOV in the colour's place.
 struct Pass {
     Inputs in;
-    std::vector<int> out;  // dst's channels it writes
+    std::vector<int> out;   // dst's channels it writes
+    std::string partition;  // an extra's set (AovSet::Extra::partition)
 };
 
-/// The denoised extras still add up as the rendered ones did: where the input's extras sum
-/// to its beauty less a remainder R (light in no group; 0 when they partition it), the
-/// result's sum to the denoised beauty less R, the difference shared among the extras by
-/// their denoised magnitude (equally where all are 0). Inside `where`, not on converged
-/// tiles (which are the render).
-void keep_extras_summing(ImageBuf& dst, const ImageBuf& src, const std::vector<Pass>& passes,
-                         const ROI& where, const ConvergedTiles& converged)
+/// The denoised extras still add up as the rendered ones did, each set of them
+/// (AovSet::Extra::partition) on its own: where the input's extras of a set sum to its beauty
+/// less a remainder R (light in none of them; 0 when they partition it), the result's sum to
+/// the denoised beauty less R, the difference shared among the set's extras by their denoised
+/// magnitude (equally where all are 0). Inside `where`, not on converged tiles (which are the
+/// render). `passes` is the beauty's and then one set's.
+void keep_set_summing(ImageBuf& dst, const ImageBuf& src, const std::vector<const Pass*>& passes,
+                      const ROI& where, const ConvergedTiles& converged)
 {
     const ImageSpec& spec = dst.spec();
     float* pixels = const_cast<float*>(float_frame_pixels(dst));
@@ -191,20 +194,37 @@ void keep_extras_summing(ImageBuf& dst, const ImageBuf& src, const std::vector<P
             for (int c = 0; c < 3; ++c) {
                 double sum_in = 0, sum_out = 0, magnitude = 0;
                 for (size_t e = 1; e <= n; ++e) {
-                    const int ch = passes[e].out[size_t(c)];
+                    const int ch = passes[e]->out[size_t(c)];
                     sum_in += sanitize(rendered[size_t(ch)]);
                     sum_out += pixel[ch];
                     magnitude += std::abs(pixel[ch]);
                 }
-                const int beauty = passes[0].out[size_t(c)];
+                const int beauty = passes[0]->out[size_t(c)];
                 const double remainder = sanitize(rendered[size_t(beauty)]) - sum_in;
                 const double missing = pixel[beauty] - remainder - sum_out;
                 for (size_t e = 1; e <= n; ++e) {
-                    float& v = pixel[passes[e].out[size_t(c)]];
+                    float& v = pixel[passes[e]->out[size_t(c)]];
                     v = float(v + missing * (magnitude > 0 ? std::abs(v) / magnitude : 1.0 / n));
                 }
             }
         }
+}
+
+void keep_extras_summing(ImageBuf& dst, const ImageBuf& src, const std::vector<Pass>& passes,
+                         const ROI& where, const ConvergedTiles& converged)
+{
+    std::vector<std::string> partitions;
+    for (size_t e = 1; e < passes.size(); ++e)
+        if (std::find(partitions.begin(), partitions.end(), passes[e].partition)
+            == partitions.end())
+            partitions.push_back(passes[e].partition);
+    for (const std::string& partition : partitions) {
+        std::vector<const Pass*> set = { &passes[0] };
+        for (size_t e = 1; e < passes.size(); ++e)
+            if (passes[e].partition == partition)
+                set.push_back(&passes[e]);
+        keep_set_summing(dst, src, set, where, converged);
+    }
 }
 
 /// The network's output on the frame pixels `rect` (inside its tile's core) into dst's
@@ -311,11 +331,11 @@ bool oidn_in_working_space(ImageBuf& dst, const ImageBuf& src, const OidnOptions
             tiles.push_back(tile);
     // The beauty, then each extra AOV (a light group: its own run of the network, with the
     // beauty's exposure and features), into its channels of dst.
-    std::vector<Pass> passes = { { in, { out[0], out[1], out[2] } } };
+    std::vector<Pass> passes = { { in, { out[0], out[1], out[2] }, {} } };
     if (!color_only && denoises_extras(options.denoise_extras, src))
         for (const AovSet::Extra& extra : aovs.extras())
             if (extra.channels.size() == 3) {
-                Pass pass { in, extra.channels };
+                Pass pass { in, extra.channels, extra.partition };
                 pass.in.outliers.clear();
                 pass.in.outlier_color.clear();
                 for (int c = 0; c < 3; ++c)

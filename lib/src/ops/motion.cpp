@@ -96,10 +96,10 @@ bool to_working_space(AlignedFrame& f, const AovSpec& spec, std::string& error)
     std::string from, why;
     if (!input_colorspace(from, why, spec, f.frame->spec(), error))
         return false;
-    if (from == working_colorspace())
+    if (!needs_working_conversion(f.frame->spec(), from, f.aovs))
         return true;
     f.converted = std::make_unique<OIIO::ImageBuf>(f.frame->copy(OIIO::TypeDesc::FLOAT));
-    if (!convert_color_channels(*f.converted, f.aovs, from, working_colorspace(), error))
+    if (!into_working_space(*f.converted, f.aovs, from, error))
         return false;
     f.frame = f.converted.get();
     return true;

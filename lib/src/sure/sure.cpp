@@ -116,7 +116,7 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
         } else {
             copy = copy_with_channels(src, sure_channel_names(frame), band.cut, nthreads);
             if (!copy.localpixels())
-                return dst.errorfmt("sure: could not allocate a {}x{} frame of {} channels",
+                return dst.errorfmt("sure: out of memory for a {}x{} frame of {} channels",
                                     copy.spec().width, copy.spec().height, copy.spec().nchannels),
                        false;
         }

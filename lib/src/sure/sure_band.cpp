@@ -226,9 +226,11 @@ struct BandState {
     std::vector<Plane> extras;
     /// The denoiser's own tile decisions, which hold for its probes (core/attributes.h).
     std::string denoiser_tiles;
-    /// In place: noisy's spec as the denoiser left it, and the colour it made.
+    /// In place: noisy's spec as the denoiser left it, and the colour and extras it made
+    /// (the probes see the rendered extras: an extra may be a role the denoiser reads, as
+    /// Blender's DiffDir is for the CNN's split).
     ImageSpec result_spec;
-    std::vector<std::vector<float>> y_bits;
+    std::vector<std::vector<float>> y_bits, extras_y_bits;
     Plane divergence[3];
 };
 
@@ -271,11 +273,12 @@ bool denoise_in_place(BandState& st, ImageBuf& noisy, const Denoiser& denoiser,
     }
     trace.mark("y = F(x)");
     st.y_bits = exact_bits(noisy, frame.color);
+    st.extras_y_bits = exact_bits(noisy, frame.extras);
     if (!check_finite_in_place(noisy.spec(), frame.color, st.y_bits,
                                { st.unprobed.begin(), st.unprobed.begin() + 3 }, error)
-        || !check_finite_in_place(noisy.spec(), frame.extras, exact_bits(noisy, frame.extras),
-                                  extras_bits, error))
+        || !check_finite_in_place(noisy.spec(), frame.extras, st.extras_y_bits, extras_bits, error))
         return false;
+    put_back_bits(noisy, frame.extras, extras_bits);
     for (int c = 0; c < 3; ++c) {  // as read_plane reads them
         st.y[c] = Plane(st.x[c].width, st.x[c].height);
         for (size_t i = 0; i < st.y[c].size(); ++i)
@@ -512,6 +515,7 @@ bool sure_band(ImageBuf& dst, ImageBuf& noisy, const Band& band, const Denoiser&
     // In place, noisy is the result now: y and the spec the denoiser gave it.
     if (frame.denoise_in_place) {
         put_back_bits(noisy, frame.color, st.y_bits);
+        put_back_bits(noisy, frame.extras, st.extras_y_bits);
         noisy.specmod() = st.result_spec;
         dst = std::move(noisy);
     }
