@@ -154,6 +154,8 @@ bool run_plan(Session& s, const Command& c, std::string& error)
         Command step { "--" + name, {}, {} };
         if (mcdn::find_stage(name)->cross_frame && c.has("frames"))
             step.modifiers["frames"] = c.modifier("frames");
+        if (mcdn::find_stage(name)->kind == mcdn::StageKind::Denoiser && c.has("extras"))
+            step.modifiers["extras"] = c.modifier("extras");
         if (!run_stage(s, step, error))
             return false;
     }

@@ -124,3 +124,23 @@ TEST(LightPasses, APassNamedAsAnExtraIsDenoisedAsLight)
     EXPECT_LT(relmse(read_float(out), reference, "DiffDir"),
               0.2 * relmse(render, reference, "DiffDir"));
 }
+
+// --denoise:extras=0 (and a stage's extras=0) leaves them as rendered, at the old cost.
+TEST(LightPasses, ExtrasZeroLeavesThemAsRendered)
+{
+    const std::string dir = mcdn_test::temp_dir("light_passes_off");
+    const ImageBuf render = read_float(test_data(kRender + ".exr"));
+    for (const char* chain : { "--denoise:extras=0", "--cnn:extras=0 --sure --mix" }) {
+        const std::string out = dir + "/out.exr";
+        auto run = run_mcdntool(inputs() + " " + chain + " -o " + out);
+        ASSERT_EQ(run.exit_code, 0) << run.output;
+        const ImageBuf denoised = read_float(out);
+        for (const char* pass : kPasses)
+            for (int c = 0; c < 3; ++c) {
+                const float v = value(render, pass, c, 9, 11);
+                // (into light and back: the last bit of a float)
+                EXPECT_NEAR(value(denoised, pass, c, 9, 11), v, 1e-6f * (1 + std::abs(v)))
+                    << chain << " " << pass;
+            }
+    }
+}

@@ -48,6 +48,12 @@ bool check_settings(const ChainOptions& o, std::string& error)
     const std::vector<std::string> stages = chain_stages();
     for (const auto& [key, value] : o.settings) {
         std::string stage = key.substr(0, key.find('.'));
+        // A plan's keys (denoise.extras) go to the stages it picks (run_stages).
+        const StageInfo* plan = find_stage(stage);
+        if (plan && plan->kind == StageKind::Plan
+            && std::find(plan->keys.begin(), plan->keys.end(), key.substr(stage.size() + 1))
+                   != plan->keys.end())
+            continue;
         if (key.find('.') == std::string::npos
             || std::find(stages.begin(), stages.end(), stage) == stages.end()) {
             error = format("'{}': not a stage setting (stage.key, stages: {})", key,
@@ -340,6 +346,10 @@ bool run_stages(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOp
         }
         ChainOptions planned = o;
         planned.stages = plan.stages;
+        if (auto it = o.settings.find("denoise.extras"); it != o.settings.end())
+            for (const std::string& stage : plan.stages)
+                if (find_stage(stage)->kind == StageKind::Denoiser)
+                    planned.settings.emplace(stage + ".extras", it->second);
         if (!planned.settings.count("mix.model"))
             planned.settings["mix.model"] = "net";
         if (!run_chain_impl(dst, src, own, planned, roi, nthreads))

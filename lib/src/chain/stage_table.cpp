@@ -465,6 +465,7 @@ StageInfo denoise_stage()
     s.name = "denoise";
     s.kind = StageKind::Plan;
     s.cross_frame = true;
+    s.keys = { "extras" };
     s.reads_light_split = true;
     s.help = "The best chain the inputs allow: with a colour variance --cnn --sure --mix "
              "(KPCN, its SURE, the progressive mix by the network: never much worse than the "
@@ -474,7 +475,8 @@ StageInfo denoise_stage()
              "is cross-frame: the CNN's input is this frame combined with 2 previous and 2 next "
              "ones where they agree (as --cnn:frames=2), against flicker; the agreement is "
              "weighed by the colour's variance or halves, so frames=N needs them and the motion "
-             "vectors (Blender's Vector pass).";
+             "vectors (Blender's Vector pass). Light groups and passes are denoised with the "
+             "beauty (extras=0: keep them as rendered, and the time they cost).";
     s.needs = "the colour (any preset); with its variance (the renderer's variance AOV, a "
               "Tungsten folder; Cycles writes none: render K seeds, -i:as=seed each) the mixed "
               "chain and frames=N. Albedo, normal and depth "
