@@ -331,6 +331,14 @@ bool Session::open_rows(mcdn::InputRows& rows, std::string& error)
                         missing.empty() ? ""
                                         : " (nfor and prefilter leave them out, the "
                                           "cnn reads them as zeros)"));
+        // The light groups and passes the denoisers take along (docs/aovs.md).
+        std::vector<std::string> extras;
+        for (const mcdn::AovSet::Extra& extra : m_aovs.extras())
+            extras.push_back(extra.name.substr(extra.name.rfind('.') + 1));
+        if (!extras.empty())
+            say_once(format("mcdntool: denoised with the beauty: {} (extras=0 keeps them as "
+                            "rendered)\n",
+                            Strutil::join(extras, ", ")));
     }
     return true;
 }
