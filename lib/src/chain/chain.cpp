@@ -8,6 +8,7 @@
 
 #include "chain/chain_steps.h"
 #include "core/attributes.h"
+#include "core/channels.h"
 #include "core/frame_facts.h"
 #include "core/op_prepare.h"
 #include "mcdn/color.h"
@@ -250,11 +251,10 @@ bool run_in_working_space_once(ImageBuf& dst, const ImageBuf& src, ImageBuf* own
     ImageBuf copy;
     ImageBuf* converted = own;
     if (!own || own->spec().format != OIIO::TypeDesc::FLOAT || !own->localpixels()) {
-        ImageSpec spec = src.spec();
-        spec.set_format(OIIO::TypeDesc::FLOAT);
-        spec.channelformats.clear();
-        if (!allocate_frame(copy, spec, false) || !copy.copy_pixels(src)) {
-            dst.errorfmt("chain: {}", copy.geterror());
+        copy = copy_with_channels(src, {}, {}, nthreads);
+        if (!copy.localpixels()) {
+            dst.errorfmt("chain: out of memory for a float copy of the {}x{} frame of {} channels",
+                         src.spec().width, src.spec().height, src.spec().nchannels);
             return true;
         }
         converted = &copy;

@@ -304,17 +304,6 @@ std::vector<Band> chain_bands(const ImageSpec& spec, const ChainOptions& o)
 
 // A frame of one band: the chain on the whole of it, handed on at once. `own`: input
 // itself, when it is ours (read for the chain), else null.
-// The input's colour space and the frame's resolved AOVs, for a chain in bands.
-bool band_setup(std::string& from, AovSet& aovs, const ImageSpec& spec, const ChainOptions& o,
-                std::string& error)
-{
-    std::string why;
-    if (!input_colorspace(from, why, o.aovs, spec, error)) {
-        error = "chain: " + error;
-        return false;
-    }
-    return resolve_aovs(aovs, o.aovs, spec, error);
-}
 
 bool run_whole(const ImageBuf& input, ImageBuf* own, const ChainOptions& o, const BandSink& sink,
                std::string& error, int nthreads)
@@ -329,6 +318,18 @@ bool run_whole(const ImageBuf& input, ImageBuf* own, const ChainOptions& o, cons
         return false;
     }
     return sink(result, whole, error);
+}
+
+// The input's colour space and the frame's resolved AOVs, for a chain in bands.
+bool band_setup(std::string& from, AovSet& aovs, const ImageSpec& spec, const ChainOptions& o,
+                std::string& error)
+{
+    std::string why;
+    if (!input_colorspace(from, why, o.aovs, spec, error)) {
+        error = "chain: " + error;
+        return false;
+    }
+    return resolve_aovs(aovs, o.aovs, spec, error);
 }
 
 }  // namespace

@@ -15,7 +15,7 @@
 #include <OpenImageIO/strutil.h>
 
 #include "core/attributes.h"
-#include "core/op_prepare.h"
+#include "core/channels.h"
 #include "core/planar.h"
 #include "mcdn/version.h"
 
@@ -45,6 +45,17 @@ OCIO::ConstConfigRcPtr load_config(std::string& error)
         error = format("OCIO config {}: {}", path, e.what());
         return {};
     }
+}
+
+// The channels "noisy.<name>" of `names` (sure's record of a render's colour or an extra's,
+// which mix reads beside the result), empty unless all are there.
+std::vector<int> noisy_channels(const ImageSpec& spec, const std::vector<std::string>& names)
+{
+    std::vector<int> noisy;
+    for (const std::string& name : names)
+        if (spec.channelindex("noisy." + name) >= 0)
+            noisy.push_back(spec.channelindex("noisy." + name));
+    return noisy.size() == names.size() ? noisy : std::vector<int> {};
 }
 
 // The colour-carrying channel groups of an AOV set, and whether each is a variance.
@@ -81,18 +92,12 @@ std::vector<ColorGroup> color_groups(const ImageBuf& buf, const AovSet& aovs)
                     push_back({ *face, face == &extra.variance });
     for (const auto& extra : aovs.extras())
         if (extra.channels.size() == 3) {
-            std::vector<int> noisy;
-            for (const auto& name : extra.names)
-                if (buf.spec().channelindex("noisy." + name) >= 0)
-                    noisy.push_back(buf.spec().channelindex("noisy." + name));
-            if (noisy.size() == 3)
+            const std::vector<int> noisy = noisy_channels(buf.spec(), extra.names);
+            if (!noisy.empty())
                 push_back({ noisy, false });
         }
-    std::vector<int> noisy;
-    for (const char* name : { "noisy.R", "noisy.G", "noisy.B" })
-        if (buf.spec().channelindex(name) >= 0)
-            noisy.push_back(buf.spec().channelindex(name));
-    if (noisy.size() == 3)
+    const std::vector<int> noisy = noisy_channels(buf.spec(), { "R", "G", "B" });
+    if (!noisy.empty())
         push_back({ noisy, false });
     return groups;
 }
@@ -485,11 +490,7 @@ void scale_factored_extras(ImageBuf& buf, const AovSet& aovs, bool divide)
             bool variance;
         };
         const bool own_halves = extra.factor_a.size() == 3 && extra.factor_b.size() == 3;
-        // sure's record of the extra's input (noisy.<name>, which mix reads beside the result)
-        std::vector<int> noisy;
-        for (const std::string& name : extra.names)
-            if (buf.spec().channelindex("noisy." + name) >= 0)
-                noisy.push_back(buf.spec().channelindex("noisy." + name));
+        const std::vector<int> noisy = noisy_channels(buf.spec(), extra.names);
         const Face faces[] = { { extra.channels, extra.factor, false },
                                { extra.half_a, own_halves ? extra.factor_a : extra.factor, false },
                                { extra.half_b, own_halves ? extra.factor_b : extra.factor, false },
@@ -585,12 +586,10 @@ bool run_in_working_space(ImageBuf& dst, const ImageBuf& src, const AovSpec& spe
     }
     if (!needs_working_conversion(src.spec(), from, aovs))
         return op(dst, src);
-    ImageSpec float_spec = src.spec();
-    float_spec.set_format(OIIO::TypeDesc::FLOAT);
-    float_spec.channelformats.clear();
-    ImageBuf converted;
-    if (!allocate_frame(converted, float_spec, false) || !converted.copy_pixels(src)) {
-        dst.errorfmt("{}: {}", op_name, converted.geterror());
+    ImageBuf converted = copy_with_channels(src, {});
+    if (!converted.localpixels()) {
+        dst.errorfmt("{}: out of memory for a float copy of the {}x{} frame of {} channels",
+                     op_name, src.spec().width, src.spec().height, src.spec().nchannels);
         return false;
     }
     if (!into_working_space(converted, aovs, from, error)) {
