@@ -22,6 +22,7 @@
 #include "mcdn/chain.h"
 #include "mcdn/color.h"
 #include "mcdn/denoise.h"
+#include "mcdn/frames.h"
 #include "mcdn/metrics.h"
 #include "mcdn/nfor.h"
 #include "mcdn/sure.h"
@@ -261,8 +262,12 @@ bool Session::read_neighbours(int radius, std::vector<std::shared_ptr<ImageBuf>>
                 || !mcdn::validate_inputs(*frame, aovs, error)
                 || !mcdn::check_halves(*frame, aovs, repaired, error))
                 return false;
-            if (verbose)
+            if (verbose) {
                 report_repaired_halves(repaired);
+                if (!mcdn::frames_have_measured_variance(aovs))
+                    say_once("mcdntool: cross-frame: no colour variance or halves: the frames "
+                             "are weighed by how well they agree with each other\n");
+            }
             frames.push_back(std::move(frame));
         }
     }

@@ -449,6 +449,14 @@ TEST(Pipeline, CrossFrameReadsNeighboursAcrossTheChunkAndWritesNone)
     ASSERT_EQ(run.exit_code, 0) << run.output;
     EXPECT_NE(run.output.find("no frame 0 (-1)"), std::string::npos) << run.output;
 
+    // A plain Blender sequence (no variance, no halves: Cycles writes none): the frames are
+    // weighed by their agreement, and -v says so (issue 46, item 5).
+    run = run_mcdntool("-i " + quote(dir + "/shot.#.exr") + " --frames 2 -v --denoise:frames=1 -o "
+                       + quote(dir + "/plain_seq.#.exr"));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_TRUE(OIIO::Filesystem::exists(dir + "/plain_seq.0002.exr"));
+    EXPECT_NE(run.output.find("weighed by how well they agree"), std::string::npos) << run.output;
+
     // Without motion vectors, and with too many frames: one line each, nothing written.
     // (A half file is no render: as the render, its halves are itself.)
     const std::string plain = "-i " + quote(dir + "/shot_A.#.exr") + " -i:as=halfA "

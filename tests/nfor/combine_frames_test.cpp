@@ -21,6 +21,13 @@ struct Frames {
         }
     }
     const OIIO::ImageBuf& centre() const { return frames[frames.size() / 2]; }
+    /// Each frame as Cycles writes it: the colour, the albedo and the vectors; no variance
+    /// and no halves.
+    void without_variance()
+    {
+        for (OIIO::ImageBuf& f : frames)
+            f = OIIO::ImageBufAlgo::channels(f, 10, { 0, 1, 2, 3, 4, 5, 24, 25, 26, 27 });
+    }
 };
 
 double mean_channel(const OIIO::ImageBuf& img, int channel)
@@ -65,14 +72,90 @@ TEST(CombineFrames, NeighboursThatDisagreeAreLeftOut)
     EXPECT_LT(after, 1.2 * before) << before << " -> " << after;
 }
 
+// Without a variance (Cycles writes none) the frames' agreement weighs them: as much of the
+// gain as with the measured variance.
+TEST(CombineFrames, WithoutAVarianceTheFramesAgreementWeighsThem)
+{
+    Shot shot;
+    shot.vx = 2.0f;
+    shot.vy = -1.0f;
+    Frames f(shot, 2);
+    f.without_variance();
+    OIIO::ImageBuf out = combine_frames(f.centre(), f.options);
+    ASSERT_FALSE(out.has_error()) << out.geterror();
+    const double before = shot.mse(f.centre(), 0), after = shot.mse(out, 0);
+    EXPECT_LT(after, 0.3 * before) << before << " -> " << after;
+    EXPECT_TRUE(all_finite(out));
+}
+
+// ... and where the neighbours show something else, they are left out as with one.
+TEST(CombineFrames, WithoutAVarianceNeighboursThatDisagreeAreLeftOut)
+{
+    Shot shot;
+    shot.vx = 6.0f;
+    shot.true_motion = false;
+    Frames f(shot, 2);
+    f.without_variance();
+    OIIO::ImageBuf out = combine_frames(f.centre(), f.options);
+    ASSERT_FALSE(out.has_error()) << out.geterror();
+    const double before = shot.mse(f.centre(), 0), after = shot.mse(out, 0);
+    EXPECT_LT(after, 1.2 * before) << before << " -> " << after;
+}
+
+// RenderMan's backward and forward (motionBack, motionFore: raster space, y down) are its
+// motion role: the same shot named as RenderMan writes it combines exactly as Blender's.
+TEST(CombineFrames, RenderMansBackwardAndForwardAreItsMotion)
+{
+    Shot shot;
+    shot.vx = 2.0f;
+    shot.vy = -1.0f;
+    Frames f(shot, 1);
+    const std::vector<std::string> names = { "Ci.r",     "Ci.g",       "Ci.b",       "mse.r",
+                                             "mse.g",    "mse.b",      "albedo.r",   "albedo.g",
+                                             "albedo.b", "backward.x", "backward.y", "forward.x",
+                                             "forward.y" };
+    std::vector<OIIO::ImageBuf> rman;
+    for (const OIIO::ImageBuf& frame : f.frames)
+        rman.push_back(mcdn_test::make_image(
+            shot.width, shot.height, names, [&](int x, int y, int c) -> float {
+                // R,G,B; variance.R,G,B; albedo.R,G,B; then the motion: Blender's
+                // (X, -Y) to the previous frame and (-Z, W) to the next.
+                static const int from[] = { 0, 1, 2, 6, 7, 8, 3, 4, 5, 24, 25, 26, 27 };
+                static const float sign[] = { 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, -1, -1, 1 };
+                return sign[c] * frame.getchannel(x, y, 0, from[c]);
+            }));
+    CombineFramesOptions o;
+    o.aovs.preset = "renderman";
+    o.previous_frames = { &rman[0] };
+    o.next_frames = { &rman[2] };
+    const OIIO::ImageBuf out = combine_frames(rman[1], o);
+    ASSERT_FALSE(out.has_error()) << out.geterror();
+    // The same frames with Blender's names, without their halves (RenderMan writes none).
+    for (OIIO::ImageBuf& frame : f.frames)
+        frame = OIIO::ImageBufAlgo::channels(
+            frame, 16, { 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 24, 25, 26, 27 });
+    const OIIO::ImageBuf blender = combine_frames(f.centre(), f.options);
+    ASSERT_FALSE(blender.has_error()) << blender.geterror();
+    EXPECT_LT(shot.mse(out, 0), 0.6 * shot.mse(rman[1], 0));
+    for (int y = 0; y < shot.height; ++y)
+        for (int x = 0; x < shot.width; ++x)
+            for (int c = 0; c < 3; ++c)
+                ASSERT_EQ(out.getchannel(x, y, 0, c), blender.getchannel(x, y, 0, c))
+                    << x << "," << y;
+}
+
 TEST(CombineFrames, OutputIdenticalForOneAndTwoThreads)
 {
     Shot shot;
     shot.vx = 1.5f;
     Frames f(shot, 1);
-    const OIIO::ImageBuf one = combine_frames(f.centre(), f.options, {}, 1);
-    const OIIO::ImageBuf two = combine_frames(f.centre(), f.options, {}, 2);
-    EXPECT_EQ(OIIO::ImageBufAlgo::compare(one, two, 0.0f, 0.0f).nfail, 0u);
+    for (bool variance : { true, false }) {
+        if (!variance)
+            f.without_variance();
+        const OIIO::ImageBuf one = combine_frames(f.centre(), f.options, {}, 1);
+        const OIIO::ImageBuf two = combine_frames(f.centre(), f.options, {}, 2);
+        EXPECT_EQ(OIIO::ImageBufAlgo::compare(one, two, 0.0f, 0.0f).nfail, 0u);
+    }
 }
 
 // The denoiser sees the combined frames; its result keeps the render's own variance and

@@ -58,9 +58,10 @@ enum class Role {
     GlossyIndirect,
     Emission,
     Environment,
-    // Motion vectors, 4 channels: towards the previous frame (x, y) and from the next
-    // (x, y), in pixels, y up (Blender's Vector pass; ops/motion.h). Read by the
-    // cross-frame modes only.
+    // Motion vectors, 4 channels: towards the previous frame (x, y) and the next (x, y),
+    // in pixels, in the preset's convention (Blender's Vector pass, y up; RenderMan's
+    // backward.x,y and forward.x,y, y down; ops/motion.h). Read by the cross-frame modes
+    // only.
     Motion,
     Count
 };

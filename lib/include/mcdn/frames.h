@@ -2,7 +2,8 @@
 // shot, aligned by the motion vectors, combined into one render of more samples where they
 // agree. Arnold's noice denoises with NL-means over ±N frames; this takes the same idea one
 // step earlier: the weight of a neighbour's pixel is the NL-means weight of its aligned
-// patch against this frame's (the colour, its variance, a 7×7 patch), and every noisy light
+// patch against this frame's (the colour, its variance, a 7×7 patch; without a variance, as
+// Cycles writes none, one estimated from the frames' agreement), and every noisy light
 // channel (the colour, its halves, Blender's light passes, extra AOVs) becomes the weighted
 // mean over the frames, its variance the weighted variance of that mean. The stage after it
 // (the CNN, NFOR, SURE and the mix) then sees a render with up to 2N+1 times the samples
@@ -30,6 +31,11 @@ struct CombineFramesOptions {
     int patch_radius = 3;
     float k = 1.0f;
 };
+
+/// Whether the frames are weighed by a variance the render measured (the colour's variance
+/// or its halves); else by one estimated from how well the frames agree with each other
+/// (and this frame with itself, pixel to pixel), which front ends say with -v.
+bool frames_have_measured_variance(const AovSet& aovs);
 
 /// dst = src with its noisy light channels combined over the frames (inside `roi`; every
 /// other channel kept). With no neighbours dst = src. Output finite and identical for any

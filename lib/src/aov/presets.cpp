@@ -31,7 +31,10 @@ std::vector<std::string> with_suffixes(const std::string& stem, const char* suff
 //   (variance.R,G,B) is what the noice documentation and the exporters use.
 // - RenderMan (rmanwiki.pixar.com, Denoising): Ci (Ci.r,g,b; or R,G,B), a; mse (the error
 //   estimate of Ci); albedo, albedo_var; normal, normal_var; zfiltered, zfiltered_var;
-//   diffuse, specular (and their _mse); forward/backward (motion, not read).
+//   diffuse, specular (and their _mse); forward and backward, the motion vectors (vector
+//   channels x, y, z of motionFore and motionBack: the raster-space displacement of the
+//   surface to the next and the previous frame; RenderManForBlender's display-channel
+//   definitions).
 // - OIDN-style files: the beauty with an albedo and a normal, no variance (what Blender's and
 //   OIDN's own denoiser need).
 Candidates preset_candidates(const std::string& preset, const std::string& layer, Role role)
@@ -95,6 +98,16 @@ Candidates preset_candidates(const std::string& preset, const std::string& layer
             return { with_suffixes("diffuse", "rgb"), with_suffixes("diffuse", "RGB") };
         case Role::Specular:
             return { with_suffixes("specular", "rgb"), with_suffixes("specular", "RGB") };
+        case Role::Motion: {
+            Candidates c;
+            for (const char* xy : { "xy", "XY", "rg", "RG" }) {
+                std::vector<std::string> names = with_suffixes("backward", xy);
+                for (const std::string& n : with_suffixes("forward", xy))
+                    names.push_back(n);
+                c.push_back(names);
+            }
+            return c;
+        }
         default: return {};
         }
     }
@@ -117,6 +130,13 @@ Candidates preset_candidates(const std::string& preset, const std::string& layer
         return { with_suffixes(role == Role::Diffuse ? "diffuse" : "specular", "RGB") };
     default: return {};
     }
+}
+
+std::array<float, 4> preset_motion_signs(const std::string& preset)
+{
+    if (preset == "renderman")
+        return { 1.0f, 1.0f, 1.0f, 1.0f };
+    return { 1.0f, -1.0f, -1.0f, 1.0f };  // Blender's Vector pass, and what --aov motion= names
 }
 
 // Faces a renderer writes into the render file under their own names (tried before the

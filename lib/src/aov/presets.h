@@ -1,6 +1,7 @@
 // The presets' channel names: where a renderer writes each role (aov.cpp resolves them).
 #pragma once
 
+#include <array>
 #include <string>
 #include <vector>
 
@@ -16,6 +17,12 @@ using Candidates = std::vector<std::vector<std::string>>;
 
 /// Where `preset` keeps the mean face of `role` (Cycles: in view layer `layer`).
 Candidates preset_candidates(const std::string& preset, const std::string& layer, Role role);
+
+/// The signs that make `preset`'s motion role (4 channels: towards the previous frame x, y;
+/// towards the next x, y) displacements in pixels with rows going down (ops/motion.h):
+/// Blender's Vector pass (X, Y, Z, W), also any preset's `--aov motion=`, (+, -, -, +);
+/// RenderMan's backward.x, .y, forward.x, .y (raster space, y down) as they are.
+std::array<float, 4> preset_motion_signs(const std::string& preset);
 
 /// Where `preset` writes the `face` of `base` into the render file itself (a variance AOV),
 /// besides the input-kind prefix of a separate file; empty where it writes none.

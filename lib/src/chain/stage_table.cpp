@@ -172,7 +172,7 @@ StageInfo nfor_stage()
              "above the render's variance is the render, -v says how many (fallback-aov=1 adds "
              "channel nfor.fallback, 1 on those tiles). "
              "Cross-frame (§8), in a sequence: frames=2 fits over the 2 previous and 2 next "
-             "frames too, aligned by the motion vectors (Blender's Vector pass); it reads them "
+             "frames too, aligned by the motion vectors (Blender's Vector pass, RenderMan's forward and backward); it reads them "
              "(also across --frames chunk edges), never writes them, and runs the whole frame.";
     s.needs = "the colour and its two half buffers (each the mean of half the samples: "
               "-i:as=halfA, -i:as=halfB; a Tungsten folder has them); the variance of the mean "
@@ -235,8 +235,9 @@ StageInfo cnn_stage()
              "firefly) is taken out of the network's input and its excess removed, by --nfor's "
              "rule (outliers=drop; off: left in, where the kernels spread it). "
              "Cross-frame, in a sequence: frames=2 first combines this frame with 2 previous "
-             "and 2 next ones, aligned by the motion vectors (Blender's Vector pass), weighted "
-             "by how well their patches agree: a render of up to 5 times the samples where "
+             "and 2 next ones, aligned by the motion vectors (Blender's Vector pass, RenderMan's forward and backward), weighted "
+             "by how well their patches agree (by the colour's variance or halves, else by the "
+             "frames' agreement with each other): a render of up to 5 times the samples where "
              "they do. It reads them (also across --frames chunk edges), never writes them.";
     s.needs = "the colour; the diffuse/specular split (Cycles' DiffCol/Dir/Ind and Gloss*, or "
               "diffuse.*, specular.*) where present; albedo, normal, depth and their variances "
@@ -473,13 +474,14 @@ StageInfo denoise_stage()
              "--oidn finds them, --oidn in the CNN's place. -v prints which and why. "
              "To choose stages and their settings, name them instead. In a sequence, frames=2 "
              "is cross-frame: the CNN's input is this frame combined with 2 previous and 2 next "
-             "ones where they agree (as --cnn:frames=2), against flicker; the agreement is "
-             "weighed by the colour's variance or halves, so frames=N needs them and the motion "
-             "vectors (Blender's Vector pass). Light groups and passes are denoised with the "
+             "ones where they agree (as --cnn:frames=2), against flicker: it needs the motion "
+             "vectors (Blender's Vector pass, RenderMan's forward and backward), and weighs the agreement by the colour's variance "
+             "or halves, else by how well the frames agree with each other (Cycles: tick Seed's "
+             "animate, or frames of one seed bring nothing where nothing moves). Light groups and passes are denoised with the "
              "beauty (extras=0: keep them as rendered, and the time they cost).";
     s.needs = "the colour (any preset); with its variance (the renderer's variance AOV, a "
               "Tungsten folder; Cycles writes none: render K seeds, -i:as=seed each) the mixed "
-              "chain and frames=N. Albedo, normal and depth "
+              "chain; for frames=N the motion vectors. Albedo, normal and depth "
               "help the CNN; missing ones are zero (-v names them).";
     return s;
 }

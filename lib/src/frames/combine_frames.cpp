@@ -15,19 +15,32 @@
 #include "nl_means/nl_means.h"
 
 namespace mcdn {
+
+bool frames_have_measured_variance(const AovSet& aovs)
+{
+    return aovs.has(Role::ColorVariance) || (aovs.has(Role::ColorA) && aovs.has(Role::ColorB));
+}
+
 namespace {
 
-/// The colour and the variance of its mean of one frame (the role's, else from the halves).
-bool read_color(ColorPlanes& out, const ImageBuf& frame, const AovSet& aovs, std::string& error)
+/// The colour and the variance of its mean of one frame (the role's, else from the halves);
+/// without either, the mean alone (the variance is estimated_variance's).
+bool read_color(ColorPlanes& out, const ImageBuf& frame, const AovSet& aovs, bool measured,
+                std::string& error)
 {
-    const bool halves = aovs.has(Role::ColorA) && aovs.has(Role::ColorB);
-    if (!aovs.has(Role::ColorVariance) && !halves) {
-        error = "weighing the frames needs the colour's variance or two half buffers "
-                "(-i:as=variance, -i:as=halfA, -i:as=halfB; a renderer without them, as "
-                "Cycles: K renders with other seeds, -i:as=seed each)";
+    if (measured != frames_have_measured_variance(aovs)) {
+        error = measured ? "no colour variance or half buffers, which this frame has"
+                         : "a colour variance or half buffers, which this frame has not";
         return false;
     }
-    read_color_planes(out, frame, aovs, !aovs.has(Role::ColorVariance));
+    if (measured) {
+        read_color_planes(out, frame, aovs, !aovs.has(Role::ColorVariance));
+        return true;
+    }
+    std::vector<PlaneRead> reads;
+    for (int c = 0; c < 3; ++c)
+        reads.push_back({ aovs.channels(Role::Color)[c], &out.mean[c] });
+    read_planes(frame, reads);
     return true;
 }
 
@@ -60,6 +73,61 @@ Plane box_mean(const Plane& in, int F, int nthreads)
     return out;
 }
 
+/// Without a measured variance (Cycles writes none): each pixel's colour variance, per
+/// channel, the smaller of two bounds from above, each a patch mean: half the squared
+/// difference to the pixels beside and below it (the variance where the picture is flat,
+/// more across texture and edges), and half the squared difference to the aligned frame
+/// that agrees best (the variance where some frame shows the same, more where none does).
+/// A frame rendered with the same seed (Blender's default: Seed's animate off) agrees too
+/// well where nothing moves: it gets full weight there and brings no samples, as it would
+/// with a variance.
+bool estimate_variance(ColorPlanes& own, const std::vector<AlignedFrame>& aligned,
+                       const CombineFramesOptions& o, int nthreads, std::string& error)
+{
+    const int w = own.mean[0].width, h = own.mean[0].height, F = o.patch_radius;
+    for (int c = 0; c < 3; ++c) {
+        const Plane& mine = own.mean[c];
+        Plane across(w, h);
+        parallel_for_index(h, nthreads, [&](int y) {
+            const int y1 = y + 1 < h ? y + 1 : std::max(0, y - 1);
+            for (int x = 0; x < w; ++x) {
+                const int x1 = x + 1 < w ? x + 1 : std::max(0, x - 1);
+                const float dx = mine(x, y) - mine(x1, y), dy = mine(x, y) - mine(x, y1);
+                across(x, y) = 0.25f * (dx * dx + dy * dy);
+            }
+        });
+        own.variance[c] = box_mean(across, F, nthreads);
+    }
+    for (const AlignedFrame& a : aligned) {
+        ColorPlanes other;
+        if (!read_color(other, *a.frame, a.aovs, false, error)) {
+            error = a.error(error);
+            return false;
+        }
+        Plane outside(w, h);
+        for (size_t i = 0; i < outside.size(); ++i)
+            outside.px[i] = a.alignment.source[i] < 0 ? 1.0f : 0.0f;
+        const Plane reaches_out = box_mean(outside, F, nthreads);
+        for (int c = 0; c < 3; ++c) {
+            const Plane v = warp(other.mean[c], a.alignment, 0.0f);
+            Plane half_sq(w, h);
+            for (size_t i = 0; i < half_sq.size(); ++i) {
+                const float d = outside.px[i] > 0.0f ? 0.0f : own.mean[c].px[i] - v.px[i];
+                half_sq.px[i] = 0.5f * d * d;
+            }
+            const Plane agreement = box_mean(half_sq, F, nthreads);
+            Plane& bound = own.variance[c];
+            for (size_t i = 0; i < bound.size(); ++i)
+                if (reaches_out.px[i] == 0.0f)
+                    bound.px[i] = std::min(bound.px[i], agreement.px[i]);
+        }
+    }
+    for (Plane& bound : own.variance)
+        for (float& v : bound.px)
+            v = sanitize_variance(v);
+    return true;
+}
+
 /// The weight of the aligned neighbour at each pixel: exp(-max(0, d²)), d² the largest
 /// channel's patch mean of NFOR's per-pixel distance (nl_means.h), +clamp where the
 /// alignment leaves the neighbour, so that no patch reaching there gets weight.
@@ -71,7 +139,10 @@ Plane frame_weight(const ColorPlanes& own, const ColorPlanes& other,
     Plane distance(w, h);
     for (int c = 0; c < 3; ++c) {
         const Plane v = warp(other.mean[c], alignment, 0.0f);
-        const Plane vv = warp(other.variance[c], alignment, 0.0f);
+        // Without a measured variance the other frame's is taken as this one's (the same
+        // render settings).
+        const bool measured = other.variance[c].size() > 0;
+        const Plane vv = measured ? warp(other.variance[c], alignment, 0.0f) : Plane();
         Plane term(w, h);
         parallel_for_index(h, nthreads, [&](int y) {
             for (int x = 0; x < w; ++x) {
@@ -80,7 +151,7 @@ Plane frame_weight(const ColorPlanes& own, const ColorPlanes& other,
                     term.px[i] = nlm::kDistanceClamp;
                     continue;
                 }
-                const float vp = own.variance[c].px[i], vq = vv.px[i];
+                const float vp = own.variance[c].px[i], vq = measured ? vv.px[i] : vp;
                 const float diff = own.mean[c].px[i] - v.px[i];
                 const float d =
                     (diff * diff - (vp + std::min(vp, vq))) / (nlm::kEpsilon + k2 * (vp + vq));
@@ -139,7 +210,7 @@ bool combine_in_working_space(ImageBuf& dst, const ImageBuf& src, const CombineF
     ColorPlanes own;
     if (!resolve_aovs(aovs, o.aovs, src.spec(), error)
         || !aovs.require({ Role::Color, Role::Motion }, src.spec(), error)
-        || !read_color(own, src, aovs, error)) {
+        || !read_color(own, src, aovs, frames_have_measured_variance(aovs), error)) {
         dst.errorfmt("{}: {}", op, error);
         return false;
     }
@@ -149,10 +220,15 @@ bool combine_in_working_space(ImageBuf& dst, const ImageBuf& src, const CombineF
         dst.errorfmt("{}: {}", op, error);
         return false;
     }
+    const bool measured = frames_have_measured_variance(aovs);
+    if (!measured && !estimate_variance(own, aligned, o, nthreads, error)) {
+        dst.errorfmt("{}: {}", op, error);
+        return false;
+    }
     std::vector<Plane> weights;
     for (const AlignedFrame& a : aligned) {
         ColorPlanes other;
-        if (!read_color(other, *a.frame, a.aovs, error)) {
+        if (!read_color(other, *a.frame, a.aovs, measured, error)) {
             dst.errorfmt("{}: {}", op, a.error(error));
             return false;
         }

@@ -4,6 +4,7 @@
 
 #include <OpenImageIO/strutil.h>
 
+#include "aov/presets.h"
 #include "mcdn/color.h"
 
 namespace mcdn {
@@ -12,25 +13,19 @@ bool read_motion(FrameMotion& motion, const OIIO::ImageBuf& frame, const AovSet&
                  std::string& error)
 {
     if (!aovs.has(Role::Motion)) {
-        error = "no motion vectors (role motion: Blender's Vector pass, or "
-                "--aov motion=X,Y,Z,W)";
+        error = "no motion vectors (role motion: Blender's Vector pass, RenderMan's backward "
+                "and forward, or --aov motion=X,Y,Z,W)";
         return false;
     }
     const std::vector<int>& c = aovs.channels(Role::Motion);
-    // Blender's convention (the header): towards the previous frame (X, -Y), towards the
-    // next (-Z, W), in rows that go down.
-    motion.to_previous[0] = read_plane(frame, c[0]);
-    motion.to_previous[1] = read_plane(frame, c[1]);
-    motion.to_next[0] = read_plane(frame, c[2]);
-    motion.to_next[1] = read_plane(frame, c[3]);
-    for (Plane* p :
-         { &motion.to_previous[0], &motion.to_previous[1], &motion.to_next[0], &motion.to_next[1] })
-        for (float& v : p->px)
-            v = std::isfinite(v) ? v : 0.0f;  // no motion known: the pixel stays
-    for (float& v : motion.to_previous[1].px)
-        v = -v;
-    for (float& v : motion.to_next[0].px)
-        v = -v;
+    const std::array<float, 4> sign = preset_motion_signs(aovs.preset());
+    Plane* planes[4] = { &motion.to_previous[0], &motion.to_previous[1], &motion.to_next[0],
+                         &motion.to_next[1] };
+    for (int k = 0; k < 4; ++k) {
+        *planes[k] = read_plane(frame, c[size_t(k)]);
+        for (float& v : planes[k]->px)
+            v = std::isfinite(v) ? sign[size_t(k)] * v : 0.0f;  // no motion known: it stays
+    }
     return true;
 }
 

@@ -5,7 +5,9 @@
 // The motion role (mcdn/aov.h Role::Motion) holds Blender's Vector pass: (X, Y) towards the
 // previous frame and (Z, W) from the next one, in pixels with y up; measured on Cycles'
 // renders, the pixel p of frame t shows in frame t-1 what p + (X, -Y) shows, and in frame
-// t+1 what p + (-Z, W) shows (OIIO rows, y down).
+// t+1 what p + (-Z, W) shows (OIIO rows, y down). RenderMan's backward and forward
+// (motionBack, motionFore) are those displacements as they are (aov/presets.h
+// preset_motion_signs).
 #pragma once
 
 #include <cstdint>
