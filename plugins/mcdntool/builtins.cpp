@@ -208,8 +208,10 @@ bool run_info(Session& s, const Command& c, std::string& error)
     for (int r = 0; r < mcdn::kRoleCount; ++r) {
         Role role = Role(r);
         if (s.aovs().has(role))
-            std::cout << format("  {:<20} {}\n", mcdn::role_name(role),
-                                Strutil::join(s.aovs().names(role), ", "));
+            std::cout << format(
+                "  {:<20} {}{}\n", mcdn::role_name(role), Strutil::join(s.aovs().names(role), ", "),
+                role == Role::Color && s.aovs().grey() ? " (luminance only: denoised as grey)"
+                                                       : "");
     }
     for (const auto& extra : s.aovs().extras()) {
         std::vector<std::string> factor;

@@ -320,6 +320,9 @@ bool Session::open_rows(mcdn::InputRows& rows, std::string& error)
                         m_aovs.detected_because().empty()
                             ? std::string()
                             : " (detected: " + m_aovs.detected_because() + ")"));
+        if (m_aovs.grey())
+            say_once(format("mcdntool: luminance only ({}): denoised as grey\n",
+                            m_aovs.names(Role::Color)[0]));
     }
     // The stages after this one resolve the same preset, whatever channels they add.
     if (aov_spec.preset.empty())

@@ -240,6 +240,60 @@ TEST(Presets, BeautyAlbedoNormalOnlyRunsTheCnn)
     denoises_below_the_render("oidn", file, kRGB, "oidn", "cnn");
 }
 
+// A luminance-only file (OpenEXR's Y; oiiotool --ch writes one): denoised as grey, exactly
+// as the file with R = G = B = Y is, and below its render's error (issue 46, item 6;
+// before: "role 'color' not found").
+TEST(Presets, LuminanceOnlyFileIsDenoisedAsGrey)
+{
+    const auto luminance = [](const ImageBuf& rgb_image, const char* stem) {
+        const OIIO::ImageSpec& spec = rgb_image.spec();
+        ImageBuf three = channels(rgb_image, 3,
+                                  { spec.channelindex(std::string(stem) + ".R"),
+                                    spec.channelindex(std::string(stem) + ".G"),
+                                    spec.channelindex(std::string(stem) + ".B") });
+        const float weights[] = { 0.2126f, 0.7152f, 0.0722f };
+        return OIIO::ImageBufAlgo::channel_sum(three, weights);
+    };
+    const ImageBuf y = luminance(read(kBox + ".exr"), "ViewLayer.Combined");
+    const std::vector<Source> features =
+        concat({ rgb({ "albedo.R", "albedo.G", "albedo.B" }, "", "Denoising Albedo"),
+                 rgb({ "N.X", "N.Y", "N.Z" }, "", "Denoising Normal", "XYZ") });
+    const std::string dir = mcdn_test::temp_dir("presets_luminance");
+    const ImageBuf grey_file = assemble(features, { { "R", y }, { "G", y }, { "B", y } });
+    const ImageBuf y_file = assemble(features, { { "Y", y } });
+    ASSERT_TRUE(grey_file.write(dir + "/grey.exr")) << grey_file.geterror();
+    ASSERT_TRUE(y_file.write(dir + "/y.exr")) << y_file.geterror();
+    auto run = run_mcdntool("-i " + dir + "/grey.exr --denoise -o " + dir + "/grey_out.exr");
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    run = run_mcdntool("-v -i " + dir + "/y.exr --denoise -o " + dir + "/y_out.exr");
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_NE(run.output.find("luminance only (Y): denoised as grey"), std::string::npos)
+        << run.output;
+    ImageBuf grey_out(dir + "/grey_out.exr"), y_out(dir + "/y_out.exr");
+    ASSERT_TRUE(grey_out.read(0, 0, true, OIIO::TypeDesc::FLOAT)) << grey_out.geterror();
+    ASSERT_TRUE(y_out.read(0, 0, true, OIIO::TypeDesc::FLOAT)) << y_out.geterror();
+    const int yc = y_out.spec().channelindex("Y"), g = grey_out.spec().channelindex("G");
+    ASSERT_GE(yc, 0);
+    for (int py = 0; py < y.spec().height; ++py)
+        for (int px = 0; px < y.spec().width; ++px)
+            ASSERT_EQ(y_out.getchannel(px, py, 0, yc), grey_out.getchannel(px, py, 0, g));
+    // The error of the luminance against the reference's.
+    const ImageBuf y_ref = luminance(read("box16/box_ref.exr"), "ViewLayer.Combined");
+    const auto error = [&](const ImageBuf& image) {
+        mcdn::MetricsOptions o;
+        const int c = image.spec().channelindex("Y");
+        o.image_channels = { c, c, c };
+        o.reference_channels = { 0, 0, 0 };
+        mcdn::Metrics m;
+        std::string why;
+        EXPECT_TRUE(mcdn::compute_metrics(m, image, y_ref, o, why)) << why;
+        return m.relmse;
+    };
+    ImageBuf written(dir + "/y.exr");
+    ASSERT_TRUE(written.read(0, 0, true, OIIO::TypeDesc::FLOAT));
+    EXPECT_LT(error(y_out), 0.5 * error(written)) << error(written) << " -> " << error(y_out);
+}
+
 // Blender's own names, beauty with Denoising Albedo/Normal only (no variance, no halves).
 TEST(Presets, CyclesBeautyWithDenoisingPassesRunsTheCnn)
 {

@@ -177,6 +177,11 @@ public:
     /// True when an extra holds light divided by a factor (Extra::factor).
     bool has_factored_extras() const;
 
+    /// True when the colour is one channel read three times: a luminance-only file (OpenEXR's
+    /// Y), denoised as grey; each op writes its three results to that channel, the last
+    /// (blue) staying.
+    bool grey() const;
+
     /// True when the light is split into diffuse and specular components (KPCN §4).
     bool has_component_split() const;
 

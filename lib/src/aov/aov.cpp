@@ -442,6 +442,12 @@ bool AovSet::has_factored_extras() const
                        [](const Extra& e) { return !e.factor.empty(); });
 }
 
+bool AovSet::grey() const
+{
+    const std::vector<int>& c = channels(Role::Color);
+    return c.size() == 3 && c[0] == c[1] && c[1] == c[2];
+}
+
 bool AovSet::has_component_split() const
 {
     if (has(Role::Diffuse) && has(Role::Specular))

@@ -113,7 +113,9 @@ Candidates preset_candidates(const std::string& preset, const std::string& layer
     }
     // generic, oidn, and tungsten (read_tungsten_directory produces the generic layout)
     switch (role) {
-    case Role::Color: return { { "R", "G", "B" }, with_suffixes("color", "RGB") };
+    // A luminance-only file (OpenEXR's Y): its grey as the colour, Y in all three.
+    case Role::Color:
+        return { { "R", "G", "B" }, with_suffixes("color", "RGB"), { "Y", "Y", "Y" } };
     case Role::Albedo: return { with_suffixes("albedo", "RGB") };
     case Role::Normal:
         return { with_suffixes("N", "XYZ"), with_suffixes("normal", "XYZ"),
