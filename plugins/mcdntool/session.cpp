@@ -92,6 +92,7 @@ mcdn::ProgressCallback Session::progress() const
                 since->timer.reset();
                 since->timer.start();
             }
+            return false;
         };
     }
     return [](const std::string& stage, float fraction) {
@@ -100,6 +101,7 @@ mcdn::ProgressCallback Session::progress() const
         if (fraction >= 1)
             std::fputs("\r\033[K", stderr);
         std::fflush(stderr);
+        return false;
     };
 }
 

@@ -323,14 +323,17 @@ void bind_chains(py::module_& m)
                 throw std::runtime_error(error);
             o.aovs = aov_spec(preset, aovs, colorspace);
             o.settings = settings;
-            o.progress = python_progress(progress, "mcdenoise.run_chain progress");
+            const PythonProgress reporter(progress);
+            o.progress = reporter.callback();
             bool halves = false;  // a stage that reads them (NFOR, its prefilter)
             for (const std::string& name : o.stages)
                 halves |= mcdn::find_stage(name)->reads_halves;
-            return run(src, o.aovs, halves ? Halves::Read : Halves::WithoutVariance,
-                       [&](ImageBuf& d, const ImageBuf& s) {
-                           return mcdn::run_chain(d, s, o, {}, nthreads);
-                       });
+            return reporter.run_with([&] {
+                return run(src, o.aovs, halves ? Halves::Read : Halves::WithoutVariance,
+                           [&](ImageBuf& d, const ImageBuf& s) {
+                               return mcdn::run_chain(d, s, o, {}, nthreads);
+                           });
+            });
         },
         py::arg("image"), py::arg("chain"), py::arg("preset") = "",
         py::arg("aovs") = std::map<std::string, std::string>(), py::arg("colorspace") = "",
@@ -338,7 +341,8 @@ void bind_chains(py::module_& m)
         py::arg("progress") = py::none(), py::arg("nthreads") = 0,
         "Stages by name, as a recipe or mcdntool runs them: 'oidn,sure,mix', "
         "'prefilter,nfor', 'cnn', ... (mcdntool --help lists them). settings: "
-        "{'oidn.weights': '/path/to/oidn-weights', 'sure.probes': '2', ...}, the stages' keys.");
+        "{'oidn.weights': '/path/to/oidn-weights', 'sure.probes': '2', ...}, the stages' keys. "
+        "progress: as denoise()'s.");
 
     m.def(
         "denoise",
@@ -348,9 +352,13 @@ void bind_chains(py::module_& m)
             mcdn::DenoiseOptions o;
             o.aovs = aov_spec(preset, aovs, colorspace);
             o.settings = settings;
-            o.progress = python_progress(progress, "mcdenoise.denoise progress");
-            return run(src, o.aovs, Halves::WithoutVariance, [&](ImageBuf& d, const ImageBuf& s) {
-                return mcdn::denoise(d, s, o, {}, nthreads);
+            const PythonProgress reporter(progress);
+            o.progress = reporter.callback();
+            return reporter.run_with([&] {
+                return run(src, o.aovs, Halves::WithoutVariance,
+                           [&](ImageBuf& d, const ImageBuf& s) {
+                               return mcdn::denoise(d, s, o, {}, nthreads);
+                           });
             });
         },
         py::arg("image"), py::arg("preset") = "",
@@ -360,7 +368,8 @@ void bind_chains(py::module_& m)
         "The best chain the inputs allow: with a colour variance cnn, sure and mix (the "
         "network), without one cnn alone (plan() says which and why). settings: "
         "{'cnn.tile': '256', 'mix.ttest': '0', ...}, the stages' keys. progress: called as "
-        "progress(stage, fraction) while the stages run.");
+        "progress(stage, fraction) while the stages run, fraction of the whole run and never "
+        "decreasing; returning True or raising cancels (the exception is raised here).");
     m.def(
         "plan",
         [](const ImageBuf& src, const std::string& preset,

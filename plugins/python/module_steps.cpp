@@ -135,17 +135,20 @@ mcdn::Denoiser named_denoiser(const std::string& chain, const mcdn::AovSpec& spe
     return mcdn::compose(std::move(denoisers));
 }
 
-// A Python progress(stage, fraction) as the stages' callback (none: none).
-mcdn::ProgressCallback python_progress(py::object progress, const char* where)
+PythonProgress::PythonProgress(py::object progress) : m_progress(std::move(progress)) { }
+
+mcdn::ProgressCallback PythonProgress::callback() const
 {
-    if (progress.is_none())
+    if (m_progress.is_none())
         return {};
-    return [progress, where](const std::string& stage, float fraction) {
+    // The stages never call it twice at once (mcdn/progress.h).
+    return [progress = m_progress, raised = m_raised](const std::string& stage, float fraction) {
         py::gil_scoped_acquire gil;
         try {
-            progress(stage, fraction);
-        } catch (py::error_already_set& e) {
-            e.discard_as_unraisable(where);
+            return py::bool_(progress(stage, fraction)).cast<bool>();
+        } catch (py::error_already_set&) {
+            *raised = std::current_exception();
+            return true;
         }
     };
 }

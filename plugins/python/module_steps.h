@@ -92,8 +92,28 @@ mcdn::Denoiser named_denoiser(const std::string& chain, const mcdn::AovSpec& spe
                               const mcdn::SkipOptions& skip, int nthreads, int& radius,
                               bool& reads_halves);
 
-/// A Python progress(stage, fraction) as the stages' callback (none: none); an exception it
-/// raises is reported as unraisable at `where`.
-mcdn::ProgressCallback python_progress(py::object progress, const char* where);
+/// A Python progress(stage, fraction) as the stages' callback (none: none). It cancels the
+/// run by returning True or by raising; run_with() then raises that exception (else the
+/// op's RuntimeError, "cancelled by the progress callback").
+class PythonProgress {
+public:
+    explicit PythonProgress(py::object progress);
+    mcdn::ProgressCallback callback() const;
+    /// op() under run(), the callback's exception raised in its place where there was one.
+    template <class Call> ImageBuf run_with(Call call) const
+    {
+        try {
+            return call();
+        } catch (const std::runtime_error&) {
+            if (*m_raised)
+                std::rethrow_exception(*m_raised);
+            throw;
+        }
+    }
+
+private:
+    py::object m_progress;
+    std::shared_ptr<std::exception_ptr> m_raised = std::make_shared<std::exception_ptr>();
+};
 
 }  // namespace mcdn_python

@@ -50,6 +50,29 @@ class OpsTakeAndReturnImageBufs(unittest.TestCase):
         with self.assertRaisesRegex(RuntimeError, "two or more"):
             mcdenoise.read_inputs([(os.path.join(BOX, "box_0016spp_A.exr"), "seed")])
 
+    def test_progress_is_of_the_whole_run_and_can_cancel(self):
+        # One fraction of the whole chain, never going back between its stages (issue 46).
+        calls = []
+        mcdenoise.denoise(self.render, settings={"cnn.tile": "32"},
+                          progress=lambda stage, fraction: calls.append((stage, fraction)))
+        fractions = [f for _, f in calls]
+        self.assertEqual(fractions, sorted(fractions), calls)
+        self.assertEqual(fractions[-1], 1.0)
+        self.assertEqual([s for s, _ in calls][0], "cnn")
+        self.assertIn("mix", [s for s, _ in calls])
+
+        # An exception in the callback cancels the run and comes out of it; True cancels.
+        class Stop(Exception):
+            pass
+
+        def stop(stage, fraction):
+            raise Stop(stage)
+
+        with self.assertRaisesRegex(Stop, "cnn"):
+            mcdenoise.denoise(self.render, progress=stop)
+        with self.assertRaisesRegex(RuntimeError, "prefilter: cancelled by the progress callback"):
+            mcdenoise.run_chain(self.render, "prefilter,nfor", progress=lambda stage, f: True)
+
     def test_nfor_denoises(self):
         noisy = mcdenoise.metrics(self.render, self.reference)
         denoised = mcdenoise.nfor(self.render, preset="cycles")

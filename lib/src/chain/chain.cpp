@@ -11,6 +11,7 @@
 #include "core/channels.h"
 #include "core/frame_facts.h"
 #include "core/op_prepare.h"
+#include "core/progress.h"
 #include "mcdn/color.h"
 #include "mcdn/denoise.h"
 #include "mcdn/settings.h"
@@ -328,9 +329,10 @@ bool run_chain_impl(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const Cha
     return true;
 }
 
-bool run_stages(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOptions& o, ROI roi,
-                int nthreads)
+bool run_stages(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOptions& given,
+                ROI roi, int nthreads)
 {
+    ChainOptions o = given;
     std::vector<std::string> check;
     std::string error;
     if (!parse_chain(check, Strutil::join(o.stages, ","), error) || !check_settings(o, error)) {
@@ -357,6 +359,8 @@ bool run_stages(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOp
         dst.specmod().attribute("mcdn:denoise_plan", plan.describe());
         return true;
     }
+    // The stages report one fraction of the whole chain (core/progress.h).
+    o.progress = chain_progress(given.progress, o.stages);
     // The image the next stage reads: src itself until a stage has made another (an
     // ImageBuf copy would copy its pixels).
     ImageBuf made_image;

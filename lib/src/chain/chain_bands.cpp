@@ -265,7 +265,7 @@ bool run_bands(const std::vector<Band>& bands, const ROI& whole, const FrameFact
         if (o.progress)
             band_options.progress = [&o, b, n = bands.size()](const std::string& stage,
                                                               float fraction) {
-                o.progress(stage, (float(b) + fraction) / float(n));
+                return o.progress(stage, (float(b) + fraction) / float(n));
             };
         ImageBuf band, result;
         if (!rows(band, bands[b], error))

@@ -182,7 +182,10 @@ bool mix(ImageBuf& dst, const ImageBuf& src, const MixOptions& options, ROI roi,
             }
         }
         trace.mark("band: z = x + alpha (y - x)");
-        progress.advance();
+        if (!progress.advance()) {
+            dst.errorfmt("{}", progress.error());
+            return false;
+        }
     }
     return true;
 }

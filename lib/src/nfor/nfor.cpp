@@ -307,7 +307,10 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
             return false;
         trace.mark("neighbouring frames (8)");
     }
-    progress.advance();
+    if (!progress.advance()) {
+        dst.errorfmt("{}", progress.error());
+        return false;
+    }
     std::vector<Plane> mse[2];
     FirstPass pass =
         in.halves ? first_pass(color, in.features, neighbours, extras, options, converged, nthreads)
@@ -317,11 +320,17 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
     if (in.halves)
         two_buffer_mse(mse, color, pass);
     trace.mark("first pass regressions (5.2)");
-    progress.advance();
+    if (!progress.advance()) {
+        dst.errorfmt("{}", progress.error());
+        return false;
+    }
     Selected selected =
         select_bandwidths(src, color, mse, pass, extras, options, converged, nthreads);
     trace.mark("MSE + selection maps (5.3)");
-    progress.advance();
+    if (!progress.advance()) {
+        dst.errorfmt("{}", progress.error());
+        return false;
+    }
     std::vector<Plane> denoised;
     if (in.halves) {
         if (in.means_later)  // src is still as read: nothing is written before the end
@@ -335,7 +344,10 @@ bool nfor_in_working_space(ImageBuf& dst, const ImageBuf& src, const NforOptions
             in.features.clear();
     }
     trace.mark("second pass (5.4)");
-    progress.advance();
+    if (!progress.advance()) {
+        dst.errorfmt("{}", progress.error());
+        return false;
+    }
 
     render_where_not_denoised(denoised, extras, color, converged, selected.fallback, outliers,
                               options.outliers == NforOptions::Outliers::Keep);

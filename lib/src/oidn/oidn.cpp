@@ -368,8 +368,12 @@ bool oidn_in_working_space(ImageBuf& dst, const ImageBuf& src, const OidnOptions
             }
             write_output(dst, pass.out.data(), results[size_t(worker)][0], tile.window,
                          output_rect(tile.core), in.exposure, converged);
-            progress.advance();
-            return true;
+            if (progress.advance())
+                return true;
+            std::lock_guard<std::mutex> lock(failed);
+            if (error.empty())
+                error = progress.error();
+            return false;
         });
     });
     if (!ran) {

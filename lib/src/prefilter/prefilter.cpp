@@ -74,7 +74,10 @@ bool prefilter_in_working_space(ImageBuf& dst, const ImageBuf& src, const Prefil
     write_planes(dst, writes, roi);
     dst.specmod().attribute("mcdn:prefiltered", 1);
     trace.mark("write");
-    progress.advance();
+    if (!progress.advance()) {
+        dst.errorfmt("{}", progress.error());
+        return false;
+    }
     return true;
 }
 

@@ -128,7 +128,10 @@ bool sure_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& d
             return false;
         }
         trace.mark("band: denoiser, probe, eq. 7");
-        progress.advance();
+        if (!progress.advance()) {
+            dst.errorfmt("{}", progress.error());
+            return false;
+        }
     }
     if (!band_of_frame)
         out.specmod().erase_attribute(kFrameFactsAttribute);
