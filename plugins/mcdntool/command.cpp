@@ -72,7 +72,9 @@ const std::vector<CommandInfo>& command_table()
               "as a Tungsten buffer set (color.pfm, colorA.pfm, colorVariance.pfm, ...). "
               "A multi-part EXR is read as one set of channels (the first part's as they "
               "are, the others' behind their part's name) and written back with the same "
-              "parts; part=NAME reads one part alone. A bare FILE is the same as -i FILE.",
+              "parts; part=NAME[,NAME...] reads those parts alone. Parts of other data windows (a "
+              "stereo file's views) are denoised each in turn, as view layers are. A bare FILE "
+              "is the same as -i FILE.",
               run_input,
               false,
               check_input,

@@ -261,12 +261,179 @@ std::vector<std::string> layers_to_denoise(const std::vector<Command>& commands)
     return layers.size() > 1 ? layers : std::vector<std::string>();
 }
 
+// The parts of one data window of a multi-part EXR, in the file's order: a stereo file's
+// view (OpenEXR's multi-part multi-view files give each view its own window).
+struct WindowParts {
+    std::string label;  // the first part's view attribute, else its name
+    std::vector<std::string> names;
+};
+
+// The first render input's parts grouped by data window, when there are several windows
+// and no -i picks parts itself; else empty (one merged set of channels).
+std::vector<WindowParts> parts_by_window(const std::vector<Command>& commands)
+{
+    const Command* first = nullptr;
+    for (const auto& c : commands)
+        if (c.name == "-i") {
+            if (c.has("part") || c.modifier("as") == "seed")
+                return {};
+            if (!first && c.modifier("as", "mean") == "mean")
+                first = &c;
+        }
+    auto in = first ? OIIO::ImageInput::open(first->args[0]) : nullptr;
+    if (!in) {
+        OIIO::geterror();  // reading says what is wrong, naming the file
+        return {};
+    }
+    std::vector<WindowParts> groups;
+    std::vector<OIIO::ROI> windows;
+    for (int s = 0; in->seek_subimage(s, 0); ++s) {
+        const OIIO::ImageSpec& spec = in->spec();
+        const OIIO::ROI window(spec.x, spec.x + spec.width, spec.y, spec.y + spec.height);
+        const std::string name = spec.get_string_attribute("name");
+        if (name.empty())
+            return {};  // parts without names cannot be picked: the reader says what is wrong
+        auto at = std::find(windows.begin(), windows.end(), window);
+        if (at == windows.end()) {
+            windows.push_back(window);
+            groups.push_back({ spec.get_string_attribute("view", name), {} });
+            at = windows.end() - 1;
+        }
+        groups[size_t(at - windows.begin())].names.push_back(name);
+    }
+    return groups.size() > 1 ? groups : std::vector<WindowParts>();
+}
+
+bool run_frame(const std::vector<Command>& commands, const std::string& history, int nthreads,
+               int all_threads, int parallel, bool verbose, std::string& error, int frame,
+               std::function<bool(int, std::vector<mcdn::InputFile>&)> neighbour_inputs);
+
+// Each data window's parts through the whole command line in turn, written to a temporary
+// beside the output; then the output made of every part in the file's order, each with its
+// own window, and the temporaries removed (also on failure).
+bool run_views(const std::vector<Command>& commands, const std::vector<WindowParts>& views,
+               const std::string& history, int nthreads, int all_threads, int parallel,
+               bool verbose, std::string& error, int frame,
+               const std::function<bool(int, std::vector<mcdn::InputFile>&)>& neighbour_inputs)
+{
+    std::vector<std::string> labels;
+    for (const WindowParts& v : views)
+        labels.push_back(v.label);
+    size_t outputs = 0, output = 0;
+    for (size_t i = 0; i < commands.size(); ++i)
+        if (commands[i].name == "-o")
+            ++outputs, output = i;
+    const std::string& input = std::find_if(commands.begin(), commands.end(), [](const auto& c) {
+                                   return c.name == "-i";
+                               })->args[0];
+    if (outputs != 1 || !Strutil::iends_with(commands[output].args[0], ".exr")) {
+        error = format("{}: its parts differ in data window (views {}), and each is denoised in "
+                       "turn into one EXR: give one -o FILE.exr (or -i:part=NAME for one)",
+                       input, Strutil::join(labels, ", "));
+        return false;
+    }
+    const std::string path = commands[output].args[0];
+    const std::string dir =
+        Filesystem::parent_path(path).empty() ? std::string(".") : Filesystem::parent_path(path);
+    // Named as mcdn's temporaries (mcdn/io.h write_image): a killed run's are found.
+    const std::string stem =
+        format("{}/.{}.mcdn-tmp-{}-view", dir, Filesystem::filename(path), getpid());
+    std::vector<std::string> temporaries;
+    struct Remove {
+        std::vector<std::string>& paths;
+        ~Remove()
+        {
+            for (const std::string& p : paths)
+                Filesystem::remove(p);
+        }
+    } remove { temporaries };
+    if (verbose)
+        std::cerr << format("mcdntool: {}: parts of {} data windows (views {}): each denoised "
+                            "in turn (-i:part=NAME for one)\n",
+                            input, views.size(), Strutil::join(labels, ", "));
+    for (size_t k = 0; k < views.size(); ++k) {
+        const std::string parts = Strutil::join(views[k].names, ",");
+        std::vector<Command> view = commands;
+        for (Command& c : view)
+            if (c.name == "-i")
+                c.modifiers["part"] = parts;
+        temporaries.push_back(format("{}{}.exr", stem, k));
+        view[output].args[0] = temporaries.back();
+        if (verbose)
+            std::cerr << format("mcdntool: view '{}' ({} of {}): parts {}\n", views[k].label, k + 1,
+                                views.size(), parts);
+        auto inputs = [&neighbour_inputs, parts](int offset, std::vector<mcdn::InputFile>& in) {
+            if (!neighbour_inputs || !neighbour_inputs(offset, in))
+                return false;
+            for (mcdn::InputFile& f : in)
+                f.part = parts;
+            return true;
+        };
+        if (!run_frame(view, history, nthreads, all_threads, parallel, verbose, error, frame,
+                       inputs))
+            return false;
+    }
+    // Every part in the file's order, from the temporary of its window.
+    std::vector<OIIO::ImageSpec> specs;
+    std::vector<std::vector<unsigned char>> pixels;
+    auto original = OIIO::ImageInput::open(input);
+    for (int s = 0; original && original->seek_subimage(s, 0); ++s) {
+        const OIIO::ImageSpec part = original->spec();
+        const std::string name = part.get_string_attribute("name");
+        size_t k = 0;
+        while (k < views.size()
+               && std::find(views[k].names.begin(), views[k].names.end(), name)
+                      == views[k].names.end())
+            ++k;
+        auto in = k < views.size() ? OIIO::ImageInput::open(temporaries[k]) : nullptr;
+        bool found = false;
+        for (int t = 0; in && !found && in->seek_subimage(t, 0); ++t) {
+            if (in->spec().get_string_attribute("name") != name)
+                continue;
+            specs.push_back(in->spec());
+            if (part.extra_attribs.contains("view"))
+                specs.back().attribute("view", part.get_string_attribute("view"));
+            pixels.emplace_back(specs.back().image_bytes(true));
+            found = in->read_image(t, 0, 0, specs.back().nchannels, OIIO::TypeUnknown,
+                                   pixels.back().data());
+        }
+        if (!found) {
+            error = format("{}: part '{}' was not written: {}", path, name,
+                           in ? in->geterror() : OIIO::geterror());
+            return false;
+        }
+    }
+    const std::string assembled = stem + "s.exr";
+    temporaries.push_back(assembled);
+    auto out = OIIO::ImageOutput::create(assembled);
+    bool ok = out && out->open(assembled, int(specs.size()), specs.data());
+    for (size_t p = 0; ok && p < specs.size(); ++p)
+        ok = (p == 0 || out->open(assembled, specs[p], OIIO::ImageOutput::AppendSubimage))
+             && out->write_image(OIIO::TypeUnknown, pixels[p].data());
+    ok = ok && out->close();
+    if (!ok) {
+        error = format("{}: {}", path, out ? out->geterror() : OIIO::geterror());
+        return false;
+    }
+    if (!Filesystem::rename(assembled, path, error)) {
+        error = format("{}: {}", path, error);
+        return false;
+    }
+    temporaries.pop_back();
+    return true;
+}
+
 bool run_frame(const std::vector<Command>& commands, const std::string& history, int nthreads,
                int all_threads, int parallel, bool verbose, std::string& error, int frame = -1,
                std::function<bool(int, std::vector<mcdn::InputFile>&)> neighbour_inputs = {})
 {
-    if (!check_inputs(commands, error) || !check_outputs(commands, error)
-        || !check_memory(commands, all_threads, parallel, error))
+    if (!check_inputs(commands, error) || !check_outputs(commands, error))
+        return false;
+    // A file of several data windows (a stereo file's views): each window's parts in turn.
+    if (const std::vector<WindowParts> views = parts_by_window(commands); !views.empty())
+        return run_views(commands, views, history, nthreads, all_threads, parallel, verbose, error,
+                         frame, neighbour_inputs);
+    if (!check_memory(commands, all_threads, parallel, error))
         return false;
     Session session;
     session.neighbour_inputs = std::move(neighbour_inputs);

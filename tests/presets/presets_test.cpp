@@ -411,3 +411,85 @@ TEST(Presets, MultiPartExrIsOneAovSetAndIsWrittenBackInParts)
         std::string::npos)
         << run.output;
 }
+
+// A stereo file as OpenEXR writes one (multi-part, each view its own part and data window,
+// half/DWAA): each view denoised, each part written back with its window, view, types and
+// compression; nothing else is left in the folder (issue 46, item 6; before: "part 1 has
+// data window 48x56 at (8,4), part 0 has 64x64 at (0,0)").
+TEST(Presets, StereoViewsOfOtherDataWindowsAreEachDenoised)
+{
+    const std::string dir = mcdn_test::temp_dir("presets_stereo");
+    const ImageBuf whole =
+        assemble(concat({ rgb(kRGB, "", "Combined"),
+                          rgb({ "albedo.R", "albedo.G", "albedo.B" }, "", "Denoising Albedo"),
+                          rgb({ "N.X", "N.Y", "N.Z" }, "", "Denoising Normal", "XYZ") }));
+    const OIIO::ROI windows[2] = { OIIO::ROI(0, 64, 0, 64), OIIO::ROI(8, 56, 4, 60) };
+    const char* views[2] = { "left", "right" };
+    std::vector<OIIO::ImageSpec> specs;
+    std::vector<ImageBuf> parts;
+    for (int v = 0; v < 2; ++v) {
+        parts.push_back(OIIO::ImageBufAlgo::cut(whole, windows[v]));
+        ImageBuf& part = parts.back();
+        part.set_origin(windows[v].xbegin, windows[v].ybegin);
+        OIIO::ImageSpec spec = part.spec();
+        spec.full_x = spec.full_y = 0;
+        spec.full_width = spec.full_height = 64;
+        spec.set_format(OIIO::TypeDesc::HALF);
+        spec.attribute("name", views[v]);
+        spec.attribute("view", views[v]);
+        spec.attribute("compression", "dwaa:45");
+        specs.push_back(spec);
+    }
+    const std::string file = dir + "/stereo.exr";
+    auto out = OIIO::ImageOutput::create(file);
+    ASSERT_TRUE(out && out->open(file, 2, specs.data()));
+    for (int v = 0; v < 2; ++v)
+        ASSERT_TRUE((v == 0 || out->open(file, specs[size_t(v)], OIIO::ImageOutput::AppendSubimage))
+                    && out->write_image(OIIO::TypeDesc::FLOAT, parts[size_t(v)].localpixels()))
+            << out->geterror();
+    ASSERT_TRUE(out->close());
+
+    auto run = run_mcdntool("-v -i " + file + " --denoise -o " + dir + "/out.exr");
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_NE(run.output.find("views left, right"), std::string::npos) << run.output;
+    auto in = OIIO::ImageInput::open(dir + "/out.exr");
+    ASSERT_TRUE(in);
+    for (int v = 0; v < 2; ++v) {
+        ASSERT_TRUE(in->seek_subimage(v, 0));
+        const OIIO::ImageSpec& spec = in->spec();
+        EXPECT_EQ(spec.get_string_attribute("name"), views[v]);
+        EXPECT_EQ(spec.get_string_attribute("view"), views[v]);
+        EXPECT_EQ(OIIO::ROI(spec.x, spec.x + spec.width, spec.y, spec.y + spec.height), windows[v]);
+        EXPECT_EQ(spec.format, OIIO::TypeDesc::HALF);
+        EXPECT_EQ(spec.get_string_attribute("compression"), "dwaa");
+        ImageBuf denoised(dir + "/out.exr", v, 0), render(file, v, 0);
+        ASSERT_TRUE(denoised.read(v, 0, true, OIIO::TypeDesc::FLOAT)) << denoised.geterror();
+        ASSERT_TRUE(render.read(v, 0, true, OIIO::TypeDesc::FLOAT)) << render.geterror();
+        // Against the reference's pixels of this window.
+        ImageBuf reference = OIIO::ImageBufAlgo::cut(read("box16/box_ref.exr"), windows[v]);
+        reference.set_origin(windows[v].xbegin, windows[v].ybegin);
+        const auto error = [&](const ImageBuf& image) {
+            mcdn::MetricsOptions o;
+            o.image_channels = { 0, 1, 2 };
+            o.reference_channels.clear();
+            for (const char* c : { "R", "G", "B" })
+                o.reference_channels.push_back(
+                    reference.spec().channelindex(std::string("ViewLayer.Combined.") + c));
+            mcdn::Metrics m;
+            std::string why;
+            EXPECT_TRUE(mcdn::compute_metrics(m, image, reference, o, why)) << why;
+            return m.relmse;
+        };
+        EXPECT_LT(error(denoised), 0.5 * error(render)) << views[v];
+    }
+    EXPECT_FALSE(in->seek_subimage(2, 0)) << "no part added";
+    in->close();
+    std::vector<std::string> files;
+    OIIO::Filesystem::get_directory_entries(dir, files);
+    EXPECT_EQ(files.size(), 2u) << "only the input and the output";
+
+    // One output file takes both views: a PNG cannot.
+    run = run_mcdntool("-i " + file + " --denoise -o " + dir + "/out.png");
+    EXPECT_EQ(run.exit_code, 1);
+    EXPECT_NE(run.output.find("give one -o FILE.exr"), std::string::npos) << run.output;
+}

@@ -95,7 +95,7 @@ const char* input_kind_prefix(InputKind kind);
 struct InputFile {
     std::string path;
     InputKind kind = InputKind::Mean;
-    /// A multi-part EXR's part to read alone (-i:part=NAME); empty: every part.
+    /// A multi-part EXR's parts to read alone (-i:part=NAME[,NAME...]); empty: every part.
     std::string part;
     /// Renders of this frame that differ only in their seed (-i:as=seed), read as one render
     /// with its variance and halves (mcdn/io.h combine_seeds); `path` is the first of them

@@ -104,11 +104,13 @@ bool read_layout(FileLayout& layout, const std::string& path, const std::string&
     }
     layout = { path, {}, {}, {}, std::string(in->format_name()) == "openexr", {} };
     std::vector<std::string> part_names;
+    const std::vector<std::string> wanted = Strutil::splits(part, ",");
     for (int s = 0; in->seek_subimage(s, 0); ++s) {
         ImageSpec spec = in->spec(s, 0);
         part_names.push_back(spec.get_string_attribute("name"));
-        if (!part.empty() && part_names.back() != part)
-            continue;  // -i:part=NAME reads that part alone
+        if (!part.empty()
+            && std::find(wanted.begin(), wanted.end(), part_names.back()) == wanted.end())
+            continue;  // -i:part=NAME[,NAME...] reads those parts alone
         // A recipe read through the mcdn format plugin opens as a placeholder that carries
         // its error (OIIO's procedural inputs cannot fail to open): that error is the file's.
         if (const std::string failed = spec.get_string_attribute("mcdn:error"); !failed.empty()) {
@@ -133,7 +135,7 @@ bool read_layout(FileLayout& layout, const std::string& path, const std::string&
         layout.subimages.push_back(s);
     }
     if (layout.parts.empty() && !part.empty()) {
-        error = format("{}: no part named '{}' (parts: {})", path, part,
+        error = format("{}: no part named '{}' (parts: {})", path, Strutil::join(wanted, "' or '"),
                        Strutil::join(part_names, ", "));
         return false;
     }
