@@ -42,64 +42,45 @@ double mean_channel(const OIIO::ImageBuf& img, int channel)
 }  // namespace
 
 // A moving shot aligned by its vectors: five frames' samples, a fifth of the error and of
-// the variance channel.
+// the variance channel. Without a variance (Cycles writes none) the frames' agreement weighs
+// them, with as much of the gain.
 TEST(CombineFrames, AMovingShotBecomesARenderOfMoreSamples)
 {
     Shot shot;
     shot.vx = 2.0f;
     shot.vy = -1.0f;
-    Frames f(shot, 2);
-    OIIO::ImageBuf out = combine_frames(f.centre(), f.options);
-    ASSERT_FALSE(out.has_error()) << out.geterror();
-    const double before = shot.mse(f.centre(), 0), after = shot.mse(out, 0);
-    EXPECT_LT(after, 0.3 * before) << before << " -> " << after;
-    const int variance_r = 6;  // variance.R in the generic layout
-    EXPECT_LT(mean_channel(out, variance_r), 0.3 * mean_channel(f.centre(), variance_r));
-    EXPECT_TRUE(all_finite(out));
+    for (bool variance : { true, false }) {
+        Frames f(shot, 2);
+        if (!variance)
+            f.without_variance();
+        OIIO::ImageBuf out = combine_frames(f.centre(), f.options);
+        ASSERT_FALSE(out.has_error()) << out.geterror();
+        const double before = shot.mse(f.centre(), 0), after = shot.mse(out, 0);
+        EXPECT_LT(after, 0.3 * before) << before << " -> " << after << ", variance " << variance;
+        EXPECT_TRUE(all_finite(out));
+        const int variance_r = 6;  // variance.R in the generic layout
+        if (variance)
+            EXPECT_LT(mean_channel(out, variance_r), 0.3 * mean_channel(f.centre(), variance_r));
+    }
 }
 
 // Where the neighbours show something else (wrong motion vectors: they say still, the
-// picture moves 6 px a frame) they get no weight: the frame stays near its own error.
+// picture moves 6 px a frame) they get no weight: the frame stays near its own error, with
+// the variance or without.
 TEST(CombineFrames, NeighboursThatDisagreeAreLeftOut)
 {
     Shot shot;
     shot.vx = 6.0f;
     shot.true_motion = false;
-    Frames f(shot, 2);
-    OIIO::ImageBuf out = combine_frames(f.centre(), f.options);
-    ASSERT_FALSE(out.has_error()) << out.geterror();
-    const double before = shot.mse(f.centre(), 0), after = shot.mse(out, 0);
-    EXPECT_LT(after, 1.2 * before) << before << " -> " << after;
-}
-
-// Without a variance (Cycles writes none) the frames' agreement weighs them: as much of the
-// gain as with the measured variance.
-TEST(CombineFrames, WithoutAVarianceTheFramesAgreementWeighsThem)
-{
-    Shot shot;
-    shot.vx = 2.0f;
-    shot.vy = -1.0f;
-    Frames f(shot, 2);
-    f.without_variance();
-    OIIO::ImageBuf out = combine_frames(f.centre(), f.options);
-    ASSERT_FALSE(out.has_error()) << out.geterror();
-    const double before = shot.mse(f.centre(), 0), after = shot.mse(out, 0);
-    EXPECT_LT(after, 0.3 * before) << before << " -> " << after;
-    EXPECT_TRUE(all_finite(out));
-}
-
-// ... and where the neighbours show something else, they are left out as with one.
-TEST(CombineFrames, WithoutAVarianceNeighboursThatDisagreeAreLeftOut)
-{
-    Shot shot;
-    shot.vx = 6.0f;
-    shot.true_motion = false;
-    Frames f(shot, 2);
-    f.without_variance();
-    OIIO::ImageBuf out = combine_frames(f.centre(), f.options);
-    ASSERT_FALSE(out.has_error()) << out.geterror();
-    const double before = shot.mse(f.centre(), 0), after = shot.mse(out, 0);
-    EXPECT_LT(after, 1.2 * before) << before << " -> " << after;
+    for (bool variance : { true, false }) {
+        Frames f(shot, 2);
+        if (!variance)
+            f.without_variance();
+        OIIO::ImageBuf out = combine_frames(f.centre(), f.options);
+        ASSERT_FALSE(out.has_error()) << out.geterror();
+        const double before = shot.mse(f.centre(), 0), after = shot.mse(out, 0);
+        EXPECT_LT(after, 1.2 * before) << before << " -> " << after << ", variance " << variance;
+    }
 }
 
 // RenderMan's backward and forward (motionBack, motionFore: raster space, y down) are its

@@ -328,12 +328,7 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
             }
             recombine(color_frame, extras_frame, output_rect(tile.core, dst, where), tile.window, k,
                       split, src, aovs, color_channels, extras, converged);
-            if (progress.advance())
-                return true;
-            std::lock_guard<std::mutex> lock(failed);
-            if (error.empty())
-                error = progress.error();
-            return false;
+            return progress.advance(error, failed);
         };
         return nn::for_each_tile(int(tiles.size()), workers, run_tile);
     });

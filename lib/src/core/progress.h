@@ -31,10 +31,16 @@ public:
         }
         return !m_cancelled;
     }
-    bool cancelled()
+    /// advance() for a unit run beside others on workers: false once cancelled, with error()
+    /// in `error` (under `guard`) unless a unit's own error is there already.
+    bool advance(std::string& error, std::mutex& guard)
     {
-        std::lock_guard<std::mutex> lock(m_mutex);
-        return m_cancelled;
+        if (advance())
+            return true;
+        std::lock_guard<std::mutex> lock(guard);
+        if (error.empty())
+            error = this->error();
+        return false;
     }
     std::string error() const { return m_stage + ": cancelled by the progress callback"; }
 

@@ -368,12 +368,7 @@ bool oidn_in_working_space(ImageBuf& dst, const ImageBuf& src, const OidnOptions
             }
             write_output(dst, pass.out.data(), results[size_t(worker)][0], tile.window,
                          output_rect(tile.core), in.exposure, converged);
-            if (progress.advance())
-                return true;
-            std::lock_guard<std::mutex> lock(failed);
-            if (error.empty())
-                error = progress.error();
-            return false;
+            return progress.advance(error, failed);
         });
     });
     if (!ran) {
