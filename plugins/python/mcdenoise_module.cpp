@@ -182,7 +182,7 @@ void bind_denoisers(py::module_& m)
         "relative standard error <= converged) through and drop constant features. previous, "
         "next: cross-frame (NFOR §8), the neighbouring frames of the shot, nearest first "
         "(at most 4 each), aligned to this one by the motion vectors (Blender's Vector "
-        "pass, or aovs={'motion': 'X,Y,Z,W'}).");
+        "pass, RenderMan's forward and backward, or aovs={'motion': 'X,Y,Z,W'}).");
 
     m.def(
         "cnn",
@@ -225,7 +225,9 @@ void bind_denoisers(py::module_& m)
         "removed ('drop', as nfor's rule) or left in ('off'). previous, next: cross-frame, "
         "the neighbouring frames of the shot (nearest first, at most 4 each), aligned by "
         "the motion vectors and combined with this one where they agree before the "
-        "network (mcdn/frames.h); the result keeps this frame's own variance and halves.");
+        "network (mcdn/frames.h; without a colour variance or halves, as Cycles writes, "
+        "weighed by how well the frames agree with each other); the result keeps this "
+        "frame's own variance and halves.");
     m.def("release_cnn_workers", &mcdn::release_cnn_workers,
           "Frees the networks and buffers cnn() keeps for its next call (~350 MB per thread).");
 }
