@@ -237,21 +237,27 @@ bool run_commands(Session& session, const std::vector<Command>& commands, size_t
     return true;
 }
 
+// The render's first input file (-i as the mean or a seed): what its layers and parts are
+// read from; empty when there is none.
+std::string first_render_input(const std::vector<Command>& commands)
+{
+    for (const auto& c : commands)
+        if (c.name == "-i" && (c.modifier("as", "mean") == "mean" || c.modifier("as") == "seed"))
+            return c.args[0];
+    return {};
+}
+
 // The Blender view layers to denoise in turn: every layer of the first render input when it
 // has several and no --aov picks a layer, names channels or another preset.
 std::vector<std::string> layers_to_denoise(const std::vector<Command>& commands)
 {
-    std::string first_input;
-    for (const auto& c : commands) {
+    for (const auto& c : commands)
         if (c.name == "--aov"
             && (c.has("layer") || !c.args.empty()
                 || (c.has("preset") && c.modifier("preset") != "cycles"
                     && c.modifier("preset") != "auto")))
             return {};
-        if (c.name == "-i" && first_input.empty()
-            && (c.modifier("as", "mean") == "mean" || c.modifier("as") == "seed"))
-            first_input = c.args[0];
-    }
+    const std::string first_input = first_render_input(commands);
     auto in = first_input.empty() ? nullptr : OIIO::ImageInput::open(first_input);
     if (!in) {
         OIIO::geterror();  // reading says what is wrong, naming the file
@@ -272,15 +278,11 @@ struct WindowParts {
 // and no -i picks parts itself; else empty (one merged set of channels).
 std::vector<WindowParts> parts_by_window(const std::vector<Command>& commands)
 {
-    const Command* first = nullptr;
     for (const auto& c : commands)
-        if (c.name == "-i") {
-            if (c.has("part") || c.modifier("as") == "seed")
-                return {};
-            if (!first && c.modifier("as", "mean") == "mean")
-                first = &c;
-        }
-    auto in = first ? OIIO::ImageInput::open(first->args[0]) : nullptr;
+        if (c.name == "-i" && (c.has("part") || c.modifier("as") == "seed"))
+            return {};
+    const std::string first = first_render_input(commands);
+    auto in = first.empty() ? nullptr : OIIO::ImageInput::open(first);
     if (!in) {
         OIIO::geterror();  // reading says what is wrong, naming the file
         return {};
@@ -323,9 +325,7 @@ bool run_views(const std::vector<Command>& commands, const std::vector<WindowPar
     for (size_t i = 0; i < commands.size(); ++i)
         if (commands[i].name == "-o")
             ++outputs, output = i;
-    const std::string& input = std::find_if(commands.begin(), commands.end(), [](const auto& c) {
-                                   return c.name == "-i";
-                               })->args[0];
+    const std::string input = first_render_input(commands);
     if (outputs != 1 || !Strutil::iends_with(commands[output].args[0], ".exr")) {
         error = format("{}: its parts differ in data window (views {}), and each is denoised in "
                        "turn into one EXR: give one -o FILE.exr (or -i:part=NAME for one)",

@@ -223,8 +223,12 @@ bool combine_in_working_space(ImageBuf& dst, const ImageBuf& src, const CombineF
     std::string error;
     ColorPlanes own;
     if (!resolve_aovs(aovs, o.aovs, src.spec(), error)
-        || !aovs.require({ Role::Color, Role::Motion }, src.spec(), error)
-        || !read_color(own, src, aovs, frames_have_measured_variance(aovs), error)) {
+        || !aovs.require({ Role::Color, Role::Motion }, src.spec(), error)) {
+        dst.errorfmt("{}: {}", op, error);
+        return false;
+    }
+    const bool measured = frames_have_measured_variance(aovs);
+    if (!read_color(own, src, aovs, measured, error)) {
         dst.errorfmt("{}: {}", op, error);
         return false;
     }
@@ -234,7 +238,6 @@ bool combine_in_working_space(ImageBuf& dst, const ImageBuf& src, const CombineF
         dst.errorfmt("{}: {}", op, error);
         return false;
     }
-    const bool measured = frames_have_measured_variance(aovs);
     if (!measured && !estimate_variance(own, aligned, o, nthreads, error)) {
         dst.errorfmt("{}: {}", op, error);
         return false;
