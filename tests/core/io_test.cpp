@@ -421,6 +421,31 @@ TEST(Io, EveryExrCodecReadsAsTheCxxLibraryReadsIt)
             }
 }
 
+// A damaged header that OpenEXR's core parses as a scanline part with a tile description
+// leaves its rows per block 0, and OIIO 2.4's core reader divides by them (a fuzzer found the
+// SIGFPE): such a file is read by the C++ library, which names what is wrong.
+TEST(Io, ScanlineFlagOnATiledFileIsAnErrorNotACrash)
+{
+    const std::string dir = mcdn_test::temp_dir("scanline_flag");
+    const std::string tiled = dir + "/tiled.exr", damaged = dir + "/damaged.exr";
+    ImageBuf src = make_image(6, 5, { "R", "G", "B" },
+                              [](int x, int y, int c) { return float(x + 10 * y + 100 * c); });
+    src.specmod().tile_width = 1;
+    src.specmod().tile_height = 4;
+    src.specmod().attribute("compression", "rle");
+    src.set_write_tiles(1, 4);
+    ASSERT_TRUE(src.write(tiled)) << src.geterror();
+    std::ifstream in(tiled, std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    ASSERT_GT(bytes.size(), 8u);
+    ASSERT_TRUE(bytes[5] & 0x02) << "OpenEXR's single-part tiled flag";
+    bytes[5] = char(bytes[5] & ~0x02);
+    std::ofstream(damaged, std::ios::binary) << bytes;
+    ImageBuf ours;
+    EXPECT_FALSE(read_image(ours, damaged));
+    EXPECT_NE(ours.geterror().find(damaged), std::string::npos) << ours.geterror();
+}
+
 // K seed renders: the mean, the variance of the mean (sample variance over K), the means of
 // the first and last K/2 seeds; identifiers (Cryptomatte) are the first seed's, without faces.
 TEST(Io, SeedsAreTheirMeanWithItsVarianceAndHalves)

@@ -15,6 +15,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <OpenEXR/openexr.h>
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 #include <OpenImageIO/strutil.h>
@@ -64,6 +65,9 @@ struct FileLayout {
     std::vector<int> subimages;  // each part's subimage in the file
     bool exr = false;
     std::vector<TypeDesc> types;  // each of `names`' pixel type in the file
+    // Each part's rows per block as OpenEXR's core reads them (core_block_rows): set where
+    // every part is one the core may read, else empty (the C++ library reads the file).
+    std::vector<int> core_rows;
 
     // The merged buffer's spec: the first part's metadata with every part's channels.
     ImageSpec merged_spec() const
@@ -92,6 +96,8 @@ std::string parts_text(const FileLayout& layout)
     return Strutil::join(lines, "\n");
 }
 
+void choose_reader(FileLayout& layout);
+
 bool read_layout(FileLayout& layout, const std::string& path, const std::string& part,
                  std::string& error)
 {
@@ -102,7 +108,7 @@ bool read_layout(FileLayout& layout, const std::string& path, const std::string&
         error = format("{}: cannot read: {}", path, one_line(OIIO::geterror()));
         return false;
     }
-    layout = { path, {}, {}, {}, std::string(in->format_name()) == "openexr", {} };
+    layout = { path, {}, {}, {}, std::string(in->format_name()) == "openexr", {}, {} };
     std::vector<std::string> part_names;
     const std::vector<std::string> wanted = Strutil::splits(part, ",");
     for (int s = 0; in->seek_subimage(s, 0); ++s) {
@@ -148,6 +154,7 @@ bool read_layout(FileLayout& layout, const std::string& path, const std::string&
     for (size_t p = 0; p < layout.parts.size(); ++p)
         for (const auto& ch : layout.parts[p].channelnames)
             layout.names.push_back(part_qualified(layout.parts[p], p == 0, ch));
+    choose_reader(layout);
     return true;
 }
 
@@ -155,30 +162,72 @@ bool read_layout(FileLayout& layout, const std::string& path, const std::string&
 // third faster than the C++ library, with the same values. Not for DWAA/DWAB (OpenEXR 3.1's
 // core cannot read them) nor B44/B44A (it reads their float channels otherwise):
 // tests/core/io_test.cpp checks both readers agree on every codec in this list.
-// The rows of one block (OpenEXR's lines per chunk) of a part stored with a codec the core
-// reads, else 0.
-int core_block_rows(const ImageSpec& part)
+bool core_codec(const ImageSpec& part)
 {
     std::string codec = part.get_string_attribute("compression", "none");
     codec = codec.substr(0, codec.find(':'));
-    if (codec == "none" || codec == "rle" || codec == "zips")
-        return 1;
-    if (codec == "zip" || codec == "pxr24")
-        return 16;
-    return codec == "piz" ? 32 : 0;
+    for (const char* read : { "none", "rle", "zips", "zip", "pxr24", "piz" })
+        if (codec == read)
+            return true;
+    return false;
 }
 
-// Every part of the file in a codec the core reads (core_block_rows);
-// MCDN_OPENEXR_CORE=0 reads every file with the C++ library.
-bool core_reads(const FileLayout& layout)
+// Each of the file's parts' rows per block (OpenEXR's lines per chunk; 1 for a tiled part)
+// as the core itself parses the header, or empty where a part has none: OIIO 2.4's core
+// reader divides by them, and a damaged header can leave them 0 (a scanline part that
+// carries a tile description: tests/fuzz/corpus/exr/scanline_with_tiles.exr).
+std::vector<int> core_block_rows(const std::string& path, size_t nparts)
+{
+    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+    init.error_handler_fn = [](exr_const_context_t, exr_result_t, const char*) {};  // quiet
+    exr_context_t exr = nullptr;
+    std::vector<int> rows;
+    int count = 0;
+    if (exr_start_read(&exr, path.c_str(), &init) == EXR_ERR_SUCCESS
+        && exr_get_count(exr, &count) == EXR_ERR_SUCCESS && size_t(count) >= nparts)
+        for (int p = 0; p < count; ++p) {
+            exr_storage_t storage = EXR_STORAGE_LAST_TYPE;
+            int32_t n = 0;
+            if (exr_get_storage(exr, p, &storage) != EXR_ERR_SUCCESS
+                || (storage == EXR_STORAGE_SCANLINE
+                    && exr_get_scanlines_per_chunk(exr, p, &n) != EXR_ERR_SUCCESS))
+                n = 0;
+            else if (storage == EXR_STORAGE_TILED)
+                n = 1;
+            if (n <= 0) {
+                rows.clear();
+                break;
+            }
+            rows.push_back(n);
+        }
+    exr_finish(&exr);
+    return rows;
+}
+
+// Every part of the file in a codec the core reads, with its blocks as the core sees them
+// (FileLayout::core_rows); MCDN_OPENEXR_CORE=0 reads every file with the C++ library.
+void choose_reader(FileLayout& layout)
 {
     static const bool allowed = [] {
         const char* env = std::getenv("MCDN_OPENEXR_CORE");
         return !env || std::string(env) != "0";
     }();
-    return allowed && layout.exr
-           && std::all_of(layout.parts.begin(), layout.parts.end(),
-                          [](const ImageSpec& part) { return core_block_rows(part) > 0; });
+    layout.core_rows.clear();
+    if (!allowed || !layout.exr
+        || !std::all_of(layout.parts.begin(), layout.parts.end(), core_codec))
+        return;
+    const std::vector<int> rows = core_block_rows(layout.path, layout.parts.size());
+    if (rows.empty())
+        return;
+    for (int s : layout.subimages)
+        layout.core_rows.push_back(s < int(rows.size()) ? rows[s] : 0);
+    if (std::find(layout.core_rows.begin(), layout.core_rows.end(), 0) != layout.core_rows.end())
+        layout.core_rows.clear();
+}
+
+bool core_reads(const FileLayout& layout)
+{
+    return !layout.core_rows.empty();
 }
 
 // The file opened for its pixels: OIIO picks the EXR reader when it creates one, from a
@@ -243,7 +292,7 @@ bool read_pixels_into(ImageBuf& dst, int first, const FileLayout& layout, ImageI
         // for whole blocks of rows too: OIIO 2.4 reads a range that starts or ends inside a
         // block through a buffer it allocates with new[] and frees with delete.
         const bool tiled = part.tile_width > 0 && part.tile_height > 0;
-        const int aligned = tiled ? part.tile_height : core ? core_block_rows(part) : 1;
+        const int aligned = tiled ? part.tile_height : core ? layout.core_rows[s] : 1;
         if (!tiled && aligned == 1 && int(kept.size()) == n) {
             if (!in.read_scanlines(layout.subimages[s], 0, y0, y1, part.z, 0, n, TypeDesc::FLOAT,
                                    out, pixel, pixel * part.width))
@@ -398,7 +447,7 @@ bool InputRows::open(const std::vector<InputFile>& inputs, const InputSelection&
             const ImageSpec& spec = directories[i].spec();
             std::vector<TypeDesc> types = seed.types;
             types.resize(spec.nchannels, TypeDesc::FLOAT);
-            layouts[i] = { input.path, { spec }, spec.channelnames, { 0 }, false, types };
+            layouts[i] = { input.path, { spec }, spec.channelnames, { 0 }, false, types, {} };
             own[i] = seed.names.size();
         } else if (is_dir) {
             if (!read_tungsten_directory(directories[i], input.path)) {
@@ -408,7 +457,8 @@ bool InputRows::open(const std::vector<InputFile>& inputs, const InputSelection&
             const ImageSpec& spec = directories[i].spec();
             layouts[i] = {
                 input.path, { spec }, spec.channelnames,
-                { 0 },      false,    std::vector<TypeDesc>(spec.nchannels, TypeDesc::FLOAT)
+                { 0 },      false,    std::vector<TypeDesc>(spec.nchannels, TypeDesc::FLOAT),
+                {}
             };
         } else if (!read_layout(layouts[i], input.path, input.part, error)) {
             return false;
