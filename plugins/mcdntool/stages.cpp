@@ -144,7 +144,11 @@ bool run_plan(Session& s, const Command& c, std::string& error)
     if (!s.load(error))
         return false;
     mcdn::DenoisePlan plan;
-    if (!mcdn::plan_denoise(plan, s.image().spec(), s.aov_spec, error)) {
+    std::map<std::string, std::string> plan_settings;
+    for (const char* key : { "nfor", "frames" })
+        if (c.has(key))
+            plan_settings[std::string("denoise.") + key] = c.modifier(key);
+    if (!mcdn::plan_denoise(plan, s.image().spec(), s.aov_spec, error, plan_settings)) {
         error = c.name + ": " + error;
         return false;
     }
@@ -154,7 +158,8 @@ bool run_plan(Session& s, const Command& c, std::string& error)
         Command step { "--" + name, {}, {} };
         if (mcdn::find_stage(name)->cross_frame && c.has("frames"))
             step.modifiers["frames"] = c.modifier("frames");
-        if (mcdn::find_stage(name)->kind == mcdn::StageKind::Denoiser && c.has("extras"))
+        if ((mcdn::find_stage(name)->kind == mcdn::StageKind::Denoiser || name == "choose")
+            && c.has("extras"))
             step.modifiers["extras"] = c.modifier("extras");
         if (!run_stage(s, step, error))
             return false;

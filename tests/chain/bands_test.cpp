@@ -81,9 +81,15 @@ TEST(Bands, ReachIsTheSumOfTheStages)
     o.stages = { "cnn" };
     const int cnn = chain_reach(taller_box16().spec(), o);
     o.stages = { "cnn", "sure", "mix" };
+    const int mixed = chain_reach(taller_box16().spec(), o);
+    o.stages = { "prefilter", "nfor" };
+    const int nfor = chain_reach(taller_box16().spec(), o);
+    // box16 has half buffers: --denoise chooses between the CNN and NFOR (mcdn/choose.h).
+    o.stages = { "cnn", "sure", "choose", "mix" };
     const int best = chain_reach(taller_box16().spec(), o);
     o.stages = { "denoise" };
     EXPECT_EQ(chain_reach(taller_box16().spec(), o), best);
     EXPECT_GT(cnn, 10);
-    EXPECT_GT(best, cnn);  // the mix reaches further still
+    EXPECT_GT(mixed, cnn);          // the mix reaches further still
+    EXPECT_GT(best, mixed + nfor);  // choose runs NFOR on the render, then sums windows
 }

@@ -9,7 +9,7 @@ Layers, lowest first (a file may include its own layer and those below it):
                 the heavy-tailed samples' detection, and what the ops share above the
                 foundation (frames in bands and in the working space, neighbouring frames
                 aligned by their motion, the colour role read as planes)
-  2 stages      lib/src/{prefilter,nfor,cnn,oidn,sure,mix,frames}/ and their public headers
+  2 stages      lib/src/{prefilter,nfor,cnn,oidn,sure,choose,mix,frames}/ and their public headers
   3 chains      lib/src/chain/, mcdn/{chain,settings,stages,denoise}.h: the only code that
                 knows every stage (the stage table, mcdn/stages.h)
 Public headers follow the same rule by the layer of the header itself.
@@ -25,13 +25,13 @@ import sys
 FOLDERS = {
     "core": 0, "aov": 0, "io": 0, "color": 0, "metrics": 0, "skip": 0,
     "nl_means": 1, "nn": 1, "outliers": 1, "ops": 1,
-    "prefilter": 2, "nfor": 2, "cnn": 2, "oidn": 2, "sure": 2, "mix": 2, "frames": 2,
+    "prefilter": 2, "nfor": 2, "cnn": 2, "oidn": 2, "sure": 2, "mix": 2, "frames": 2, "choose": 2,
     "chain": 3,
 }
 HEADERS = {
     "aov": 0, "io": 0, "color": 0, "metrics": 0, "skip": 0, "threads": 0, "version": 0,
     "progress": 0,
-    "prefilter": 2, "nfor": 2, "cnn": 2, "oidn": 2, "sure": 2, "mix": 2, "frames": 2,
+    "prefilter": 2, "nfor": 2, "cnn": 2, "oidn": 2, "sure": 2, "mix": 2, "frames": 2, "choose": 2,
     "chain": 3, "settings": 3, "stages": 3, "denoise": 3,
 }
 # The folder whose code a public header declares.
@@ -39,7 +39,7 @@ HEADER_FOLDER = {
     "aov": "aov", "io": "io", "color": "color", "metrics": "metrics", "skip": "skip",
     "threads": "core", "version": "core", "progress": "core",
     "prefilter": "prefilter", "nfor": "nfor", "cnn": "cnn", "oidn": "oidn", "sure": "sure",
-    "mix": "mix", "frames": "frames", "chain": "chain", "settings": "chain", "stages": "chain",
+    "mix": "mix", "frames": "frames", "choose": "choose", "chain": "chain", "settings": "chain", "stages": "chain",
     "denoise": "chain",
 }
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"', re.M)

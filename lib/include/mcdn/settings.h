@@ -9,6 +9,7 @@
 #include <utility>
 #include <vector>
 
+#include "mcdn/choose.h"
 #include "mcdn/cnn.h"
 #include "mcdn/mix.h"
 #include "mcdn/nfor.h"
@@ -32,6 +33,7 @@ bool apply_settings(NforOptions& options, const Settings& settings, std::string&
 bool apply_settings(CnnOptions& options, const Settings& settings, std::string& error);
 bool apply_settings(SureOptions& options, const Settings& settings, std::string& error);
 bool apply_settings(MixOptions& options, const Settings& settings, std::string& error);
+bool apply_settings(ChooseOptions& options, const Settings& settings, std::string& error);
 
 /// The settings of one stage out of "stage.key" settings: {"nfor.window": "19"} -> {"window":
 /// "19"}.

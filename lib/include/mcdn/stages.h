@@ -23,7 +23,7 @@ namespace mcdn {
 enum class StageKind {
     Denoiser,   ///< dst = F(src): what SURE estimates the error of and runs K + 1 times
     Estimator,  ///< sure: the error of the denoisers before it, as channels of its result
-    Mixer,      ///< mix: reads what an Estimator before it wrote
+    Mixer,      ///< choose, mix: read what an Estimator before them wrote
     Plan,       ///< denoise: picks the whole chain itself from the inputs (mcdn/denoise.h)
 };
 
@@ -103,7 +103,7 @@ struct StageInfo {
 };
 
 /// Every stage, in the order --help lists them: denoise, prefilter, nfor, cnn, oidn, sure,
-/// mix.
+/// choose, mix.
 const std::vector<StageInfo>& stage_table();
 /// The entry named `name` or one of its aliases; null when none.
 const StageInfo* find_stage(const std::string& name);

@@ -350,7 +350,7 @@ bool run_stages(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOp
         planned.stages = plan.stages;
         if (auto it = o.settings.find("denoise.extras"); it != o.settings.end())
             for (const std::string& stage : plan.stages)
-                if (find_stage(stage)->kind == StageKind::Denoiser)
+                if (find_stage(stage)->kind == StageKind::Denoiser || stage == "choose")
                     planned.settings.emplace(stage + ".extras", it->second);
         if (!planned.settings.count("mix.model"))
             planned.settings["mix.model"] = "net";

@@ -39,10 +39,23 @@ bool plan_denoise(DenoisePlan& plan, const ImageSpec& merged, const AovSpec& spe
     std::string weights, unused;
     const bool has_oidn = oidn_weights(weights, oidn, albedo, normal, unused);
     const std::string denoiser = has_oidn ? "oidn" : "cnn";
+    const auto nfor_setting = settings.find("denoise.nfor");
+    const bool nfor = nfor_setting == settings.end() || nfor_setting->second != "0";
+    const bool halves = aovs.has(Role::ColorA) && aovs.has(Role::ColorB);
     if (aovs.has(Role::ColorVariance)) {
         plan.stages = { denoiser, "sure", "mix" };
         plan.why = format("the input has a colour variance ({})",
                           Strutil::join(aovs.names(Role::ColorVariance), ","));
+        // Cross-frame, the CNN's input is combined with its neighbours against flicker;
+        // choose's NFOR would be this frame's alone.
+        const auto frames = settings.find("denoise.frames");
+        const bool cross_frame = frames != settings.end() && frames->second != "0";
+        if (halves && nfor && !cross_frame) {
+            plan.stages.insert(plan.stages.begin() + 2, "choose");
+            plan.why += " and half buffers (NFOR, chosen per pixel by SURE; nfor=0: not)";
+        } else if (halves && nfor) {
+            plan.why += " (cross-frame: NFOR is not chosen beside the CNN)";
+        }
     } else {
         plan.stages = { denoiser };
         plan.why = "no colour variance, which SURE and the mix need (render one, or give "

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 
+#include "mcdn/choose.h"
 #include "mcdn/cnn.h"
 #include "mcdn/frames.h"
 #include "mcdn/mix.h"
@@ -172,7 +173,8 @@ StageInfo nfor_stage()
              "above the render's variance is the render, -v says how many (fallback-aov=1 adds "
              "channel nfor.fallback, 1 on those tiles). "
              "Cross-frame (§8), in a sequence: frames=2 fits over the 2 previous and 2 next "
-             "frames too, aligned by the motion vectors (Blender's Vector pass, RenderMan's forward and backward); it reads them "
+             "frames too, aligned by the motion vectors (Blender's Vector pass, RenderMan's "
+             "forward and backward); it reads them "
              "(also across --frames chunk edges), never writes them, and runs the whole frame.";
     s.needs = "the colour and its two half buffers (each the mean of half the samples: "
               "-i:as=halfA, -i:as=halfB; a Tungsten folder has them); the variance of the mean "
@@ -235,7 +237,8 @@ StageInfo cnn_stage()
              "firefly) is taken out of the network's input and its excess removed, by --nfor's "
              "rule (outliers=drop; off: left in, where the kernels spread it). "
              "Cross-frame, in a sequence: frames=2 first combines this frame with 2 previous "
-             "and 2 next ones, aligned by the motion vectors (Blender's Vector pass, RenderMan's forward and backward), weighted "
+             "and 2 next ones, aligned by the motion vectors (Blender's Vector pass, RenderMan's "
+             "forward and backward), weighted "
              "by how well their patches agree (by the colour's variance or halves, else by the "
              "frames' agreement with each other): a render of up to 5 times the samples where "
              "they do. It reads them (also across --frames chunk edges), never writes them.";
@@ -458,6 +461,84 @@ StageInfo mix_stage()
     return s;
 }
 
+// ---- choose (PD §3.2, NFOR §5.3's selection) -------------------------------------------
+
+// NFOR as choose runs it (prefilter, nfor at their defaults) and how far it reaches.
+bool make_nfor_chain(Denoiser& denoiser, int& radius, const ChooseOptions& o,
+                     const StageContext& context, std::string& error)
+{
+    StageContext quiet = context;
+    quiet.progress = {};  // choose reports for it
+    quiet.previous_frames.clear();
+    quiet.next_frames.clear();
+    MadeStage prefilter, nfor;
+    if (!make_prefilter(prefilter, {}, quiet, error)
+        || !make_nfor(nfor, { { "extras", o.denoise_extras ? "1" : "0" } }, quiet, error))
+        return false;
+    radius = chain_radius({ prefilter.reach, nfor.reach });
+    denoiser = compose_in_place(
+        { { "prefilter", std::move(prefilter.run) }, { "nfor", std::move(nfor.run) } });
+    return true;
+}
+
+bool make_choose(MadeStage& made, const Settings& settings, const StageContext& context,
+                 std::string& error)
+{
+    ChooseOptions o;
+    Denoiser other;
+    if (!options_of(o, settings, context, error)
+        || !make_nfor_chain(other, o.other_radius, o, context, error))
+        return false;
+    made.reach = { o.other_radius + receptive_radius(o), o.other_radius + receptive_radius(o),
+                   false };
+    made.run = [o, other, roi = context.roi, n = context.nthreads](ImageBuf& dst,
+                                                                   const ImageBuf& src) {
+        return choose(dst, src, other, o, roi, n);
+    };
+    return true;
+}
+
+StageInfo choose_stage()
+{
+    StageInfo s;
+    s.name = "choose";
+    s.kind = StageKind::Mixer;
+    s.keys = { "window", "blend", "probes", "extras", "weight-aov" };
+    s.reads_halves = true;
+    s.facts.color_sums = true;
+    s.facts.constant_features = true;
+    s.frame_buffers = 4.0;  // the render rebuilt, NFOR's result with its SURE, NFOR's own
+    s.help = "After --cnn (or --oidn) --sure: runs NFOR (--prefilter --nfor) and its SURE on "
+             "the render, and weighs the two per pixel by their SURE summed over the window "
+             "around it, relative to the value and the render's variance (each its share of "
+             "the inverse errors: PD §3.2, NFOR §5.3), the weight smoothed; light AOVs take the "
+             "same weights, so they still add up. --mix after it mixes the result with the "
+             "render. window=17 (the sums' width), blend=9 (the weight's smoothing), probes=1 "
+             "(NFOR's SURE costs probes+1 NFOR runs), weight-aov=1 adds channel choose.weight "
+             "(1: NFOR's). --denoise runs it where the render has half buffers.";
+    s.needs = "what --sure adds after a denoiser; the colour's half buffers and variance (NFOR "
+              "§5's input).";
+    s.check = check_settings<ChooseOptions>;
+    s.make = make_choose;
+    s.reach = [](const Settings& settings, const std::string&) {
+        ChooseOptions o;
+        std::string error;
+        if (!apply_settings(o, settings, error))
+            return StageReach();
+        const int r =
+            chain_radius({ reach_of<PrefilterOptions>({}, ""), reach_of<NforOptions>({}, "") })
+            + receptive_radius(o);
+        return StageReach { r, r, false };
+    };
+    s.can_run = [](const AovSet& aovs, std::string& how) {
+        const bool ok = has_halves(aovs) && aovs.has(Role::ColorVariance);
+        how = ok ? "after --sure: NFOR on the halves, per pixel the lower SURE"
+                 : "needs the colour's half buffers and variance";
+        return ok;
+    };
+    return s;
+}
+
 // ---- the table ------------------------------------------------------------------------
 
 StageInfo denoise_stage()
@@ -466,18 +547,24 @@ StageInfo denoise_stage()
     s.name = "denoise";
     s.kind = StageKind::Plan;
     s.cross_frame = true;
-    s.keys = { "extras" };
+    s.keys = { "extras", "nfor" };
     s.reads_light_split = true;
+    s.reads_halves = true;  // choose's NFOR, where the render has them
     s.help = "The best chain the inputs allow: with a colour variance --cnn --sure --mix "
              "(KPCN, its SURE, the progressive mix by the network: never much worse than the "
-             "better of render and CNN), without one --cnn alone; with OIDN's weights where "
+             "better of render and CNN), with half buffers too --choose before --mix (NFOR "
+             "beside the CNN, per pixel by SURE; nfor=0: not, and not its cost; not with "
+             "frames=N), without a "
+             "variance --cnn alone; with OIDN's weights where "
              "--oidn finds them, --oidn in the CNN's place. -v prints which and why. "
              "To choose stages and their settings, name them instead. In a sequence, frames=2 "
              "is cross-frame: the CNN's input is this frame combined with 2 previous and 2 next "
              "ones where they agree (as --cnn:frames=2), against flicker: it needs the motion "
-             "vectors (Blender's Vector pass, RenderMan's forward and backward), and weighs the agreement by the colour's variance "
+             "vectors (Blender's Vector pass, RenderMan's forward and backward), and weighs the "
+             "agreement by the colour's variance "
              "or halves, else by how well the frames agree with each other (Cycles: tick Seed's "
-             "animate, or frames of one seed bring nothing where nothing moves). Light groups and passes are denoised with the "
+             "animate, or frames of one seed bring nothing where nothing moves). Light groups and "
+             "passes are denoised with the "
              "beauty (extras=0: keep them as rendered, and the time they cost).";
     s.needs = "the colour (any preset); with its variance (the renderer's variance AOV, a "
               "Tungsten folder; Cycles writes none: render K seeds, -i:as=seed each) the mixed "
@@ -488,11 +575,12 @@ StageInfo denoise_stage()
 
 std::vector<StageInfo> make_table()
 {
-    std::vector<StageInfo> table = { denoise_stage(), prefilter_stage(), nfor_stage(), cnn_stage(),
-                                     oidn_stage(),    sure_stage(),      mix_stage() };
+    std::vector<StageInfo> table = { denoise_stage(), prefilter_stage(), nfor_stage(),
+                                     cnn_stage(),     oidn_stage(),      sure_stage(),
+                                     choose_stage(),  mix_stage() };
     // The plan's memory is that of its longest chain (mcdn/denoise.h): cnn or oidn, sure,
-    // mix; per thread, the larger of its denoisers' networks.
-    for (const char* planned : { "cnn", "sure", "mix" }) {
+    // choose, mix; per thread, the larger of its denoisers' networks.
+    for (const char* planned : { "cnn", "sure", "choose", "mix" }) {
         const auto& stage = *std::find_if(table.begin(), table.end(),
                                           [&](const StageInfo& s) { return s.name == planned; });
         table[0].frame_buffers += stage.frame_buffers;

@@ -1,0 +1,74 @@
+// Choosing between two denoisers by their SURE: Progressive Denoising §3.2 observes that
+// SURE's per-pixel estimate is too noisy to decide alone but that its local averages follow
+// the true error, and "could form the basis of a decision"; NFOR §5.3 weighs its candidates
+// by error estimates filtered over a window, and Zheng et al. (PD §2.2) combine denoisers by
+// their MSE estimates. Per pixel p, for each candidate k (a, b):
+//
+//   E_k(p) = sum over the (2 window + 1)^2 box around p, and over R, G, B, of
+//            SURE_k / (ybar^2 + 0.01 + Var)      ybar = (y_a + y_b) / 2, Var the render's
+//   w0     = E_a / (E_a + E_b)                  each E at least 1e-9: b's share of the
+//                                               inverse errors (w0 = 1: b alone)
+//   w      = w0 averaged over the (2 blend + 1)^2 box around p
+//   y      = y_a + w (y_b - y_a), each RGB extra AOV likewise (the same w: the extras that
+//            add up to the beauty still do)
+//
+// The error counts relative to the value, as relMSE does, and to the render's variance too:
+// SURE's own noise grows with the variance (its terms (y - x)^2, 2 Var f' and Var each
+// swing by about Var), so a firefly's estimate, which could decide a window alone, weighs
+// as little as it tells. On our evaluation inputs (bench/results/choose.md),
+// without Var in the scale, one scene's choice came out 3.4x worse than its better
+// candidate; a hard choice of the lower E (NFOR's rule) was up to 7% worse than it.
+// The result's SURE: its residual ||y - x||^2 exactly, its divergence (1 - w) div_a +
+// w div_b (w held fixed: it follows windows of hundreds of pixels), so that a mix after it
+// (PD §4) reads the chosen image's own estimate.
+//
+// a is the image src holds (a denoiser's result after sure: its colour, sure.*, noisy.*);
+// b is `other` run by choose itself on the render that sure recorded (noisy.*), with its own
+// SURE (K probes, mcdn/sure.h). --denoise runs it after --cnn (or --oidn) --sure with NFOR
+// (prefilter, nfor) as b where the render has half buffers.
+#pragma once
+
+#include <OpenImageIO/imagebuf.h>
+
+#include "mcdn/aov.h"
+#include "mcdn/progress.h"
+#include "mcdn/sure.h"
+
+namespace mcdn {
+
+struct ChooseOptions {
+    AovSpec aovs;
+    /// The window's radius: 8 sums SURE over 17×17 pixels (PD Fig. 3: single pixels decide
+    /// nothing; NFOR §5.3 filters its error maps over a 19×19 window).
+    int window_radius = 8;
+    /// The weight's smoothing radius (9×9), as NFOR §5.3 filters its selection maps.
+    int blend_radius = 4;
+    /// SURE of `other` (probes, eps, seed, its safety net); aovs and progress are this op's.
+    SureOptions sure;
+    /// How far `other` reaches (SureOptions::denoiser_radius); -1: not known.
+    int other_radius = -1;
+    /// Handed to the stage that makes `other` (NforOptions::denoise_extras for --denoise's
+    /// NFOR): its extras are denoised as the image before's were (extras=0: as rendered).
+    bool denoise_extras = true;
+    /// Add channel choose.weight: w (0: the image before, 1: other's).
+    bool output_weight = false;
+    ProgressCallback progress;
+};
+
+/// Float attribute of choose's output: the mean of w over the frame (how much of the
+/// result is `other`'s).
+constexpr const char* kChooseShareAttribute = "mcdn:choose_share";
+
+/// dst = src with the colour, its RGB extras and sure.*, sure.divergence.*, sure.residual.*
+/// replaced by the choice above between src's denoised image (a) and other's (b), which
+/// choose runs with its SURE on the render src's noisy.* records. Needs what sure adds and
+/// the colour's variance. dst may be src.
+bool choose(ImageBuf& dst, const ImageBuf& src, const Denoiser& other,
+            const ChooseOptions& options = {}, ROI roi = {}, int nthreads = 0);
+ImageBuf choose(const ImageBuf& src, const Denoiser& other, const ChooseOptions& options = {},
+                ROI roi = {}, int nthreads = 0);
+
+/// How far a pixel of choose's result reaches into the render, past `other`'s reach.
+int receptive_radius(const ChooseOptions& options);
+
+}  // namespace mcdn

@@ -1,0 +1,298 @@
+// Choosing between two denoisers by their SURE (mcdn/choose.h): the render rebuilt from
+// sure's record, the other denoiser and its SURE on it, the decision map, the blend.
+#include "mcdn/choose.h"
+
+#include <cmath>
+
+#include <OpenImageIO/strutil.h>
+
+#include "core/channels.h"
+#include "core/op_prepare.h"
+#include "core/planar.h"
+#include "core/progress.h"
+#include "core/trace.h"
+
+namespace mcdn {
+
+namespace {
+
+using OIIO::Strutil::fmt::format;
+
+// The relMSE offset: a pixel's error counts relative to its value, as the metric does.
+constexpr float kRelativeOffset = 0.01f;
+// The least a window's summed relative SURE counts as (mcdn/choose.h).
+constexpr double kLeastError = 1e-9;
+
+// Where one RGB image and its SURE are in a frame written by sure.
+struct Candidate {
+    int y[3], sure[3], divergence[3], residual[3];
+};
+
+struct ChooseChannels {
+    Candidate a, b;   // a in src, b in other's result
+    int x[3];         // the render (noisy.*) in src
+    int variance[3];  // the variance of its mean in src
+    // Each RGB extra's channel in src and in other's result.
+    std::vector<std::pair<int, int>> extras;
+};
+
+bool find_candidate(Candidate& c, const ImageSpec& spec, const AovSet& aovs, std::string& error)
+{
+    for (int k = 0; k < 3; ++k) {
+        c.y[k] = aovs.channels(Role::Color)[k];
+        const std::pair<int*, const char*> named[] = {
+            { &c.sure[k], sure_channels::kSure[k] },
+            { &c.divergence[k], sure_channels::kDivergence[k] },
+            { &c.residual[k], sure_channels::kResidual[k] },
+        };
+        for (const auto& [channel, name] : named)
+            if ((*channel = spec.channelindex(name)) < 0) {
+                error = format("needs what --sure adds (run --sure before it: --cnn --sure "
+                               "--choose); the input has no '{}'",
+                               name);
+                return false;
+            }
+    }
+    return true;
+}
+
+// The render as sure recorded it: src with the colour and each RGB extra put back from
+// noisy.* (a denoiser before sure writes nothing else).
+bool rebuild_render(ImageBuf& render, const ImageBuf& src, const ChooseChannels& ch,
+                    const AovSet& aovs, int nthreads, std::string& error)
+{
+    render = copy_with_channels(src, {}, {}, nthreads);
+    if (!render.localpixels()) {
+        error = format("out of memory for a copy of the {}x{} frame of {} channels",
+                       src.spec().width, src.spec().height, src.spec().nchannels);
+        return false;
+    }
+    std::vector<std::pair<int, int>> from_to;
+    for (int k = 0; k < 3; ++k)
+        from_to.emplace_back(ch.x[k], ch.a.y[k]);
+    for (const AovSet::Extra& extra : aovs.extras())
+        if (extra.channels.size() == 3)
+            for (size_t k = 0; k < 3; ++k) {
+                const int noisy =
+                    src.spec().channelindex(sure_channels::noisy_extra(extra.names[k]));
+                if (noisy >= 0)
+                    from_to.emplace_back(noisy, extra.channels[k]);
+            }
+    const int n = render.nchannels();
+    float* px = static_cast<float*>(render.localpixels());
+    const size_t npixels = render.spec().image_pixels();
+    for (size_t p = 0; p < npixels; ++p)
+        for (const auto& [from, to] : from_to)
+            px[p * n + to] = px[p * n + from];
+    return true;
+}
+
+// Sum over the (2r+1)^2 box around each pixel, clipped to the image (separable, in double so
+// that a long row of large values loses nothing).
+Plane box_sum(const Plane& in, int r)
+{
+    const int w = in.width, h = in.height;
+    Plane rows(w, h), out(w, h);
+    std::vector<double> prefix(size_t(std::max(w, h)) + 1);
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x)
+            prefix[x + 1] = prefix[x] + in(x, y);
+        for (int x = 0; x < w; ++x)
+            rows(x, y) = float(prefix[std::min(w, x + r + 1)] - prefix[std::max(0, x - r)]);
+    }
+    for (int x = 0; x < w; ++x) {
+        for (int y = 0; y < h; ++y)
+            prefix[y + 1] = prefix[y] + rows(x, y);
+        for (int y = 0; y < h; ++y)
+            out(x, y) = float(prefix[std::min(h, y + r + 1)] - prefix[std::max(0, y - r)]);
+    }
+    return out;
+}
+
+// w of mcdn/choose.h: each candidate's SURE relative to (ybar^2 + 0.01 + Var), summed over
+// the window; b's share of the inverse errors; smoothed.
+Plane choice_weight(const ImageBuf& src, const ImageBuf& other, const ChooseChannels& ch,
+                    const ChooseOptions& options, int nthreads)
+{
+    Plane ea, eb;
+    for (int k = 0; k < 3; ++k) {
+        Plane ya, yb, sa, sb, variance;
+        read_planes(
+            src, { { ch.a.y[k], &ya }, { ch.a.sure[k], &sa }, { ch.variance[k], &variance, true } },
+            {}, nthreads);
+        read_planes(other, { { ch.b.y[k], &yb }, { ch.b.sure[k], &sb } }, {}, nthreads);
+        if (k == 0)
+            ea = eb = Plane(ya.width, ya.height);
+        for (size_t i = 0; i < ea.size(); ++i) {
+            const float mean = 0.5f * (ya.px[i] + yb.px[i]);
+            const float scale = mean * mean + kRelativeOffset + variance.px[i];
+            const float a = sa.px[i] / scale, b = sb.px[i] / scale;
+            ea.px[i] += std::isfinite(a) ? a : 0.0f;
+            eb.px[i] += std::isfinite(b) ? b : 0.0f;
+        }
+    }
+    const Plane sum_a = box_sum(ea, options.window_radius),
+                sum_b = box_sum(eb, options.window_radius);
+    for (size_t i = 0; i < ea.size(); ++i) {
+        // SURE summed over a window can still come out at or below 0 (it is unbiased, not
+        // positive): such a candidate is as good as the estimate can tell.
+        const double a = std::max(double(sum_a.px[i]), kLeastError),
+                     b = std::max(double(sum_b.px[i]), kLeastError);
+        ea.px[i] = float(a / (a + b));
+    }
+    Plane w = box_sum(ea, options.blend_radius);
+    for (int y = 0; y < w.height; ++y)
+        for (int x = 0; x < w.width; ++x) {
+            const int bw = std::min(w.width, x + options.blend_radius + 1)
+                           - std::max(0, x - options.blend_radius);
+            const int bh = std::min(w.height, y + options.blend_radius + 1)
+                           - std::max(0, y - options.blend_radius);
+            w(x, y) /= float(bw * bh);
+        }
+    return w;
+}
+
+// dst's colour, extras and SURE channels: a + w (b - a); the residual against x exactly;
+// SURE from the residual, the blended divergence and the variance (SURE_a's own terms).
+void blend(ImageBuf& dst, const ImageBuf& other, const ChooseChannels& ch, const Plane& w,
+           int nthreads)
+{
+    const ROI roi = dst.roi();
+    for (int k = 0; k < 3; ++k) {
+        Plane ya, yb, da, db, ra, sa, x;
+        read_planes(dst,
+                    { { ch.a.y[k], &ya },
+                      { ch.a.divergence[k], &da },
+                      { ch.a.residual[k], &ra },
+                      { ch.a.sure[k], &sa },
+                      { ch.x[k], &x } },
+                    {}, nthreads);
+        read_planes(other, { { ch.b.y[k], &yb }, { ch.b.divergence[k], &db } }, {}, nthreads);
+        for (size_t i = 0; i < w.size(); ++i) {
+            const float t = w.px[i];
+            // SURE_a = r_a + 2 div_a - var: the variance as sure counted it.
+            const float variance = ra.px[i] + 2.0f * da.px[i] - sa.px[i];
+            ya.px[i] += t * (yb.px[i] - ya.px[i]);
+            da.px[i] += t * (db.px[i] - da.px[i]);
+            const float r = ya.px[i] - x.px[i];
+            ra.px[i] = r * r;
+            sa.px[i] = ra.px[i] + 2.0f * da.px[i] - variance;
+        }
+        write_planes(dst,
+                     { { ch.a.y[k], &ya },
+                       { ch.a.divergence[k], &da },
+                       { ch.a.residual[k], &ra },
+                       { ch.a.sure[k], &sa } },
+                     roi);
+    }
+    for (const auto& [in_dst, in_other] : ch.extras) {
+        Plane a, b;
+        read_planes(dst, { { in_dst, &a } }, {}, nthreads);
+        read_planes(other, { { in_other, &b } }, {}, nthreads);
+        for (size_t i = 0; i < w.size(); ++i)
+            a.px[i] += w.px[i] * (b.px[i] - a.px[i]);
+        write_planes(dst, { { in_dst, &a } }, roi);
+    }
+}
+
+}  // namespace
+
+int receptive_radius(const ChooseOptions& options)
+{
+    return options.window_radius + options.blend_radius;
+}
+
+bool choose(ImageBuf& dst, const ImageBuf& src, const Denoiser& other, const ChooseOptions& options,
+            ROI roi, int nthreads)
+{
+    if (!check_op_threads(dst, nthreads, "choose"))
+        return false;
+    if (options.window_radius < 0 || options.blend_radius < 0) {
+        dst.errorfmt("choose: window and blend radii must be at least 0");
+        return false;
+    }
+    StageTrace trace("choose");
+    AovSet aovs;
+    std::string error;
+    ChooseChannels ch;
+    if (!check_op_input(src, options.aovs, aovs, "choose", error)
+        || !aovs.require({ Role::Color, Role::ColorVariance }, src.spec(), error)
+        || !find_candidate(ch.a, src.spec(), aovs, error)) {
+        dst.errorfmt("{}", error.compare(0, 8, "choose: ") == 0 ? error : "choose: " + error);
+        return false;
+    }
+    for (int k = 0; k < 3; ++k) {
+        ch.x[k] = src.spec().channelindex(sure_channels::kNoisy[k]);
+        ch.variance[k] = aovs.channels(Role::ColorVariance)[k];
+    }
+    if (ch.x[0] < 0 || ch.x[1] < 0 || ch.x[2] < 0) {
+        dst.errorfmt("choose: needs what --sure adds; the input has no '{}'",
+                     sure_channels::kNoisy[0]);
+        return false;
+    }
+    // Two steps: b with its SURE (K + 1 runs of other), then the choice and the blend.
+    ProgressCounter progress(options.progress, "choose", 2);
+    ImageBuf render, b;
+    if (!rebuild_render(render, src, ch, aovs, nthreads, error)) {
+        dst.errorfmt("choose: {}", error);
+        return false;
+    }
+    SureOptions sure_options = options.sure;
+    sure_options.aovs = options.aovs;
+    sure_options.denoiser_radius = options.other_radius;
+    if (options.progress)
+        sure_options.progress = [&](const std::string&, float fraction) {
+            return options.progress("choose", 0.5f * fraction);
+        };
+    if (!sure(b, render, other, sure_options, roi, nthreads)) {
+        dst.errorfmt("choose: {}", b.geterror());
+        return false;
+    }
+    render.reset();
+    trace.mark("the other denoiser and its SURE");
+    if (!progress.advance()) {
+        dst.errorfmt("{}", progress.error());
+        return false;
+    }
+    AovSet b_aovs;  // b's channels by name: sure may order them otherwise
+    if (!resolve_aovs(b_aovs, options.aovs, b.spec(), error)
+        || !find_candidate(ch.b, b.spec(), b_aovs, error)) {
+        dst.errorfmt("choose: {}", error);
+        return false;
+    }
+    for (const AovSet::Extra& extra : aovs.extras())
+        if (extra.channels.size() == 3)
+            for (size_t k = 0; k < 3; ++k)
+                if (src.spec().channelindex(sure_channels::noisy_extra(extra.names[k])) >= 0)
+                    ch.extras.emplace_back(extra.channels[k],
+                                           b.spec().channelindex(extra.names[k]));
+    const Plane w = choice_weight(src, b, ch, options, nthreads);
+    if (&dst != &src && !prepare_op(dst, src, options.aovs, aovs, "choose", nthreads))
+        return false;
+    blend(dst, b, ch, w, nthreads);
+    double share = 0;
+    for (float t : w.px)
+        share += t;
+    dst.specmod().attribute(kChooseShareAttribute,
+                            float(share / double(std::max<size_t>(1, w.size()))));
+    if (options.output_weight) {
+        const std::vector<int> channel = add_channels(dst, { "choose.weight" });
+        write_plane(dst, channel[0], w, dst.roi());
+    }
+    trace.mark("the choice and the blend");
+    if (!progress.advance()) {
+        dst.errorfmt("{}", progress.error());
+        return false;
+    }
+    return true;
+}
+
+ImageBuf choose(const ImageBuf& src, const Denoiser& other, const ChooseOptions& options, ROI roi,
+                int nthreads)
+{
+    ImageBuf dst;
+    choose(dst, src, other, options, roi, nthreads);
+    return dst;
+}
+
+}  // namespace mcdn

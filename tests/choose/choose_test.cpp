@@ -1,0 +1,141 @@
+// choose: per pixel the denoiser whose SURE, summed over a window, is lower (mcdn/choose.h).
+#include "mcdn/choose.h"
+
+#include <OpenImageIO/imagebufalgo.h>
+
+#include "mcdn/denoise.h"
+#include "synthetic.h"
+
+using namespace mcdn;
+using namespace mcdn_test;
+
+namespace {
+
+float checker(int x, int y, int c)
+{
+    return ((x / 4 + y / 4) % 2) ? 0.8f : 0.1f + 0.05f * c;
+}
+
+const int kSize = 96;
+
+// The truth where `left` says so (x < kSize / 2, or the other half), the render elsewhere:
+// SURE there is (truth - x)^2 - Var (its derivative is 0; expected error 0) against the
+// render's Var.
+Denoiser half_oracle(bool left)
+{
+    return [left](ImageBuf& dst, const ImageBuf& src) {
+        dst.copy(src, OIIO::TypeDesc::FLOAT);
+        float* px = static_cast<float*>(dst.localpixels());
+        const int n = dst.nchannels();
+        for (int y = 0; y < kSize; ++y)
+            for (int x = 0; x < kSize; ++x)
+                if ((x < kSize / 2) == left)
+                    for (int c = 0; c < 3; ++c)
+                        px[(size_t(y) * kSize + x) * n + c] = checker(x, y, c);
+        return true;
+    };
+}
+
+double mse(const ImageBuf& result, ROI roi)
+{
+    double sum = 0;
+    for (int y = roi.ybegin; y < roi.yend; ++y)
+        for (int x = roi.xbegin; x < roi.xend; ++x)
+            for (int c = 0; c < 3; ++c) {
+                const double d = result.getchannel(x, y, 0, c) - checker(x, y, c);
+                sum += d * d;
+            }
+    return sum / (3.0 * roi.npixels());
+}
+
+// The render with sure's channels after `denoiser`, as the chain hands it to choose.
+ImageBuf after_sure(const ImageBuf& render, const Denoiser& denoiser)
+{
+    SureOptions options;
+    options.aovs = generic_spec();
+    options.fallback = false;
+    ImageBuf out;
+    EXPECT_TRUE(sure(out, render, denoiser, options)) << out.geterror();
+    return out;
+}
+
+}  // namespace
+
+TEST(Choose, KeepsEachDenoiserWhereItsSureIsLower)
+{
+    const float variance = 0.01f;
+    const ImageBuf render = noisy_render(kSize, kSize, checker, variance, 7);
+    const ImageBuf a = after_sure(render, half_oracle(true));
+    ChooseOptions options;
+    options.aovs = generic_spec();
+    options.output_weight = true;
+    ImageBuf out;
+    ASSERT_TRUE(choose(out, a, half_oracle(false), options)) << out.geterror();
+    const int weight = out.spec().channelindex("choose.weight");
+    ASSERT_GE(weight, 0);
+    // Away from the seam (the window and the smoothing reach 12 pixels), each side is its
+    // oracle: b's share of the inverse errors is small where b's error is the render's.
+    const ROI left(0, kSize / 2 - 13, 0, kSize), right(kSize / 2 + 13, kSize, 0, kSize);
+    const auto weights_left = OIIO::ImageBufAlgo::computePixelStats(out, left);
+    const auto weights_right = OIIO::ImageBufAlgo::computePixelStats(out, right);
+    EXPECT_LT(weights_left.avg[weight], 0.05);
+    EXPECT_GT(weights_right.avg[weight], 0.95);
+    // Either denoiser alone leaves the render's error on half the frame.
+    const ROI all(0, kSize, 0, kSize);
+    EXPECT_LT(mse(out, left), 0.05 * mse(a, right));
+    EXPECT_LT(mse(out, right), 0.05 * mse(a, right));
+    EXPECT_LT(mse(out, all), 0.1 * mse(a, all));
+    EXPECT_NEAR(out.spec().get_float_attribute(kChooseShareAttribute), 0.5, 0.05);
+    // Its SURE is the chosen image's: residual against the render, and the sum of terms.
+    const int x = out.spec().channelindex("noisy.G"), s = out.spec().channelindex("sure.G"),
+              r = out.spec().channelindex("sure.residual.G"),
+              d = out.spec().channelindex("sure.divergence.G");
+    for (int y = 0; y < kSize; y += 7)
+        for (int px = 0; px < kSize; px += 5) {
+            const float e = out.getchannel(px, y, 0, 1) - out.getchannel(px, y, 0, x);
+            EXPECT_NEAR(out.getchannel(px, y, 0, r), e * e, 1e-6f);
+            EXPECT_NEAR(out.getchannel(px, y, 0, s),
+                        out.getchannel(px, y, 0, r) + 2 * out.getchannel(px, y, 0, d) - variance,
+                        1e-5f);
+        }
+}
+
+TEST(Choose, SameBitsForAnyThreadsAndInPlace)
+{
+    const ImageBuf render = noisy_render(kSize, kSize, checker, 0.02f, 11);
+    ImageBuf a = after_sure(render, box_denoiser(2));
+    ChooseOptions options;
+    options.aovs = generic_spec();
+    ImageBuf one, two;
+    ASSERT_TRUE(choose(one, a, box_denoiser(4), options, {}, 1)) << one.geterror();
+    ASSERT_TRUE(choose(two, a, box_denoiser(4), options, {}, 2)) << two.geterror();
+    ASSERT_TRUE(choose(a, a, box_denoiser(4), options, {}, 2)) << a.geterror();
+    EXPECT_EQ(OIIO::ImageBufAlgo::compare(one, two, 0, 0).nfail, 0u);
+    EXPECT_EQ(OIIO::ImageBufAlgo::compare(one, a, 0, 0).nfail, 0u);
+}
+
+TEST(Choose, WithoutSureItSaysToRunSure)
+{
+    const ImageBuf render = noisy_render(32, 32, checker, 0.01f, 3);
+    ChooseOptions options;
+    options.aovs = generic_spec();
+    ImageBuf out;
+    EXPECT_FALSE(choose(out, render, box_denoiser(1), options));
+    EXPECT_NE(out.geterror().find("--sure"), std::string::npos) << out.geterror();
+}
+
+TEST(Choose, DenoisePlansItWhereTheRenderHasHalves)
+{
+    const ImageBuf render = noisy_render(32, 32, checker, 0.01f, 3);
+    DenoisePlan plan;
+    std::string error;
+    ASSERT_TRUE(plan_denoise(plan, render.spec(), generic_spec(), error)) << error;
+    EXPECT_EQ(plan.stages, (std::vector<std::string> { "cnn", "sure", "choose", "mix" }));
+    ASSERT_TRUE(
+        plan_denoise(plan, render.spec(), generic_spec(), error, { { "denoise.nfor", "0" } }));
+    EXPECT_EQ(plan.stages, (std::vector<std::string> { "cnn", "sure", "mix" }));
+    // Without halves there is no NFOR to choose.
+    const ImageBuf no_halves = OIIO::ImageBufAlgo::channels(render, 6, { 0, 1, 2, 3, 4, 5 });
+    ASSERT_TRUE(plan_denoise(plan, no_halves.spec(), generic_spec(), error)) << error;
+    EXPECT_EQ(plan.stages, (std::vector<std::string> { "cnn", "sure", "mix" }));
+}
