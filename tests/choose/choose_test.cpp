@@ -129,13 +129,19 @@ TEST(Choose, DenoisePlansItWhereTheRenderHasHalves)
     const ImageBuf render = noisy_render(32, 32, checker, 0.01f, 3);
     DenoisePlan plan;
     std::string error;
-    ASSERT_TRUE(plan_denoise(plan, render.spec(), generic_spec(), error)) << error;
+    // Our CNN's plan, whatever OIDN weights this machine has.
+    const std::map<std::string, std::string> cnn = { { "oidn.weights", "/nonexistent" } };
+    ASSERT_TRUE(plan_denoise(plan, render.spec(), generic_spec(), error, cnn)) << error;
     EXPECT_EQ(plan.stages, (std::vector<std::string> { "cnn", "sure", "choose", "mix" }));
-    ASSERT_TRUE(
-        plan_denoise(plan, render.spec(), generic_spec(), error, { { "denoise.nfor", "0" } }));
+    ASSERT_TRUE(plan_denoise(plan, render.spec(), generic_spec(), error,
+                             { { "oidn.weights", "/nonexistent" }, { "denoise.nfor", "0" } }));
     EXPECT_EQ(plan.stages, (std::vector<std::string> { "cnn", "sure", "mix" }));
     // Without halves there is no NFOR to choose.
     const ImageBuf no_halves = OIIO::ImageBufAlgo::channels(render, 6, { 0, 1, 2, 3, 4, 5 });
-    ASSERT_TRUE(plan_denoise(plan, no_halves.spec(), generic_spec(), error)) << error;
+    ASSERT_TRUE(plan_denoise(plan, no_halves.spec(), generic_spec(), error, cnn)) << error;
+    EXPECT_EQ(plan.stages, (std::vector<std::string> { "cnn", "sure", "mix" }));
+    // Cross-frame, the CNN's neighbours are against flicker: NFOR would be one frame's.
+    ASSERT_TRUE(plan_denoise(plan, render.spec(), generic_spec(), error,
+                             { { "oidn.weights", "/nonexistent" }, { "denoise.frames", "2" } }));
     EXPECT_EQ(plan.stages, (std::vector<std::string> { "cnn", "sure", "mix" }));
 }

@@ -5,7 +5,8 @@
 //                                  of render and denoised image by the network trained for
 //                                  the KPCN op, bounded by the t-test: never much worse than
 //                                  the better of the two
-//   and half buffers too (not with settings denoise.nfor=0, nor cross-frame: denoise.frames):
+//   and half buffers too (not with settings denoise.nfor=0, nor cross-frame: denoise.frames,
+//   nor with OIDN, beside which it was better on some renders and worse on others):
 //       cnn -> sure -> choose -> mix
 //                                  NFOR and its SURE beside the CNN, the two weighed per pixel
 //                                  by their SURE (mcdn/choose.h), then the mix

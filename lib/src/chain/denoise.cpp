@@ -47,14 +47,16 @@ bool plan_denoise(DenoisePlan& plan, const ImageSpec& merged, const AovSpec& spe
         plan.why = format("the input has a colour variance ({})",
                           Strutil::join(aovs.names(Role::ColorVariance), ","));
         // Cross-frame, the CNN's input is combined with its neighbours against flicker;
-        // choose's NFOR would be this frame's alone.
+        // choose's NFOR would be this frame's alone. Beside OIDN, choose was better on some
+        // renders and worse on others (docs/accuracy.md): run by name there.
         const auto frames = settings.find("denoise.frames");
         const bool cross_frame = frames != settings.end() && frames->second != "0";
-        if (halves && nfor && !cross_frame) {
+        if (halves && nfor && !cross_frame && !has_oidn) {
             plan.stages.insert(plan.stages.begin() + 2, "choose");
             plan.why += " and half buffers (NFOR, chosen per pixel by SURE; nfor=0: not)";
         } else if (halves && nfor) {
-            plan.why += " (cross-frame: NFOR is not chosen beside the CNN)";
+            plan.why += cross_frame ? " (cross-frame: NFOR is not weighed beside the CNN)"
+                                    : " (NFOR is not weighed beside OIDN: --choose by name)";
         }
     } else {
         plan.stages = { denoiser };

@@ -11,6 +11,7 @@
 #include "core/planar.h"
 #include "core/progress.h"
 #include "core/trace.h"
+#include "sure/sure_steps.h"
 
 namespace mcdn {
 
@@ -244,7 +245,8 @@ bool choose(ImageBuf& dst, const ImageBuf& src, const Denoiser& other, const Cho
         sure_options.progress = [&](const std::string&, float fraction) {
             return options.progress("choose", 0.5f * fraction);
         };
-    if (!sure(b, render, other, sure_options, roi, nthreads)) {
+    // The rebuilt render is choose's own: sure probes it in place (no copy of the frame).
+    if (!sure_probing_src(b, render, other, sure_options, roi, nthreads)) {
         dst.errorfmt("choose: {}", b.geterror());
         return false;
     }
