@@ -53,7 +53,8 @@ bool plan_denoise(DenoisePlan& plan, const ImageSpec& merged, const AovSpec& spe
         const bool cross_frame = frames != settings.end() && frames->second != "0";
         if (halves && nfor && !cross_frame && !has_oidn) {
             plan.stages.insert(plan.stages.begin() + 2, "choose");
-            plan.why += " and half buffers (NFOR, chosen per pixel by SURE; nfor=0: not)";
+            plan.why +=
+                " and half buffers (NFOR beside it, weighed per pixel by SURE; nfor=0: not)";
         } else if (halves && nfor) {
             plan.why += cross_frame ? " (cross-frame: NFOR is not weighed beside the CNN)"
                                     : " (NFOR is not weighed beside OIDN: --choose by name)";

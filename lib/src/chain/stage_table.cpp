@@ -532,7 +532,7 @@ StageInfo choose_stage()
     };
     s.can_run = [](const AovSet& aovs, std::string& how) {
         const bool ok = has_halves(aovs) && aovs.has(Role::ColorVariance);
-        how = ok ? "after --sure: NFOR on the halves, per pixel the lower SURE"
+        how = ok ? "after --sure: NFOR on the halves, weighed per pixel by SURE"
                  : "needs the colour's half buffers and variance";
         return ok;
     };
