@@ -1,5 +1,5 @@
 // Choosing between two denoisers by their SURE (mcdn/choose.h): the render rebuilt from
-// sure's record, the other denoiser and its SURE on it, the decision map, the blend.
+// sure's record, the other denoiser and its SURE on it, the weight map, the blend.
 #include "mcdn/choose.h"
 
 #include <cmath>
