@@ -114,7 +114,7 @@ TEST(Choose, SameBitsForAnyThreadsAndInPlace)
     EXPECT_EQ(OIIO::ImageBufAlgo::compare(one, a, 0, 0).nfail, 0u);
 }
 
-TEST(Choose, WithoutSureItSaysToRunSure)
+TEST(Choose, WithoutSureOrHalvesItSaysWhatIsMissing)
 {
     const ImageBuf render = noisy_render(32, 32, checker, 0.01f, 3);
     ChooseOptions options;
@@ -122,6 +122,16 @@ TEST(Choose, WithoutSureItSaysToRunSure)
     ImageBuf out;
     EXPECT_FALSE(choose(out, render, box_denoiser(1), options));
     EXPECT_NE(out.geterror().find("--sure"), std::string::npos) << out.geterror();
+    // Without half buffers NFOR would run another path than the one choose is made for.
+    const ImageBuf a = after_sure(render, box_denoiser(1));
+    std::vector<int> kept;
+    for (int c = 0; c < a.nchannels(); ++c)
+        if (a.spec().channelnames[c].compare(0, 2, "A.") != 0
+            && a.spec().channelnames[c].compare(0, 2, "B.") != 0)
+            kept.push_back(c);
+    const ImageBuf no_halves = OIIO::ImageBufAlgo::channels(a, int(kept.size()), kept);
+    EXPECT_FALSE(choose(out, no_halves, box_denoiser(1), options));
+    EXPECT_NE(out.geterror().find("half buffers"), std::string::npos) << out.geterror();
 }
 
 TEST(Choose, DenoisePlansItWhereTheRenderHasHalves)
