@@ -20,6 +20,7 @@
 #include <OpenImageIO/timer.h>
 
 #include "mcdn/chain.h"
+#include "mcdn/choose.h"
 #include "mcdn/color.h"
 #include "mcdn/denoise.h"
 #include "mcdn/frames.h"
@@ -172,12 +173,23 @@ constexpr const char* kFallbackCounts[] = { mcdn::kNforFallbackCountAttribute,
                                             mcdn::kSureFallbackCountAttribute,
                                             mcdn::kSureWorseCountAttribute };
 
+// choose's share summed over the bands' pixels (halos too: what -v says is a mean).
+constexpr const char* kChooseShareSum = "mcdntool:choose_share_sum";
+constexpr const char* kChoosePixels = "mcdntool:choose_pixels";
+
 }  // namespace
 
 void add_fallback_counts(OIIO::ImageSpec& sum, const OIIO::ImageSpec& band)
 {
     for (const char* count : kFallbackCounts)
         sum.attribute(count, sum.get_int_attribute(count, 0) + band.get_int_attribute(count, 0));
+    if (band.find_attribute(mcdn::kChooseShareAttribute)) {
+        const float pixels = float(band.image_pixels());
+        sum.attribute(kChooseShareSum,
+                      sum.get_float_attribute(kChooseShareSum, 0)
+                          + band.get_float_attribute(mcdn::kChooseShareAttribute) * pixels);
+        sum.attribute(kChoosePixels, sum.get_float_attribute(kChoosePixels, 0) + pixels);
+    }
 }
 
 void report_repaired_halves(int tiles)
@@ -189,7 +201,7 @@ void report_repaired_halves(int tiles)
                             tiles, mcdn::kConvergedTileSize, mcdn::kConvergedTileSize);
 }
 
-void report_fallback(const OIIO::ImageSpec& result)
+void report_fallback(const OIIO::ImageSpec& result, const std::string& stage)
 {
     for (const auto& [stage, attribute, estimate] :
          { std::tuple { "nfor", mcdn::kNforFallbackCountAttribute, "NFOR's own MSE estimate" },
@@ -200,6 +212,16 @@ void report_fallback(const OIIO::ImageSpec& result)
                                 "turns it off, fallback-aov=1 shows where)\n",
                                 stage, tiles, mcdn::kConvergedTileSize, mcdn::kConvergedTileSize,
                                 estimate, stage);
+    // A later stage keeps choose's attribute: said once, by choose (or by the bands' sum).
+    const float pixels = result.get_float_attribute(kChoosePixels, 0);
+    if ((stage.empty() || stage == "choose")
+        && (result.find_attribute(mcdn::kChooseShareAttribute) || pixels > 0))
+        std::cerr << format("mcdntool: choose: NFOR's weight averages {:.0f}% over the frame "
+                            "(the rest is the denoiser's before --sure)\n",
+                            100.0f
+                                * (pixels > 0
+                                       ? result.get_float_attribute(kChooseShareSum) / pixels
+                                       : result.get_float_attribute(mcdn::kChooseShareAttribute)));
     if (const int tiles = result.get_int_attribute(mcdn::kSureWorseCountAttribute, 0); tiles > 0)
         std::cerr << format("mcdntool: sure: SURE says the denoiser made {} tile(s) of {}x{} "
                             "pixels worse than the render (kept; --sure:fallback=1 makes them "
@@ -226,7 +248,7 @@ bool Session::apply_to(const std::string& name, const ImageBuf& input, const Sta
     if (verbose) {
         std::cerr << format("mcdntool: {} {}x{} done in {:.2f} s\n", name, result.spec().width,
                             result.spec().height, timer());
-        report_fallback(result.spec());
+        report_fallback(result.spec(), name);
     }
     m_applied.clear();  // the current image is no longer what the chain made from its input
     return replace_image(std::move(result), error);

@@ -155,3 +155,23 @@ TEST(Choose, DenoisePlansItWhereTheRenderHasHalves)
                              { { "oidn.weights", "/nonexistent" }, { "denoise.frames", "2" } }));
     EXPECT_EQ(plan.stages, (std::vector<std::string> { "cnn", "sure", "mix" }));
 }
+
+// mcdntool -v says how much of the result is NFOR's, once, streamed or stage by stage.
+TEST(Choose, VerboseSaysNforsShareOnce)
+{
+    const std::string dir = mcdn_test::temp_dir("choose_verbose");
+    const std::string box = test_data("box16/box_0016spp");
+    const std::string inputs = "-v -i " + box + ".exr -i:as=variance " + box
+                               + "_var.exr -i:as=halfA " + box + "_A.exr -i:as=halfB " + box
+                               + "_B.exr ";
+    for (const std::string& chain :
+         { std::string("--denoise"), std::string("--cnn --sure --choose --fixnan black --mix") }) {
+        const auto run = run_mcdntool(inputs + chain + " -o " + dir + "/out.exr",
+                                      "MCDN_OIDN_WEIGHTS=/nonexistent");
+        ASSERT_EQ(run.exit_code, 0) << run.output;
+        const std::string line = "choose: NFOR's weight averages ";
+        const size_t at = run.output.find(line);
+        ASSERT_NE(at, std::string::npos) << chain << "\n" << run.output;
+        EXPECT_EQ(run.output.find(line, at + 1), std::string::npos) << chain << "\n" << run.output;
+    }
+}
