@@ -59,6 +59,9 @@ struct StageReach {
 StageReach stage_reach(const PrefilterOptions& options);
 StageReach stage_reach(const NforOptions& options);
 StageReach stage_reach(const CnnOptions& options);
+/// choose's: its NFOR's (prefilter, nfor at their defaults, as choose runs them), then its
+/// windows.
+StageReach stage_reach(const ChooseOptions& options);
 
 /// How far a chain of denoisers reaches, for SureOptions::denoiser_radius: the sum of its
 /// stages' reach, each on the input it gets; -1 when any stage's is not known.

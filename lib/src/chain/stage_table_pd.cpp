@@ -146,8 +146,7 @@ bool make_choose(MadeStage& made, const Settings& settings, const StageContext& 
     if (!options_of(o, settings, context, error)
         || !make_nfor_chain(other, o.other_radius, o, context, error))
         return false;
-    made.reach = { o.other_radius + receptive_radius(o), o.other_radius + receptive_radius(o),
-                   false };
+    made.reach = stage_reach(o);
     made.run = [o, other, roi = context.roi, n = context.nthreads](ImageBuf& dst,
                                                                    const ImageBuf& src) {
         return choose(dst, src, other, o, roi, n);
@@ -177,16 +176,7 @@ StageInfo choose_stage()
               "§5's input).";
     s.check = check_settings<ChooseOptions>;
     s.make = make_choose;
-    s.reach = [](const Settings& settings, const std::string&) {
-        ChooseOptions o;
-        std::string error;
-        if (!apply_settings(o, settings, error))
-            return StageReach();
-        const int r =
-            chain_radius({ reach_of<PrefilterOptions>({}, ""), reach_of<NforOptions>({}, "") })
-            + receptive_radius(o);
-        return StageReach { r, r, false };
-    };
+    s.reach = reach_of<ChooseOptions>;
     s.can_run = [](const AovSet& aovs, std::string& how) {
         const bool ok = has_halves(aovs) && aovs.has(Role::ColorVariance);
         how = ok ? "after --sure: NFOR on the halves, weighed per pixel by SURE"

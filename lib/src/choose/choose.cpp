@@ -11,6 +11,7 @@
 #include "core/planar.h"
 #include "core/progress.h"
 #include "core/trace.h"
+#include "ops/window_sums.h"
 #include "sure/sure_steps.h"
 
 namespace mcdn {
@@ -33,6 +34,9 @@ struct ChooseChannels {
     Candidate a, b;   // a in src, b in other's result
     int x[3];         // the render (noisy.*) in src
     int variance[3];  // the variance of its mean in src
+    // Each RGB extra's rendered value (noisy.<channel>, as sure recorded it) and its channel,
+    // in src.
+    std::vector<std::pair<int, int>> recorded_extras;
     // Each RGB extra's channel in src and in other's result.
     std::vector<std::pair<int, int>> extras;
 };
@@ -59,8 +63,8 @@ bool find_candidate(Candidate& c, const ImageSpec& spec, const AovSet& aovs, std
 
 // The render as sure recorded it: src with the colour and each RGB extra put back from
 // noisy.* (a denoiser before sure writes nothing else).
-bool rebuild_render(ImageBuf& render, const ImageBuf& src, const ChooseChannels& ch,
-                    const AovSet& aovs, int nthreads, std::string& error)
+bool rebuild_render(ImageBuf& render, const ImageBuf& src, const ChooseChannels& ch, int nthreads,
+                    std::string& error)
 {
     render = copy_with_channels(src, {}, {}, nthreads);
     if (!render.localpixels()) {
@@ -68,17 +72,9 @@ bool rebuild_render(ImageBuf& render, const ImageBuf& src, const ChooseChannels&
                        src.spec().width, src.spec().height, src.spec().nchannels);
         return false;
     }
-    std::vector<std::pair<int, int>> from_to;
+    std::vector<std::pair<int, int>> from_to = ch.recorded_extras;
     for (int k = 0; k < 3; ++k)
         from_to.emplace_back(ch.x[k], ch.a.y[k]);
-    for (const AovSet::Extra& extra : aovs.extras())
-        if (extra.channels.size() == 3)
-            for (size_t k = 0; k < 3; ++k) {
-                const int noisy =
-                    src.spec().channelindex(sure_channels::noisy_extra(extra.names[k]));
-                if (noisy >= 0)
-                    from_to.emplace_back(noisy, extra.channels[k]);
-            }
     const int n = render.nchannels();
     float* px = static_cast<float*>(render.localpixels());
     const size_t npixels = render.spec().image_pixels();
@@ -86,28 +82,6 @@ bool rebuild_render(ImageBuf& render, const ImageBuf& src, const ChooseChannels&
         for (const auto& [from, to] : from_to)
             px[p * n + to] = px[p * n + from];
     return true;
-}
-
-// Sum over the (2r+1)^2 box around each pixel, clipped to the image (separable, in double so
-// that a long row of large values loses nothing).
-Plane box_sum(const Plane& in, int r)
-{
-    const int w = in.width, h = in.height;
-    Plane rows(w, h), out(w, h);
-    std::vector<double> prefix(size_t(std::max(w, h)) + 1);
-    for (int y = 0; y < h; ++y) {
-        for (int x = 0; x < w; ++x)
-            prefix[x + 1] = prefix[x] + in(x, y);
-        for (int x = 0; x < w; ++x)
-            rows(x, y) = float(prefix[std::min(w, x + r + 1)] - prefix[std::max(0, x - r)]);
-    }
-    for (int x = 0; x < w; ++x) {
-        for (int y = 0; y < h; ++y)
-            prefix[y + 1] = prefix[y] + rows(x, y);
-        for (int y = 0; y < h; ++y)
-            out(x, y) = float(prefix[std::min(h, y + r + 1)] - prefix[std::max(0, y - r)]);
-    }
-    return out;
 }
 
 // w of mcdn/choose.h: each candidate's SURE relative to (ybar^2 + 0.01 + Var), summed over
@@ -132,8 +106,9 @@ Plane choice_weight(const ImageBuf& src, const ImageBuf& other, const ChooseChan
             eb.px[i] += std::isfinite(b) ? b : 0.0f;
         }
     }
-    const Plane sum_a = box_sum(ea, options.window_radius),
-                sum_b = box_sum(eb, options.window_radius);
+    const std::vector<double> window(size_t(2 * options.window_radius + 1), 1.0);
+    const Plane sum_a = separable_window_sum(ea, window, options.window_radius),
+                sum_b = separable_window_sum(eb, window, options.window_radius);
     for (size_t i = 0; i < ea.size(); ++i) {
         // SURE summed over a window can still come out at or below 0 (it is unbiased, not
         // positive): such a candidate is as good as the estimate can tell.
@@ -141,16 +116,8 @@ Plane choice_weight(const ImageBuf& src, const ImageBuf& other, const ChooseChan
                      b = std::max(double(sum_b.px[i]), kLeastError);
         ea.px[i] = float(a / (a + b));
     }
-    Plane w = box_sum(ea, options.blend_radius);
-    for (int y = 0; y < w.height; ++y)
-        for (int x = 0; x < w.width; ++x) {
-            const int bw = std::min(w.width, x + options.blend_radius + 1)
-                           - std::max(0, x - options.blend_radius);
-            const int bh = std::min(w.height, y + options.blend_radius + 1)
-                           - std::max(0, y - options.blend_radius);
-            w(x, y) /= float(bw * bh);
-        }
-    return w;
+    return separable_window_sum(ea, std::vector<double>(size_t(2 * options.blend_radius + 1), 1.0),
+                                options.blend_radius, true);
 }
 
 // dst's colour, extras and SURE channels: a + w (b - a); the residual against x exactly;
@@ -238,10 +205,17 @@ bool choose(ImageBuf& dst, const ImageBuf& src, const Denoiser& other, const Cho
                      sure_channels::kNoisy[0]);
         return false;
     }
+    for (const AovSet::Extra& extra : aovs.extras())
+        if (extra.channels.size() == 3)
+            for (size_t k = 0; k < 3; ++k)
+                if (const int noisy =
+                        src.spec().channelindex(sure_channels::noisy_extra(extra.names[k]));
+                    noisy >= 0)
+                    ch.recorded_extras.emplace_back(noisy, extra.channels[k]);
     // Two steps: b with its SURE (K + 1 runs of other), then the choice and the blend.
     ProgressCounter progress(options.progress, "choose", 2);
     ImageBuf render, b;
-    if (!rebuild_render(render, src, ch, aovs, nthreads, error)) {
+    if (!rebuild_render(render, src, ch, nthreads, error)) {
         dst.errorfmt("choose: {}", error);
         return false;
     }
@@ -269,12 +243,8 @@ bool choose(ImageBuf& dst, const ImageBuf& src, const Denoiser& other, const Cho
         dst.errorfmt("choose: {}", error);
         return false;
     }
-    for (const AovSet::Extra& extra : aovs.extras())
-        if (extra.channels.size() == 3)
-            for (size_t k = 0; k < 3; ++k)
-                if (src.spec().channelindex(sure_channels::noisy_extra(extra.names[k])) >= 0)
-                    ch.extras.emplace_back(extra.channels[k],
-                                           b.spec().channelindex(extra.names[k]));
+    for (const auto& [noisy, channel] : ch.recorded_extras)
+        ch.extras.emplace_back(channel, b.spec().channelindex(src.spec().channel_name(channel)));
     const Plane w = choice_weight(src, b, ch, options, nthreads);
     if (&dst != &src && !prepare_op(dst, src, options.aovs, aovs, "choose", nthreads))
         return false;

@@ -176,7 +176,7 @@ bool core_codec(const ImageSpec& part)
 // as the core itself parses the header, or empty where a part has none: OIIO 2.4's core
 // reader divides by them, and a damaged header can leave them 0 (a scanline part that
 // carries a tile description: tests/fuzz/corpus/exr/scanline_with_tiles.exr).
-std::vector<int> core_block_rows(const std::string& path, size_t nparts)
+std::vector<int> core_block_rows(const std::string& path)
 {
     exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
     init.error_handler_fn = [](exr_const_context_t, exr_result_t, const char*) {};  // quiet
@@ -184,7 +184,7 @@ std::vector<int> core_block_rows(const std::string& path, size_t nparts)
     std::vector<int> rows;
     int count = 0;
     if (exr_start_read(&exr, path.c_str(), &init) == EXR_ERR_SUCCESS
-        && exr_get_count(exr, &count) == EXR_ERR_SUCCESS && size_t(count) >= nparts)
+        && exr_get_count(exr, &count) == EXR_ERR_SUCCESS)
         for (int p = 0; p < count; ++p) {
             exr_storage_t storage = EXR_STORAGE_LAST_TYPE;
             int32_t n = 0;
@@ -216,9 +216,7 @@ void choose_reader(FileLayout& layout)
     if (!allowed || !layout.exr
         || !std::all_of(layout.parts.begin(), layout.parts.end(), core_codec))
         return;
-    const std::vector<int> rows = core_block_rows(layout.path, layout.parts.size());
-    if (rows.empty())
-        return;
+    const std::vector<int> rows = core_block_rows(layout.path);
     for (int s : layout.subimages)
         layout.core_rows.push_back(s < int(rows.size()) ? rows[s] : 0);
     if (std::find(layout.core_rows.begin(), layout.core_rows.end(), 0) != layout.core_rows.end())

@@ -3,7 +3,7 @@
 #include <algorithm>
 
 #include "mix/mix_steps.h"
-#include "mix/window_sums.h"
+#include "ops/window_sums.h"
 
 namespace mcdn {
 

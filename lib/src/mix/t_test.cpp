@@ -18,7 +18,7 @@
 #include "ops/bands.h"
 #include "core/frame_facts.h"
 #include "mix/mix_steps.h"
-#include "mix/window_sums.h"
+#include "ops/window_sums.h"
 
 namespace mcdn {
 

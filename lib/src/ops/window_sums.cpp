@@ -1,4 +1,4 @@
-#include "mix/window_sums.h"
+#include "ops/window_sums.h"
 
 #include <algorithm>
 

@@ -1,5 +1,6 @@
-// Separable sums over a (2r+1)² window clipped to the plane, for the mix's neighbourhoods
-// (the analytic model's box means, eq. 9; the t-test's Gaussian sums, eq. 15).
+// Separable sums over a (2r+1)² window clipped to the plane, for the stages'
+// neighbourhoods: the mix's (the analytic model's box means, eq. 9; the t-test's Gaussian
+// sums, eq. 15) and choose's (SURE summed over a window, its weight smoothed).
 #pragma once
 
 #include <vector>
