@@ -56,158 +56,177 @@ bool check_thread_count(const Command& c, std::string& error)
 
 }  // namespace
 
+namespace {
+
+// The commands on the image of a frame: its inputs, what it is, its output.
+std::vector<CommandInfo> image_commands()
+{
+    return {
+        { "-i",
+          "FILE",
+          { "as", "part" },
+          "Add an input: the render (as=mean, the default), the per-pixel variance of its "
+          "mean (as=variance), or a half buffer (as=halfA, as=halfB). as=seed: one of "
+          "K renders of the frame that differ only in their seed (Cycles' Seed, Arnold's "
+          "AA_seed), given one after another: read as one render, their mean, with the "
+          "variance of the mean and, for an even K, two halves (what Blender does not "
+          "write; --nfor, --sure, --mix and frames=N need them). A directory is read "
+          "as a Tungsten buffer set (color.pfm, colorA.pfm, colorVariance.pfm, ...). "
+          "A multi-part EXR is read as one set of channels (the first part's as they "
+          "are, the others' behind their part's name) and written back with the same "
+          "parts; part=NAME[,NAME...] reads those parts alone. Parts of other data windows (a "
+          "stereo file's views) are denoised each in turn, as view layers are. A bare FILE "
+          "is the same as -i FILE.",
+          run_input,
+          false,
+          check_input,
+          {} },
+        { "--aov",
+          "",
+          { "preset", "layer", "colorspace" },
+          "Say which channels are what: preset=cycles|arnold|renderman|tungsten|oidn|"
+          "generic (default: detected from the channel names, printed with -v), "
+          "colorspace=NAME (OCIO space of the colour channels; default the file's "
+          "oiio:ColorSpace, else scene_linear); "
+          "role=ch1,ch2,ch3 words after it override one role (color, color_variance, "
+          "color_a, albedo, normal, depth, ..., extra.NAME=...).",
+          run_aov,
+          false,
+          check_aov,
+          {} },
+        { "--info",
+          "",
+          { "verbose" },
+          "Print the image size, channels and the resolved AOV roles.",
+          run_info,
+          false,
+          {},
+          {} },
+        { "--metrics",
+          "REF",
+          { "format", "trim", "channels" },
+          "Print MSE, RMSE, relMSE, SMAPE, PSNR and SSIM of the colour against a reference "
+          "image (format=text|json, trim=1 drops the 0.01% best and worst pixels, "
+          "channels=a,b,c compares other channels).",
+          run_metrics,
+          false,
+          check_metrics,
+          {} },
+        { "--heatmap",
+          "FILE",
+          { "ref", "metric", "min", "max" },
+          "Write a false-colour per-pixel error PNG against the last --metrics reference "
+          "(or ref=FILE): metric=relmse|se|ae|smape, log10 range min=-4 max=0.",
+          run_heatmap,
+          false,
+          check_heatmap,
+          {} },
+        { "--ch",
+          "CHANNELS",
+          {},
+          "Channels -o writes, comma-separated, each a name or a wildcard (mix.alpha.*, "
+          "*.R); default: the render's own channels and those a stage was asked to add "
+          "(nfor's mse=1 and selection=1, mix's alpha=1).",
+          run_channels,
+          false,
+          {},
+          {} },
+        { "-o",
+          "FILE",
+          { "datatype", "compression" },
+          "Write the current image. Each channel keeps the pixel type it had in the "
+          "input and the file its compression, as oiiotool keeps them (channels the "
+          "stages add are float); datatype=half|float gives every channel one type, "
+          "compression=zip, piz, dwaa:45, ... another compression. "
+          "Written to a temporary name and renamed: never a partial file.",
+          run_output,
+          false,
+          check_output,
+          {} },
+        { "--fixnan",
+          "STRATEGY",
+          {},
+          "Repair NaN and Inf in every channel, as oiiotool does: none, black (0), "
+          "box3 (the 3x3 neighbours' mean) or error (fail if there are any). Right "
+          "after the inputs (-i F --fixnan box3 --denoise) it repairs them as they are "
+          "read, before they are checked (a cross-frame stage's neighbours too); later, "
+          "the current image. No stage makes them.",
+          run_fixnan,
+          false,
+          check_fixnan,
+          {} },
+    };
+}
+
+// The commands on the whole run: threads, messages, the frames of a sequence.
+std::vector<CommandInfo> run_options()
+{
+    return {
+        { "--threads",
+          "N",
+          {},
+          "Worker threads (0 = all cores, the default).",
+          nullptr,
+          true,
+          check_thread_count,
+          {} },
+        { "-v",
+          "",
+          {},
+          "Print a line per stage with its run time (the default when "
+          "stderr is a terminal).",
+          nullptr,
+          true,
+          {},
+          {} },
+        { "--frames",
+          "SPEC",
+          {},
+          "Frames for # / @ / %04d patterns, e.g. 1-10 or 1-100x5 (default: every frame "
+          "of the first input pattern that exists on disk).",
+          nullptr,
+          true,
+          check_frames,
+          {} },
+        { "--parallel-frames",
+          "N",
+          {},
+          "Denoise N frames of a sequence at once, sharing the threads (default 1).",
+          nullptr,
+          true,
+          whole_number_at_least(1),
+          {} },
+        { "--skip-existing",
+          "",
+          {},
+          "Frames whose every output (-o, --heatmap) exists already are skipped, with a "
+          "line each: a farm job that died half-way is run again as it was.",
+          nullptr,
+          true,
+          {},
+          {} },
+        { "--skip-bad-frames",
+          "",
+          {},
+          "A frame that fails does not stop the sequence: the others are denoised, the "
+          "failed ones listed at the end, and the exit status is 1 (as oiiotool's "
+          "--skip-bad-frames; alias --continue).",
+          nullptr,
+          true,
+          {},
+          {} },
+        { "--continue", "", {}, "Alias of --skip-bad-frames.", nullptr, true, {}, {} },
+    };
+}
+
+}  // namespace
+
 const std::vector<CommandInfo>& command_table()
 {
     static const std::vector<CommandInfo> table = [] {
-        std::vector<CommandInfo> t = {
-            { "-i",
-              "FILE",
-              { "as", "part" },
-              "Add an input: the render (as=mean, the default), the per-pixel variance of its "
-              "mean (as=variance), or a half buffer (as=halfA, as=halfB). as=seed: one of "
-              "K renders of the frame that differ only in their seed (Cycles' Seed, Arnold's "
-              "AA_seed), given one after another: read as one render, their mean, with the "
-              "variance of the mean and, for an even K, two halves (what Blender does not "
-              "write; --nfor, --sure, --mix and frames=N need them). A directory is read "
-              "as a Tungsten buffer set (color.pfm, colorA.pfm, colorVariance.pfm, ...). "
-              "A multi-part EXR is read as one set of channels (the first part's as they "
-              "are, the others' behind their part's name) and written back with the same "
-              "parts; part=NAME[,NAME...] reads those parts alone. Parts of other data windows (a "
-              "stereo file's views) are denoised each in turn, as view layers are. A bare FILE "
-              "is the same as -i FILE.",
-              run_input,
-              false,
-              check_input,
-              {} },
-            { "--aov",
-              "",
-              { "preset", "layer", "colorspace" },
-              "Say which channels are what: preset=cycles|arnold|renderman|tungsten|oidn|"
-              "generic (default: detected from the channel names, printed with -v), "
-              "colorspace=NAME (OCIO space of the colour channels; default the file's "
-              "oiio:ColorSpace, else scene_linear); "
-              "role=ch1,ch2,ch3 words after it override one role (color, color_variance, "
-              "color_a, albedo, normal, depth, ..., extra.NAME=...).",
-              run_aov,
-              false,
-              check_aov,
-              {} },
-            { "--info",
-              "",
-              { "verbose" },
-              "Print the image size, channels and the resolved AOV roles.",
-              run_info,
-              false,
-              {},
-              {} },
-            { "--metrics",
-              "REF",
-              { "format", "trim", "channels" },
-              "Print MSE, RMSE, relMSE, SMAPE, PSNR and SSIM of the colour against a reference "
-              "image (format=text|json, trim=1 drops the 0.01% best and worst pixels, "
-              "channels=a,b,c compares other channels).",
-              run_metrics,
-              false,
-              check_metrics,
-              {} },
-            { "--heatmap",
-              "FILE",
-              { "ref", "metric", "min", "max" },
-              "Write a false-colour per-pixel error PNG against the last --metrics reference "
-              "(or ref=FILE): metric=relmse|se|ae|smape, log10 range min=-4 max=0.",
-              run_heatmap,
-              false,
-              check_heatmap,
-              {} },
-            { "--ch",
-              "CHANNELS",
-              {},
-              "Channels -o writes, comma-separated, each a name or a wildcard (mix.alpha.*, "
-              "*.R); default: the render's own channels and those a stage was asked to add "
-              "(nfor's mse=1 and selection=1, mix's alpha=1).",
-              run_channels,
-              false,
-              {},
-              {} },
-            { "-o",
-              "FILE",
-              { "datatype", "compression" },
-              "Write the current image. Each channel keeps the pixel type it had in the "
-              "input and the file its compression, as oiiotool keeps them (channels the "
-              "stages add are float); datatype=half|float gives every channel one type, "
-              "compression=zip, piz, dwaa:45, ... another compression. "
-              "Written to a temporary name and renamed: never a partial file.",
-              run_output,
-              false,
-              check_output,
-              {} },
-            { "--fixnan",
-              "STRATEGY",
-              {},
-              "Repair NaN and Inf in every channel, as oiiotool does: none, black (0), "
-              "box3 (the 3x3 neighbours' mean) or error (fail if there are any). Right "
-              "after the inputs (-i F --fixnan box3 --denoise) it repairs them as they are "
-              "read, before they are checked (a cross-frame stage's neighbours too); later, "
-              "the current image. No stage makes them.",
-              run_fixnan,
-              false,
-              check_fixnan,
-              {} },
-            { "--threads",
-              "N",
-              {},
-              "Worker threads (0 = all cores, the default).",
-              nullptr,
-              true,
-              check_thread_count,
-              {} },
-            { "-v",
-              "",
-              {},
-              "Print a line per stage with its run time (the default when "
-              "stderr is a terminal).",
-              nullptr,
-              true,
-              {},
-              {} },
-            { "--frames",
-              "SPEC",
-              {},
-              "Frames for # / @ / %04d patterns, e.g. 1-10 or 1-100x5 (default: every frame "
-              "of the first input pattern that exists on disk).",
-              nullptr,
-              true,
-              check_frames,
-              {} },
-            { "--parallel-frames",
-              "N",
-              {},
-              "Denoise N frames of a sequence at once, sharing the threads (default 1).",
-              nullptr,
-              true,
-              whole_number_at_least(1),
-              {} },
-            { "--skip-existing",
-              "",
-              {},
-              "Frames whose every output (-o, --heatmap) exists already are skipped, with a "
-              "line each: a farm job that died half-way is run again as it was.",
-              nullptr,
-              true,
-              {},
-              {} },
-            { "--skip-bad-frames",
-              "",
-              {},
-              "A frame that fails does not stop the sequence: the others are denoised, the "
-              "failed ones listed at the end, and the exit status is 1 (as oiiotool's "
-              "--skip-bad-frames; alias --continue).",
-              nullptr,
-              true,
-              {},
-              {} },
-            { "--continue", "", {}, "Alias of --skip-bad-frames.", nullptr, true, {}, {} },
-        };
+        std::vector<CommandInfo> t = image_commands();
+        for (auto& command : run_options())
+            t.push_back(command);
         for (auto& stage : stage_commands())
             t.push_back(stage);
         return t;

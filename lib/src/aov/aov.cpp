@@ -296,6 +296,85 @@ bool AovSpec::parse_override(string_view token, std::string& error)
     return true;
 }
 
+namespace {
+
+// The AOVs denoised alongside the beauty (AovSet::extras): those the spec names, the light
+// groups, the renderer's light passes; each with its faces and, for a Cycles light pass, the
+// colour pass it was divided by. `color_variance`: the beauty's variance channels (Arnold's
+// RGBA_variance is not a light group).
+bool find_extras(std::vector<AovSet::Extra>& extras, const AovSpec& spec, const std::string& preset,
+                 const std::string& layer, const ImageSpec& merged,
+                 const std::vector<int>& color_variance, std::string& error)
+{
+    for (const auto& [name, names] : spec.extras) {
+        std::vector<int> indices = find_channels(merged, names);
+        if (names.empty() || indices.empty()) {
+            error = OIIO::Strutil::fmt::format(
+                "extra aov '{}' ({}): channel not found in {}; channels there: {}", name,
+                join(names, ","), channel_source(merged, names.empty() ? "" : names[0]),
+                channel_list(merged));
+            return false;
+        }
+        extras.push_back({ name, names, indices, {}, {}, {}, {}, {}, {}, "extras" });
+    }
+    // Light groups are denoised alongside: Blender's "<layer>.Combined_<group>.RGB",
+    // Arnold's "RGBA_<group>.RGB".
+    if ((preset == "cycles" && !layer.empty()) || preset == "arnold") {
+        const std::string stem = preset == "cycles" ? layer + ".Combined_" : "RGBA_";
+        for (const auto& ch : merged.channelnames) {
+            if (OIIO::Strutil::starts_with(ch, stem) && OIIO::Strutil::ends_with(ch, ".R")) {
+                std::string group = ch.substr(0, ch.size() - 2);
+                std::vector<std::string> names = with_suffixes(group, "RGB");
+                std::vector<int> indices = find_channels(merged, names);
+                // (Arnold's RGBA_variance is the beauty's variance, not a group.)
+                if (!indices.empty() && !spec.extras.count(group) && indices != color_variance)
+                    extras.push_back(
+                        { group, names, indices, {}, {}, {}, {}, {}, {}, "light groups" });
+            }
+        }
+    }
+    // The renderer's light passes too (aov/presets.h), each once; a Cycles pass only with
+    // the colour pass its light was divided by (else it is not light: left as rendered).
+    for (const LightPass& pass : preset_light_passes(preset, layer)) {
+        for (const std::vector<std::string>& names : pass.names) {
+            std::vector<int> indices = find_channels(merged, names);
+            if (indices.empty())
+                continue;
+            const bool taken =
+                std::any_of(extras.begin(), extras.end(),
+                            [&](const AovSet::Extra& e) { return e.channels == indices; });
+            if (!taken && (pass.factor.empty() || !find_channels(merged, pass.factor).empty())) {
+                AovSet::Extra extra;
+                extra.name = names[0].substr(0, names[0].rfind('.'));
+                extra.names = names;
+                extra.channels = indices;
+                extra.partition = pass.partition;
+                extras.push_back(extra);
+            }
+            break;
+        }
+    }
+    const bool cycles = preset == "cycles";
+    for (AovSet::Extra& extra : extras) {
+        auto face = [&](InputKind kind, const std::vector<std::string>& names) {
+            return find_channels(merged, prefixed(input_kind_prefix(kind), names));
+        };
+        extra.variance = face(InputKind::Variance, extra.names);
+        extra.half_a = face(InputKind::HalfA, extra.names);
+        extra.half_b = face(InputKind::HalfB, extra.names);
+        const std::vector<std::string> factor =
+            cycles ? cycles_light_factor(extra.names) : std::vector<std::string> {};
+        if (!factor.empty()) {
+            extra.factor = find_channels(merged, factor);
+            extra.factor_a = face(InputKind::HalfA, factor);
+            extra.factor_b = face(InputKind::HalfB, factor);
+        }
+    }
+    return true;
+}
+
+}  // namespace
+
 bool resolve_aovs(AovSet& set, const AovSpec& spec, const ImageSpec& merged, std::string& error)
 {
     const auto& presets = aov_presets();
@@ -368,71 +447,9 @@ bool resolve_aovs(AovSet& set, const AovSpec& spec, const ImageSpec& merged, std
         }
     }
 
-    for (const auto& [name, names] : spec.extras) {
-        std::vector<int> indices = find_channels(merged, names);
-        if (names.empty() || indices.empty()) {
-            error = OIIO::Strutil::fmt::format(
-                "extra aov '{}' ({}): channel not found in {}; channels there: {}", name,
-                join(names, ","), channel_source(merged, names.empty() ? "" : names[0]),
-                channel_list(merged));
-            return false;
-        }
-        set.m_extras.push_back({ name, names, indices, {}, {}, {}, {}, {}, {}, "extras" });
-    }
-    // Light groups are denoised alongside: Blender's "<layer>.Combined_<group>.RGB",
-    // Arnold's "RGBA_<group>.RGB".
-    if ((preset == "cycles" && !layer.empty()) || preset == "arnold") {
-        const std::string stem = preset == "cycles" ? layer + ".Combined_" : "RGBA_";
-        for (const auto& ch : merged.channelnames) {
-            if (OIIO::Strutil::starts_with(ch, stem) && OIIO::Strutil::ends_with(ch, ".R")) {
-                std::string group = ch.substr(0, ch.size() - 2);
-                std::vector<std::string> names = with_suffixes(group, "RGB");
-                std::vector<int> indices = find_channels(merged, names);
-                // (Arnold's RGBA_variance is the beauty's variance, not a group.)
-                if (!indices.empty() && !spec.extras.count(group)
-                    && indices != set.m_channels[int(Role::ColorVariance)])
-                    set.m_extras.push_back(
-                        { group, names, indices, {}, {}, {}, {}, {}, {}, "light groups" });
-            }
-        }
-    }
-    // The renderer's light passes too (aov/presets.h), each once; a Cycles pass only with
-    // the colour pass its light was divided by (else it is not light: left as rendered).
-    for (const LightPass& pass : preset_light_passes(preset, layer)) {
-        for (const std::vector<std::string>& names : pass.names) {
-            std::vector<int> indices = find_channels(merged, names);
-            if (indices.empty())
-                continue;
-            const bool taken =
-                std::any_of(set.m_extras.begin(), set.m_extras.end(),
-                            [&](const AovSet::Extra& e) { return e.channels == indices; });
-            if (!taken && (pass.factor.empty() || !find_channels(merged, pass.factor).empty())) {
-                AovSet::Extra extra;
-                extra.name = names[0].substr(0, names[0].rfind('.'));
-                extra.names = names;
-                extra.channels = indices;
-                extra.partition = pass.partition;
-                set.m_extras.push_back(extra);
-            }
-            break;
-        }
-    }
-    const bool cycles = preset == "cycles";
-    for (AovSet::Extra& extra : set.m_extras) {
-        auto face = [&](InputKind kind, const std::vector<std::string>& names) {
-            return find_channels(merged, prefixed(input_kind_prefix(kind), names));
-        };
-        extra.variance = face(InputKind::Variance, extra.names);
-        extra.half_a = face(InputKind::HalfA, extra.names);
-        extra.half_b = face(InputKind::HalfB, extra.names);
-        const std::vector<std::string> factor =
-            cycles ? cycles_light_factor(extra.names) : std::vector<std::string> {};
-        if (!factor.empty()) {
-            extra.factor = find_channels(merged, factor);
-            extra.factor_a = face(InputKind::HalfA, factor);
-            extra.factor_b = face(InputKind::HalfB, factor);
-        }
-    }
+    if (!find_extras(set.m_extras, spec, preset, layer, merged,
+                     set.m_channels[int(Role::ColorVariance)], error))
+        return false;
     return true;
 }
 

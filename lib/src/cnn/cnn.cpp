@@ -197,6 +197,87 @@ bool run_branches(kpcn::Worker& k, const ImageBuf& src, const AovSet& aovs,
     return ok;
 }
 
+// In place, extras that are roles the tiles read around them (Blender's DiffDir, Arnold's
+// diffuse: the split) are made in a frame of their own, `made`, written into dst after:
+// each extra's channels become the frame's 3e..3e+2, dst's kept in `dst_channels`.
+bool set_extras_aside(ImageBuf& made, std::vector<std::vector<int>>& dst_channels,
+                      std::vector<ExtraPlanes>& extras, const ImageSpec& dst_spec)
+{
+    ImageSpec spec = dst_spec;
+    spec.nchannels = 3 * int(extras.size());
+    spec.channelnames.clear();
+    spec.channelformats.clear();
+    spec.alpha_channel = spec.z_channel = -1;
+    spec.extra_attribs.clear();
+    spec.default_channel_names();
+    if (!allocate_frame(made, spec, true))
+        return false;
+    for (size_t e = 0; e < extras.size(); ++e) {
+        dst_channels.push_back(extras[e].channels);
+        extras[e].channels = { 3 * int(e), 3 * int(e) + 1, 3 * int(e) + 2 };
+    }
+    return true;
+}
+
+/// The workers of one call: taken from earlier calls' when there are (worker_pool.h), handed
+/// back at the end.
+struct Workers {
+    std::vector<std::unique_ptr<kpcn::Worker>> list;
+    ~Workers()
+    {
+        for (auto& w : list)
+            kpcn::return_worker(std::move(w));
+    }
+};
+
+/// What every tile of one call reads.
+struct TileRun {
+    const ImageBuf& src;
+    const AovSet& aovs;
+    const kpcn::DepthRange& depth;
+    const std::vector<ExtraPlanes>& extras;
+    bool split;
+    const kpcn::DroppedOutliers& outliers;
+    const ConvergedTiles& converged;
+    ROI where;
+    const ImageBuf& dst;
+};
+
+// §4.2 then eq. 4, a tile at a time: one tile per worker, each with its own networks.
+bool run_tiles(Workers& worker, const std::string& path, int image_channels,
+               const std::vector<nn::Tile>& tiles, const TileRun& run,
+               kpcn::OutputFrame& color_frame, const std::vector<int>& color_channels,
+               kpcn::OutputFrame& extras_frame, ProgressCounter& progress, int nthreads,
+               std::string& error)
+{
+    return nn::with_threads(nthreads, [&] {
+        const int workers = std::min(nn::max_threads(), int(tiles.size()));
+        while (int(worker.list.size()) < workers) {
+            worker.list.push_back(kpcn::take_worker(path, image_channels, error));
+            if (!worker.list.back())
+                return false;
+        }
+        std::mutex failed;
+        auto run_tile = [&](int index, int w) {
+            kpcn::Worker& k = *worker.list[w];
+            const nn::Tile& tile = tiles[index];
+            std::string tile_error;
+            if (!run_branches(k, run.src, run.aovs, run.depth, run.extras, tile.window, run.split,
+                              run.outliers, tile_error)) {
+                std::lock_guard<std::mutex> lock(failed);
+                if (error.empty())
+                    error = "cnn: '" + path + "': " + tile_error;
+                return false;
+            }
+            recombine(color_frame, extras_frame, output_rect(tile.core, run.dst, run.where),
+                      tile.window, k, run.split, run.src, run.aovs, color_channels, run.extras,
+                      run.converged);
+            return progress.advance(error, failed);
+        };
+        return nn::for_each_tile(int(tiles.size()), workers, run_tile);
+    });
+}
+
 bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& options, ROI roi,
                           int nthreads)
 {
@@ -248,46 +329,23 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
         dst.errorfmt("cnn: could not make the colour frame");
         return false;
     }
-    // In place, extras that are roles the tiles read around them (Blender's DiffDir, Arnold's
-    // diffuse: the split) are made in a frame of their own too, written into dst after.
     ImageBuf made_extras;
     std::vector<std::vector<int>> extra_channels;  // dst's, while the extras are aside
-    if (in_place && extras_are_roles(aovs) && !extras.empty()) {
-        ImageSpec spec = dst.spec();
-        spec.nchannels = 3 * int(extras.size());
-        spec.channelnames.clear();
-        spec.channelformats.clear();
-        spec.alpha_channel = spec.z_channel = -1;
-        spec.extra_attribs.clear();
-        spec.default_channel_names();
-        if (!allocate_frame(made_extras, spec, true)) {
-            dst.errorfmt("cnn: {}", made_extras.geterror());
-            return false;
-        }
-        for (size_t e = 0; e < extras.size(); ++e) {
-            extra_channels.push_back(extras[e].channels);
-            extras[e].channels = { 3 * int(e), 3 * int(e) + 1, 3 * int(e) + 2 };
-        }
+    if (in_place && extras_are_roles(aovs) && !extras.empty()
+        && !set_extras_aside(made_extras, extra_channels, extras, dst.spec())) {
+        dst.errorfmt("cnn: {}", made_extras.geterror());
+        return false;
     }
     kpcn::OutputFrame extras_frame(made_extras.initialized() ? made_extras : dst);
     const std::string path = options.weights.empty() ? default_cnn_weights() : options.weights;
     const int image_channels = extras.empty() ? 3 : 3 * (2 + int(extras.size()));
-    // Workers of earlier calls when there are (worker_pool.h), handed back at the end.
-    std::vector<std::unique_ptr<kpcn::Worker>> worker;
-    struct GiveBack {
-        std::vector<std::unique_ptr<kpcn::Worker>>& workers;
-        ~GiveBack()
-        {
-            for (auto& w : workers)
-                kpcn::return_worker(std::move(w));
-        }
-    } give_back { worker };
-    worker.push_back(kpcn::take_worker(path, image_channels, error));
-    if (!worker[0]) {
+    Workers worker;
+    worker.list.push_back(kpcn::take_worker(path, image_channels, error));
+    if (!worker.list[0]) {
         dst.errorfmt("{}", error);
         return false;
     }
-    const nn::Net& first = worker[0]->model.specular;
+    const nn::Net& first = worker.list[0]->model.specular;
 
     // §5.1: the depth range is the one input statistic of the whole frame; everything else
     // (§4.3's split, the 34 input channels, eq. 4) is made per network tile from its window.
@@ -306,32 +364,9 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
     trace.mark("networks and depth range");
     ProgressCounter progress(options.progress, "cnn", int(tiles.size()));
 
-    // §4.2 then eq. 4, a tile at a time: one tile per worker, each with its own networks.
-    const bool ran = nn::with_threads(nthreads, [&] {
-        const int workers = std::min(nn::max_threads(), int(tiles.size()));
-        while (int(worker.size()) < workers) {
-            worker.push_back(kpcn::take_worker(path, image_channels, error));
-            if (!worker.back())
-                return false;
-        }
-        std::mutex failed;
-        auto run_tile = [&](int index, int w) {
-            kpcn::Worker& k = *worker[w];
-            const nn::Tile& tile = tiles[index];
-            std::string tile_error;
-            if (!run_branches(k, src, aovs, depth, extras, tile.window, split, outliers,
-                              tile_error)) {
-                std::lock_guard<std::mutex> lock(failed);
-                if (error.empty())
-                    error = "cnn: '" + path + "': " + tile_error;
-                return false;
-            }
-            recombine(color_frame, extras_frame, output_rect(tile.core, dst, where), tile.window, k,
-                      split, src, aovs, color_channels, extras, converged);
-            return progress.advance(error, failed);
-        };
-        return nn::for_each_tile(int(tiles.size()), workers, run_tile);
-    });
+    const TileRun run { src, aovs, depth, extras, split, outliers, converged, where, dst };
+    const bool ran = run_tiles(worker, path, image_channels, tiles, run, color_frame,
+                               color_channels, extras_frame, progress, nthreads, error);
     if (!ran) {
         dst.errorfmt("{}", error);
         return false;

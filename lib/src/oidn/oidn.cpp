@@ -245,6 +245,97 @@ void write_output(ImageBuf& dst, const int out[3], const nn::Tensor& result, con
         }
 }
 
+/// The model for the AOVs present (oidn_weights: rt_hdr, rt_hdr_alb, rt_hdr_alb_nrm) and the
+/// frame's channels it reads, into `in`; false with `error` when it reads an AOV the input
+/// has not.
+bool model_inputs(Inputs& in, std::string& path, std::shared_ptr<const nn::Weights>& weights,
+                  const AovSet& aovs, const OidnOptions& options, std::string& error)
+{
+    const bool has_albedo = aovs.channels(Role::Albedo).size() == 3;
+    const bool has_normal = aovs.channels(Role::Normal).size() == 3;
+    if (!oidn_weights(path, options, has_albedo, has_normal, error)
+        || !cached_weights(weights, path, error)
+        || !network_inputs(*weights, in.has_albedo, in.has_normal, error))
+        return false;
+    if ((in.has_albedo && !has_albedo) || (in.has_normal && !has_normal)) {
+        error =
+            format("{} reads {}, which the input has not (-v --info lists its AOVs); give {}.tza",
+                   path, in.has_normal && !has_normal ? "a normal" : "an albedo",
+                   model_name(has_albedo, has_normal && has_albedo));
+        return false;
+    }
+    for (int c = 0; c < 3; ++c) {
+        in.color[c] = aovs.channels(Role::Color)[size_t(c)];
+        in.albedo[c] = in.has_albedo ? aovs.channels(Role::Albedo)[size_t(c)] : -1;
+        in.normal[c] = in.has_normal ? aovs.channels(Role::Normal)[size_t(c)] : -1;
+    }
+    return true;
+}
+
+/// The frame pixels of a tile's core that the op writes: inside the image and the ROI.
+Rect output_rect(const Rect& core, const ImageSpec& spec, ROI where)
+{
+    return { std::max(core.x0, where.xbegin - spec.x), std::max(core.y0, where.ybegin - spec.y),
+             std::min(core.x1, where.xend - spec.x), std::min(core.y1, where.yend - spec.y) };
+}
+
+/// The network's tiles (nn/tiled.cpp) that write a pixel of `where`, only over tiles that are
+/// not converged (nn/network_regions.h).
+bool network_tiles(std::vector<nn::Tile>& tiles, const nn::Net& net,
+                   const ConvergedTiles& converged, int tile_size, const ImageBuf& src, ROI where,
+                   std::string& error)
+{
+    nn::TileOptions tile_options;
+    tile_options.tile_size = tile_size;
+    tile_options.regions = network_regions(converged, net, tile_size);
+    std::vector<nn::Tile> planned;
+    if (!nn::plan_tiles(net, src.spec().height, src.spec().width, tile_options, planned, error))
+        return false;
+    for (const nn::Tile& tile : planned)
+        if (!output_rect(tile.core, src.spec(), where).empty())
+            tiles.push_back(tile);
+    return true;
+}
+
+/// Every pass on every tile, one tile per worker thread, each with its own network (nets[0]
+/// is built; the others are made here).
+bool run_passes(std::vector<std::unique_ptr<nn::Net>>& nets, const nn::Weights& weights,
+                const std::string& path, const std::vector<nn::Tile>& tiles,
+                const std::vector<Pass>& passes, const ImageBuf& src, ImageBuf& dst, ROI where,
+                const ConvergedTiles& converged, float exposure, const ProgressCallback& callback,
+                int nthreads, std::string& error)
+{
+    const int count = int(tiles.size() * passes.size());
+    ProgressCounter progress(callback, "oidn", count);
+    std::mutex failed;
+    return nn::with_threads(nthreads, [&] {
+        const int workers = std::min(nn::max_threads(), count);
+        while (int(nets.size()) < workers) {
+            nets.push_back(std::make_unique<nn::Net>());
+            if (!oidn_net::build_unet(*nets.back(), weights, error))
+                return false;
+        }
+        std::vector<std::vector<nn::Tensor>> inputs(static_cast<size_t>(workers)),
+            results(static_cast<size_t>(workers));
+        return nn::for_each_tile(count, workers, [&](int index, int worker) {
+            const Pass& pass = passes[size_t(index) / tiles.size()];
+            const nn::Tile& tile = tiles[size_t(index) % tiles.size()];
+            std::vector<nn::Tensor>& input = inputs[size_t(worker)];
+            std::string tile_error;
+            input.resize(1);
+            tile_input(input[0], src, pass.in, tile.window);
+            if (!nets[size_t(worker)]->run(input, results[size_t(worker)], tile_error)) {
+                std::lock_guard<std::mutex> lock(failed);
+                error = format("oidn: '{}': {}", path, tile_error);
+                return false;
+            }
+            write_output(dst, pass.out.data(), results[size_t(worker)][0], tile.window,
+                         output_rect(tile.core, src.spec(), where), exposure, converged);
+            return progress.advance(error, failed);
+        });
+    });
+}
+
 // ---- the op ---------------------------------------------------------------------------
 
 bool oidn_in_working_space(ImageBuf& dst, const ImageBuf& src, const OidnOptions& options, ROI roi,
@@ -270,25 +361,9 @@ bool oidn_in_working_space(ImageBuf& dst, const ImageBuf& src, const OidnOptions
     Inputs in;
     std::string path;
     std::shared_ptr<const nn::Weights> weights;
-    const bool has_albedo = aovs.channels(Role::Albedo).size() == 3;
-    const bool has_normal = aovs.channels(Role::Normal).size() == 3;
-    if (!oidn_weights(path, options, has_albedo, has_normal, error)
-        || !cached_weights(weights, path, error)
-        || !network_inputs(*weights, in.has_albedo, in.has_normal, error)) {
+    if (!model_inputs(in, path, weights, aovs, options, error)) {
         dst.errorfmt("oidn: {}", error);
         return false;
-    }
-    if ((in.has_albedo && !has_albedo) || (in.has_normal && !has_normal)) {
-        dst.errorfmt("oidn: {} reads {}, which the input has not (-v --info lists its AOVs); "
-                     "give {}.tza",
-                     path, in.has_normal && !has_normal ? "a normal" : "an albedo",
-                     model_name(has_albedo, has_normal && has_albedo));
-        return false;
-    }
-    for (int c = 0; c < 3; ++c) {
-        in.color[c] = aovs.channels(Role::Color)[size_t(c)];
-        in.albedo[c] = in.has_albedo ? aovs.channels(Role::Albedo)[size_t(c)] : -1;
-        in.normal[c] = in.has_normal ? aovs.channels(Role::Normal)[size_t(c)] : -1;
     }
     const int out[3] = { color_only ? 0 : in.color[0], color_only ? 1 : in.color[1],
                          color_only ? 2 : in.color[2] };
@@ -310,25 +385,12 @@ bool oidn_in_working_space(ImageBuf& dst, const ImageBuf& src, const OidnOptions
         dst.errorfmt("oidn: {}", error);
         return false;
     }
-    nn::TileOptions tile_options;
-    tile_options.tile_size = options.tile_size;
-    tile_options.regions = network_regions(converged, *nets[0], options.tile_size);
-    std::vector<nn::Tile> planned, tiles;
-    const ImageSpec& spec = src.spec();
-    if (!nn::plan_tiles(*nets[0], spec.height, spec.width, tile_options, planned, error)) {
+    const ROI where = output_roi(src, roi);
+    std::vector<nn::Tile> tiles;
+    if (!network_tiles(tiles, *nets[0], converged, options.tile_size, src, where, error)) {
         dst.errorfmt("oidn: {}", error);
         return false;
     }
-    const ROI where = output_roi(src, roi);
-    auto output_rect = [&](const Rect& core) {
-        return Rect { std::max(core.x0, where.xbegin - spec.x),
-                      std::max(core.y0, where.ybegin - spec.y),
-                      std::min(core.x1, where.xend - spec.x),
-                      std::min(core.y1, where.yend - spec.y) };
-    };
-    for (const nn::Tile& tile : planned)
-        if (!output_rect(tile.core).empty())
-            tiles.push_back(tile);
     // The beauty, then each extra AOV (a light group: its own run of the network, with the
     // beauty's exposure and features), into its channels of dst.
     std::vector<Pass> passes = { { in, { out[0], out[1], out[2] }, {} } };
@@ -342,35 +404,8 @@ bool oidn_in_working_space(ImageBuf& dst, const ImageBuf& src, const OidnOptions
                     pass.in.color[c] = extra.channels[size_t(c)];
                 passes.push_back(pass);
             }
-    const int count = int(tiles.size() * passes.size());
-    ProgressCounter progress(options.progress, "oidn", count);
-    std::mutex failed;
-    const bool ran = nn::with_threads(nthreads, [&] {
-        const int workers = std::min(nn::max_threads(), count);
-        while (int(nets.size()) < workers) {
-            nets.push_back(std::make_unique<nn::Net>());
-            if (!oidn_net::build_unet(*nets.back(), *weights, error))
-                return false;
-        }
-        std::vector<std::vector<nn::Tensor>> inputs(static_cast<size_t>(workers)),
-            results(static_cast<size_t>(workers));
-        return nn::for_each_tile(count, workers, [&](int index, int worker) {
-            const Pass& pass = passes[size_t(index) / tiles.size()];
-            const nn::Tile& tile = tiles[size_t(index) % tiles.size()];
-            std::vector<nn::Tensor>& input = inputs[size_t(worker)];
-            std::string tile_error;
-            input.resize(1);
-            tile_input(input[0], src, pass.in, tile.window);
-            if (!nets[size_t(worker)]->run(input, results[size_t(worker)], tile_error)) {
-                std::lock_guard<std::mutex> lock(failed);
-                error = format("oidn: '{}': {}", path, tile_error);
-                return false;
-            }
-            write_output(dst, pass.out.data(), results[size_t(worker)][0], tile.window,
-                         output_rect(tile.core), in.exposure, converged);
-            return progress.advance(error, failed);
-        });
-    });
+    const bool ran = run_passes(nets, *weights, path, tiles, passes, src, dst, where, converged,
+                                in.exposure, options.progress, nthreads, error);
     if (!ran) {
         dst.errorfmt("{}", error);
         return false;
