@@ -9,7 +9,9 @@ Layers, lowest first (a file may include its own layer and those below it):
                 the heavy-tailed samples' detection, and what the ops share above the
                 foundation (frames in bands and in the working space, neighbouring frames
                 aligned by their motion, the colour role read as planes)
-  2 stages      lib/src/{prefilter,nfor,cnn,oidn,sure,choose,mix,frames}/ and their public headers
+  2 stages      every other folder of lib/src/ (prefilter, nfor, cnn, oidn, sure, choose, mix,
+                frames, ...) and its public header mcdn/<folder>.h: a new stage's folder
+                needs no line here
   3 chains      lib/src/chain/, mcdn/{chain,settings,stages,denoise}.h: the only code that
                 knows every stage (the stage table, mcdn/stages.h)
 Public headers follow the same rule by the layer of the header itself.
@@ -25,23 +27,33 @@ import sys
 FOLDERS = {
     "core": 0, "aov": 0, "io": 0, "color": 0, "metrics": 0, "skip": 0,
     "nl_means": 1, "nn": 1, "outliers": 1, "ops": 1,
-    "prefilter": 2, "nfor": 2, "cnn": 2, "oidn": 2, "sure": 2, "mix": 2, "frames": 2, "choose": 2,
     "chain": 3,
 }
+STAGE_LAYER = 2  # every folder of lib/src/ not in FOLDERS (add_stage_folders)
 HEADERS = {
     "aov": 0, "io": 0, "color": 0, "metrics": 0, "skip": 0, "threads": 0, "version": 0,
     "progress": 0,
-    "prefilter": 2, "nfor": 2, "cnn": 2, "oidn": 2, "sure": 2, "mix": 2, "frames": 2, "choose": 2,
     "chain": 3, "settings": 3, "stages": 3, "denoise": 3,
 }
 # The folder whose code a public header declares.
 HEADER_FOLDER = {
     "aov": "aov", "io": "io", "color": "color", "metrics": "metrics", "skip": "skip",
     "threads": "core", "version": "core", "progress": "core",
-    "prefilter": "prefilter", "nfor": "nfor", "cnn": "cnn", "oidn": "oidn", "sure": "sure",
-    "mix": "mix", "frames": "frames", "choose": "choose", "chain": "chain", "settings": "chain", "stages": "chain",
-    "denoise": "chain",
+    "chain": "chain", "settings": "chain", "stages": "chain", "denoise": "chain",
 }
+
+
+def add_stage_folders(lib):
+    """Every folder of lib/src/ that FOLDERS does not place is a stage's, its public header
+    mcdn/<folder>.h with it."""
+    src = os.path.join(lib, "src")
+    for name in sorted(os.listdir(src)) if os.path.isdir(src) else []:
+        if os.path.isdir(os.path.join(src, name)) and name not in FOLDERS:
+            FOLDERS[name] = STAGE_LAYER
+            HEADERS.setdefault(name, STAGE_LAYER)
+            HEADER_FOLDER.setdefault(name, name)
+
+
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"', re.M)
 
 
@@ -117,6 +129,7 @@ def folder_cycles(edges):
 def main():
     root = sys.argv[1] if len(sys.argv) > 1 else os.path.join(os.path.dirname(__file__), "..", "..")
     lib = os.path.join(root, "lib")
+    add_stage_folders(lib)
     problems, unknown = [], []
     edges, because = {}, {}
     for base, dirs, files in os.walk(lib):
@@ -150,7 +163,7 @@ def main():
         problems.append("folders %s include each other, e.g. %s"
                         % (", ".join(folders), "; ".join(steps)))
     for rel in unknown:
-        problems.append("%s: in no layer (add its folder to tests/layers/check_layers.py)" % rel)
+        problems.append("%s: in no layer (a public header not named after a folder: add it to HEADERS in tests/layers/check_layers.py)" % rel)
     for p in problems:
         print("layers: " + p)
     print("layers: %d problem(s)" % len(problems))

@@ -1,7 +1,9 @@
 // Stage options from text settings, the form every front end receives them in: mcdntool's
 // modifiers (--nfor:window=19), the format plugin's recipe and run_chain (nfor.window=19),
 // Python's keyword arguments. One parser per stage, so each front end accepts the same keys
-// with the same checks and the same defaults (the Options' own).
+// with the same checks and the same defaults (the Options' own): here for the stages whose
+// Options the front ends also build themselves (Python's single-stage functions); a stage
+// reached only by name (oidn, choose) parses in its stage-table entry (StageInfo::check).
 #pragma once
 
 #include <map>
@@ -9,7 +11,6 @@
 #include <utility>
 #include <vector>
 
-#include "mcdn/choose.h"
 #include "mcdn/cnn.h"
 #include "mcdn/mix.h"
 #include "mcdn/nfor.h"
@@ -33,7 +34,6 @@ bool apply_settings(NforOptions& options, const Settings& settings, std::string&
 bool apply_settings(CnnOptions& options, const Settings& settings, std::string& error);
 bool apply_settings(SureOptions& options, const Settings& settings, std::string& error);
 bool apply_settings(MixOptions& options, const Settings& settings, std::string& error);
-bool apply_settings(ChooseOptions& options, const Settings& settings, std::string& error);
 
 /// The settings of one stage out of "stage.key" settings: {"nfor.window": "19"} -> {"window":
 /// "19"}.
@@ -59,9 +59,6 @@ struct StageReach {
 StageReach stage_reach(const PrefilterOptions& options);
 StageReach stage_reach(const NforOptions& options);
 StageReach stage_reach(const CnnOptions& options);
-/// choose's: its NFOR's (prefilter, nfor at their defaults, as choose runs them), then its
-/// windows.
-StageReach stage_reach(const ChooseOptions& options);
 
 /// How far a chain of denoisers reaches, for SureOptions::denoiser_radius: the sum of its
 /// stages' reach, each on the input it gets; -1 when any stage's is not known.

@@ -24,13 +24,6 @@ StageReach stage_reach(const CnnOptions& options)
     return { r, r, false };
 }
 
-StageReach stage_reach(const ChooseOptions& options)
-{
-    const int r = chain_radius({ stage_reach(PrefilterOptions()), stage_reach(NforOptions()) })
-                  + receptive_radius(options);
-    return { r, r, false };
-}
-
 int chain_radius(const std::vector<StageReach>& stages)
 {
     int total = 0;

@@ -159,17 +159,6 @@ bool apply_settings(MixOptions& o, const Settings& s, std::string& error)
         .ok();
 }
 
-bool apply_settings(ChooseOptions& o, const Settings& s, std::string& error)
-{
-    return SettingsReader(s, "choose", error)
-        .width("window", o.window_radius)
-        .width("blend", o.blend_radius)
-        .positive_int("probes", o.sure.probes)
-        .flag("extras", o.denoise_extras)
-        .flag("weight-aov", o.output_weight)
-        .ok();
-}
-
 Settings stage_settings(const std::map<std::string, std::string>& all, const std::string& stage)
 {
     Settings settings;

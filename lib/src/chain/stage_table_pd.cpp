@@ -1,5 +1,6 @@
 // The stage table's entries for Progressive Denoising's stages (mcdn/stages.h): sure (§2.3,
 // §3.2), choose (§3.2's decision by SURE, with NFOR beside the denoiser) and mix (§4).
+#include "chain/settings_reader.h"
 #include "chain/stage_entries.h"
 
 #include "mcdn/choose.h"
@@ -138,15 +139,37 @@ bool make_nfor_chain(Denoiser& denoiser, int& radius, const ChooseOptions& o,
     return true;
 }
 
+bool choose_settings(ChooseOptions& o, const Settings& s, std::string& error)
+{
+    return SettingsReader(s, "choose", error)
+        .width("window", o.window_radius)
+        .width("blend", o.blend_radius)
+        .positive_int("probes", o.sure.probes)
+        .flag("extras", o.denoise_extras)
+        .flag("weight-aov", o.output_weight)
+        .ok();
+}
+
+// Its NFOR's reach (prefilter, nfor at their defaults, as choose runs them), then its windows'.
+StageReach choose_reach(const ChooseOptions& o)
+{
+    const int r = chain_radius({ stage_reach(PrefilterOptions()), stage_reach(NforOptions()) })
+                  + receptive_radius(o);
+    return { r, r, false };
+}
+
 bool make_choose(MadeStage& made, const Settings& settings, const StageContext& context,
                  std::string& error)
 {
     ChooseOptions o;
     Denoiser other;
-    if (!options_of(o, settings, context, error)
-        || !make_nfor_chain(other, o.other_radius, o, context, error))
+    if (!choose_settings(o, settings, error))
         return false;
-    made.reach = stage_reach(o);
+    o.aovs = context.aovs;
+    o.progress = context.progress;
+    if (!make_nfor_chain(other, o.other_radius, o, context, error))
+        return false;
+    made.reach = choose_reach(o);
     made.run = [o, other, roi = context.roi, n = context.nthreads](ImageBuf& dst,
                                                                    const ImageBuf& src) {
         return choose(dst, src, other, o, roi, n);
@@ -174,9 +197,16 @@ StageInfo choose_stage()
              "(1: NFOR's). --denoise runs it where the render has half buffers.";
     s.needs = "what --sure adds after a denoiser; the colour's half buffers and variance (NFOR "
               "§5's input).";
-    s.check = check_settings<ChooseOptions>;
+    s.check = [](const Settings& settings, std::string& error) {
+        ChooseOptions o;
+        return choose_settings(o, settings, error);
+    };
     s.make = make_choose;
-    s.reach = reach_of<ChooseOptions>;
+    s.reach = [](const Settings& settings, const std::string&) {
+        ChooseOptions o;
+        std::string error;
+        return choose_settings(o, settings, error) ? choose_reach(o) : StageReach();
+    };
     s.can_run = [](const AovSet& aovs, std::string& how) {
         const bool ok = has_halves(aovs) && aovs.has(Role::ColorVariance);
         how = ok ? "after --sure: NFOR on the halves, weighed per pixel by SURE"
