@@ -190,5 +190,66 @@ std::vector<Step> plan_steps(const std::vector<Net::Node>& nodes, const std::vec
     return steps;
 }
 
+bool computes_into_storage(const Step& step)
+{
+    switch (step.kind) {
+    case Step::Kind::take:
+    case Step::Kind::view: return false;
+    case Step::Kind::conv_sum: return !step.in_place;
+    default: return true;
+    }
+}
+
+StoragePlan plan_storage(std::vector<Step>& steps, const std::vector<Net::Node>& nodes,
+                         const std::vector<int>& outputs)
+{
+    StoragePlan plan;
+    std::vector<int> home(nodes.size(), -1);  // the slot each value's storage is in
+    std::vector<char> busy;
+    auto release = [&](int id) {
+        if (home[size_t(id)] >= 0)
+            busy[size_t(home[size_t(id)])] = 0;
+        home[size_t(id)] = -1;
+    };
+    for (Step& step : steps) {
+        if (step.kind == Step::Kind::take || (step.kind == Step::Kind::conv_sum && step.in_place)) {
+            home[size_t(step.id)] = home[size_t(step.other)];  // handed on with its storage
+            home[size_t(step.other)] = -1;
+        } else if (computes_into_storage(step)) {
+            const Net::Node& node = nodes[size_t(step.id)];
+            const double floats = double(node.channels) / (double(node.scale) * node.scale);
+            int fits = -1, largest = -1;
+            for (int k = 0; k < int(busy.size()); ++k) {
+                if (busy[size_t(k)])
+                    continue;
+                const double size = plan.slot_floats[size_t(k)];
+                if (size >= floats && (fits < 0 || size < plan.slot_floats[size_t(fits)]))
+                    fits = k;
+                if (largest < 0 || size > plan.slot_floats[size_t(largest)])
+                    largest = k;
+            }
+            int slot = fits >= 0 ? fits : largest;
+            if (slot < 0) {
+                slot = int(busy.size());
+                busy.push_back(0);
+                plan.slot_floats.push_back(0);
+            }
+            plan.slot_floats[size_t(slot)] = std::max(plan.slot_floats[size_t(slot)], floats);
+            busy[size_t(slot)] = 1;
+            home[size_t(step.id)] = slot;
+            step.slot = slot;
+        }
+        for (int k : step.free_after)
+            release(k);
+    }
+    for (size_t i = 0; i < outputs.size(); ++i) {
+        const int id = outputs[i];
+        const bool again =
+            std::find(outputs.begin() + long(i) + 1, outputs.end(), id) != outputs.end();
+        plan.output_slot.push_back(again ? -1 : home[size_t(id)]);
+    }
+    return plan;
+}
+
 }  // namespace nn
 }  // namespace mcdn

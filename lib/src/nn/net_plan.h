@@ -35,6 +35,18 @@ struct Step {
     Activation after_sum = Activation::none;  ///< conv_sum: the fused add's activation
     int first_channel = 0;        ///< apply_kernel(_head): the logits' first channel in `other`
     std::vector<int> free_after;  ///< values whose storage is free once this step has run
+    int slot = -1;                ///< the storage slot its value is computed into (StoragePlan)
+};
+
+/// Where the values live, decided with the steps: each step that computes into fresh storage
+/// takes a slot (Step::slot), which holds one value at a time and is sized for the largest
+/// it ever holds. Sizes are per pixel of the network's input (a value of c channels at scale
+/// s is c / s² floats a pixel), so one plan serves every tile size. A value handed on (take,
+/// an in-place conv_sum) keeps its slot; an output's slot is where the caller's returned
+/// output goes back.
+struct StoragePlan {
+    std::vector<double> slot_floats;  ///< each slot's size, floats per input pixel
+    std::vector<int> output_slot;     ///< each output's slot (-1: an input, or output twice)
 };
 
 /// The steps of `nodes` with `outputs` kept to the end; `fuse` (the oneDNN backend) folds
@@ -42,6 +54,16 @@ struct Step {
 /// heads; the reference backend runs every node as written.
 std::vector<Step> plan_steps(const std::vector<Net::Node>& nodes, const std::vector<int>& outputs,
                              bool fuse);
+
+/// The slots of `steps` (setting each Step::slot), by following their births, hand-overs
+/// and frees in order: a value takes the smallest free slot that holds it, else the largest
+/// free slot (grown to it), else a new one. Peak memory then stays near the widest moment
+/// of the network instead of every size it ever freed.
+StoragePlan plan_storage(std::vector<Step>& steps, const std::vector<Net::Node>& nodes,
+                         const std::vector<int>& outputs);
+
+/// True when the step computes its value into fresh storage (Step::slot's).
+bool computes_into_storage(const Step& step);
 
 }  // namespace nn
 }  // namespace mcdn

@@ -1,10 +1,12 @@
 // Net::run (nn.h): its input checks, then the steps its plan decided (net_plan.h), each
 // value's storage taken from values freed earlier, this run or the last.
 #include <algorithm>
+#include <cmath>
 
 #include "nn/net_plan.h"
 #include "nn/onednn_conv.h"
 #include "nn/ops.h"
+#include "core/huge_pages.h"
 
 namespace mcdn {
 namespace nn {
@@ -29,27 +31,52 @@ std::vector<float> take_storage(std::vector<std::vector<float>>& spare, size_t s
     return storage;
 }
 
-void give_back(std::vector<std::vector<float>>& spare, Tensor& t)
-{
-    if (t.data.capacity() > 0)
-        spare.push_back(std::move(t.data));
-    t = Tensor();
-}
-
 /// The values of one run: owned[id] holds what node id computed (or nothing: an input, a
-/// view), value[id] where its values are.
+/// view), value[id] where its values are, home[id] the slot its storage goes back to.
 struct Values {
     std::vector<Tensor> owned;
     std::vector<const Tensor*> value;
+    std::vector<int> home;
+    std::vector<std::vector<float>>& slots;
+    const StoragePlan& plan;
     std::vector<std::vector<float>>& spare;
     int height, width;
 
-    /// owned[id] with storage for node's values, reshaped by the op that fills it.
-    Tensor& fresh(int id, const Net::Node& node)
+    /// owned[id] with its slot's storage, reserved for the largest value the slot holds
+    /// (tiles run largest first: later tiles allocate nothing), reshaped by the op.
+    Tensor& fresh(const Step& step, const Net::Node& node)
     {
-        owned[size_t(id)].data =
-            take_storage(spare, size_t(height / node.scale) * (width / node.scale) * node.channels);
-        return owned[size_t(id)];
+        const size_t pixels = size_t(height) * width;
+        std::vector<float> storage;
+        if (step.slot >= 0 && slots[size_t(step.slot)].capacity() > 0)
+            storage = std::move(slots[size_t(step.slot)]);
+        else
+            storage =
+                take_storage(spare, pixels * node.channels / (size_t(node.scale) * node.scale));
+        if (step.slot >= 0) {
+            const size_t planned = size_t(std::ceil(plan.slot_floats[size_t(step.slot)] * pixels));
+            if (storage.capacity() < planned) {
+                storage = std::vector<float>();  // grown without copying values nobody reads
+                storage.reserve(planned);
+                advise_huge_pages(storage.data(), planned * sizeof(float));
+            }
+        }
+        owned[size_t(step.id)].data = std::move(storage);
+        home[size_t(step.id)] = step.slot;
+        return owned[size_t(step.id)];
+    }
+
+    /// id's storage back to its slot (or, where that has storage, to the spares).
+    void release(int id)
+    {
+        Tensor& t = owned[size_t(id)];
+        const int slot = home[size_t(id)];
+        home[size_t(id)] = -1;
+        if (t.data.capacity() > 0 && slot >= 0 && slots[size_t(slot)].capacity() == 0)
+            slots[size_t(slot)] = std::move(t.data);
+        else if (t.data.capacity() > 0)
+            spare.push_back(std::move(t.data));
+        t = Tensor();
     }
 };
 
@@ -63,7 +90,7 @@ void run_step(const Step& step, const std::vector<Net::Node>& nodes, NetState& s
     Tensor& out = v.owned[size_t(step.id)];
     switch (step.kind) {
     case Step::Kind::conv:
-        v.fresh(step.id, node);
+        v.fresh(step, node);
         if (fast)
             state.convs.at(step.id).run(state.engine, state.stream, in(0), out);
         else
@@ -72,10 +99,12 @@ void run_step(const Step& step, const std::vector<Net::Node>& nodes, NetState& s
         break;
     case Step::Kind::conv_sum: {
         const Tensor& residual = *v.value[size_t(step.other)];
-        if (step.in_place)
+        if (step.in_place) {
             out = std::move(v.owned[size_t(step.other)]);  // nobody else reads it any more
-        else {
-            v.fresh(step.id, node);
+            v.home[size_t(step.id)] = v.home[size_t(step.other)];
+            v.home[size_t(step.other)] = -1;
+        } else {
+            v.fresh(step, node);
             out.height = residual.height;
             out.width = residual.width;
             out.channels = residual.channels;
@@ -87,36 +116,38 @@ void run_step(const Step& step, const std::vector<Net::Node>& nodes, NetState& s
     }
     case Step::Kind::take:
         out = std::move(v.owned[size_t(step.other)]);  // summed, activated by the conv
+        v.home[size_t(step.id)] = v.home[size_t(step.other)];
+        v.home[size_t(step.other)] = -1;
         break;
     case Step::Kind::add:
-        v.fresh(step.id, node);
+        v.fresh(step, node);
         fast ? ops::add(in(0), in(1), node.activation, out)
              : reference::add(in(0), in(1), node.activation, out);
         break;
     case Step::Kind::max_pool2:
-        v.fresh(step.id, node);
+        v.fresh(step, node);
         fast ? ops::max_pool2(in(0), out) : reference::max_pool2(in(0), out);
         break;
     case Step::Kind::upsample2:
-        v.fresh(step.id, node);
+        v.fresh(step, node);
         fast ? ops::upsample2(in(0), out) : reference::upsample2(in(0), out);
         break;
     case Step::Kind::concat: {
         std::vector<const Tensor*> parts;
         for (int k = 0; k < int(node.inputs.size()); ++k)
             parts.push_back(&in(k));
-        v.fresh(step.id, node);
+        v.fresh(step, node);
         fast ? ops::concat(parts, out) : reference::concat(parts, out);
         break;
     }
     case Step::Kind::slice:
-        v.fresh(step.id, node);
+        v.fresh(step, node);
         fast ? ops::slice(in(0), node.first_channel, node.channels, out)
              : reference::slice(in(0), node.first_channel, node.channels, out);
         break;
     case Step::Kind::view: v.value[size_t(step.id)] = v.value[size_t(step.other)]; return;
     case Step::Kind::apply_kernel:
-        v.fresh(step.id, node);
+        v.fresh(step, node);
         if (fast)
             ops::apply_kernel(*v.value[size_t(step.other)], step.first_channel, in(1), node.kernel,
                               out);
@@ -124,7 +155,7 @@ void run_step(const Step& step, const std::vector<Net::Node>& nodes, NetState& s
             reference::apply_kernel(in(0), in(1), node.kernel, out);
         break;
     case Step::Kind::apply_kernel_head: {
-        v.fresh(step.id, node);
+        v.fresh(step, node);
         const int head = step.other;
         const Tensor& features = *v.value[size_t(nodes[size_t(head)].inputs[0])];
         ops::apply_kernel_head(
@@ -148,8 +179,11 @@ void Net::make_state()
                                                         nodes_[id].channels, nodes_[id].kernel,
                                                         nodes_[id].activation, weights_[id],
                                                         biases_[id]));
-    state_->plan[0] = plan_steps(nodes_, output_ids_, true);
-    state_->plan[1] = plan_steps(nodes_, output_ids_, false);
+    for (int b = 0; b < 2; ++b) {
+        state_->plan[b] = plan_steps(nodes_, output_ids_, b == 0);
+        state_->storage[b] = plan_storage(state_->plan[b], nodes_, output_ids_);
+        state_->slots[b].resize(state_->storage[b].slot_floats.size());
+    }
 }
 
 void Net::give_buffers(Net& other)
@@ -158,6 +192,10 @@ void Net::give_buffers(Net& other)
         return;
     if (!other.state_)
         other.make_state();
+    for (auto& slots : state_->slots)
+        for (std::vector<float>& buffer : slots)
+            if (buffer.capacity() > 0)
+                other.state_->spare.push_back(std::move(buffer));
     for (std::vector<float>& buffer : state_->spare)
         other.state_->spare.push_back(std::move(buffer));
     state_->spare.clear();
@@ -209,20 +247,35 @@ bool Net::run(const std::vector<Tensor>& inputs, std::vector<Tensor>& outputs, s
     if (!state_)
         make_state();
     const bool fast = backend == Backend::onednn;
-    // Storage comes from values freed earlier, this run or the last (whose outputs the
-    // caller hands back in `outputs`): a tiled run allocates for its first tile only.
-    Values v { std::vector<Tensor>(nodes_.size()), std::vector<const Tensor*>(nodes_.size()),
-               state_->spare, inputs[0].height, inputs[0].width };
+    const int b = fast ? 0 : 1;
+    // Storage comes from the plan's slots (net_plan.h), filled by the values of earlier runs
+    // (whose outputs the caller hands back in `outputs`): a tiled run allocates for its first
+    // tile only.
+    Values v { std::vector<Tensor>(nodes_.size()),
+               std::vector<const Tensor*>(nodes_.size()),
+               std::vector<int>(nodes_.size(), -1),
+               state_->slots[b],
+               state_->storage[b],
+               state_->spare,
+               inputs[0].height,
+               inputs[0].width };
     for (size_t i = 0; i < inputs.size(); ++i)
         v.value[size_t(input_ids_[i])] = &inputs[i];
-    for (Tensor& t : outputs)
-        give_back(v.spare, t);
+    const std::vector<int>& output_slot = state_->storage[b].output_slot;
+    for (size_t i = 0; i < outputs.size(); ++i) {
+        const int slot = i < output_slot.size() ? output_slot[i] : -1;
+        std::vector<float>& data = outputs[i].data;
+        if (slot >= 0 && v.slots[size_t(slot)].capacity() == 0)
+            v.slots[size_t(slot)] = std::move(data);
+        else if (data.capacity() > 0)
+            v.spare.push_back(std::move(data));
+    }
     outputs.clear();
-    for (const Step& step : state_->plan[fast ? 0 : 1]) {
+    for (const Step& step : state_->plan[b]) {
         run_step(step, nodes_, *state_, weights_, biases_, fast, v);
         for (int k : step.free_after)
             if (v.value[size_t(k)] == &v.owned[size_t(k)])
-                give_back(v.spare, v.owned[size_t(k)]);
+                v.release(k);
     }
     for (size_t i = 0; i < output_ids_.size(); ++i) {
         const int id = output_ids_[i];
@@ -234,8 +287,8 @@ bool Net::run(const std::vector<Tensor>& inputs, std::vector<Tensor>& outputs, s
             outputs.push_back(*v.value[size_t(id)]);        // an input, or a value output twice
         outputs.back().data.resize(outputs.back().size());  // exact, as the caller expects
     }
-    for (Tensor& t : v.owned)  // values nobody read
-        give_back(v.spare, t);
+    for (size_t id = 0; id < v.owned.size(); ++id)  // values nobody read
+        v.release(int(id));
     return true;
 }
 

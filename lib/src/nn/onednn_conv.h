@@ -57,9 +57,13 @@ struct NetState {
     dnnl::engine engine { dnnl::engine::kind::cpu, 0 };
     dnnl::stream stream { engine };
     std::map<int, ConvLayer> convs;  // by node id
-    std::vector<std::vector<float>> spare;
-    /// How the network runs (net_plan.h): [0] the oneDNN backend's, [1] the reference's.
+    /// How the network runs (net_plan.h): [0] the oneDNN backend's, [1] the reference's;
+    /// where its values live, and the storage of each slot while no value holds it.
     std::vector<Step> plan[2];
+    StoragePlan storage[2];
+    std::vector<std::vector<float>> slots[2];
+    /// Storage another net handed over (Net::give_buffers), taken where a slot has none.
+    std::vector<std::vector<float>> spare;
 };
 
 }  // namespace nn
