@@ -28,14 +28,14 @@ mcdn::Settings settings_of(const Command& c)
     return settings;
 }
 
-// Bytes per worker thread of the stage that holds the most (the CNN's network buffers):
-// stages run one after the other.
-double thread_bytes(const std::vector<Command>& commands)
+// Bytes of the stage that holds the most besides the frame buffers (the networks'), on
+// `threads` threads: stages run one after the other.
+double held_bytes(const std::vector<Command>& commands, int threads)
 {
     double most = 0;
     for (const auto& c : commands)
-        if (const mcdn::StageInfo* stage = stage_of_command(c.name); stage && stage->thread_bytes)
-            most = std::max(most, stage->thread_bytes(settings_of(c)));
+        if (const mcdn::StageInfo* stage = stage_of_command(c.name); stage && stage->held_bytes)
+            most = std::max(most, stage->held_bytes(settings_of(c), threads));
     return most;
 }
 
@@ -62,7 +62,7 @@ double estimated_peak_bytes(const std::vector<Command>& commands, double pixels,
     const double stage_pixels = band_pixels > 0 ? std::min(pixels, band_pixels) : pixels;
     // The merged input, then the stages' buffers of a band (or of the frame).
     return (pixels + frames * stage_pixels) * channels * sizeof(float)
-           + threads * thread_bytes(commands);
+           + held_bytes(commands, threads);
 }
 
 bool available_bytes(double& bytes, std::string& error)

@@ -39,9 +39,10 @@ struct OidnOptions {
     /// network with the beauty's features and exposure, then shared so that extras which add
     /// up to the beauty still do (to float rounding); false: keep them as rendered.
     bool denoise_extras = true;
-    /// Output tile side of the tiled inference: memory follows (tile + 2 × halo)², not the
-    /// frame; the output does not depend on it.
-    int tile_size = 512;
+    /// Output tile side of the tiled inference, run a tile at a time with every thread in
+    /// its layers: memory follows (tile + 2 × halo)², not the frame nor the threads; the
+    /// output does not depend on it. Larger tiles recompute less of their halo.
+    int tile_size = 768;
     /// Heavy-tailed samples (a caustic through glass, a firefly), by the rule and thresholds
     /// of NFOR's and the CNN's (lib/src/outliers/outliers.h): such a pixel's colour becomes
     /// its 5×5 neighbourhood's median in the network's input and its excess is dropped, as a

@@ -85,8 +85,9 @@ struct StageInfo {
     StageFacts facts;
     /// Frame-sized float buffers of the merged input it adds at its peak.
     double frame_buffers = 0;
-    /// Bytes each worker thread holds besides (the CNN's network buffers); null: none.
-    double (*thread_bytes)(const Settings& settings) = nullptr;
+    /// Bytes it holds besides the frame buffers on `threads` threads (the networks' buffers:
+    /// the CNN's per worker thread, OIDN's one window at a time); null: none.
+    double (*held_bytes)(const Settings& settings, int threads) = nullptr;
     /// One paragraph for --help, and what it reads (--help STAGE).
     std::string help, needs;
     /// Whether the settings are valid: the Options' parser, no side effects; null: any

@@ -159,14 +159,15 @@ bool make_cnn(MadeStage& made, const Settings& settings, const StageContext& con
     return true;
 }
 
-// Its per-thread network buffers (mcdn/cnn.h): 350 MB at tile=512, as (tile + halo)^2.
-double cnn_thread_bytes(const Settings& settings)
+// Its network buffers (mcdn/cnn.h), a tile per worker thread: 350 MB a thread at tile=512,
+// as (tile + halo)^2.
+double cnn_held_bytes(const Settings& settings, int threads)
 {
     CnnOptions o;
     std::string error;
     apply_settings(o, settings, error);
     const double side = (std::max(o.tile_size, 1) + 64) / double(512 + 64);
-    return 350e6 * side * side;
+    return threads * 350e6 * side * side;
 }
 
 bool cnn_can_run(const AovSet& aovs, std::string& how)
@@ -185,7 +186,7 @@ StageInfo cnn_stage()
     s.reads_light_split = true;
     s.facts.depth_range = true;
     s.frame_buffers = 1.2;  // the result and the converged map
-    s.thread_bytes = cnn_thread_bytes;
+    s.held_bytes = cnn_held_bytes;
     s.help = "Kernel-predicting CNN denoiser (KPCN): diffuse/specular split, our trained weights "
              "(models/kpcn.mcdnw; weights=FILE), tiled (tile=384). Extra AOVs take their share "
              "of the beauty's denoised light through its kernels (extras=0: keep them). A pixel "
@@ -242,15 +243,15 @@ bool make_oidn(MadeStage& made, const Settings& settings, const StageContext& co
     return true;
 }
 
-// A worker's network buffers: the UNet's layers at full resolution, ~250 floats a pixel, over
-// (tile + 2 halo)^2.
-double oidn_thread_bytes(const Settings& settings)
+// The network's buffers, one window at a time whatever the threads: the storage plan's
+// slots (nn/net_plan.h), 165 floats a pixel of OIDN's UNet, over (tile + 2 halo)^2.
+double oidn_held_bytes(const Settings& settings, int)
 {
     OidnOptions o;
     std::string error;
     oidn_settings(o, settings, error);
     const double side = o.tile_size + 2 * 96;
-    return side * side * 250 * sizeof(float);
+    return side * side * 165 * sizeof(float);
 }
 
 StageInfo oidn_stage()
@@ -262,13 +263,14 @@ StageInfo oidn_stage()
     s.probes_in_place = true;
     s.facts.exposure = true;
     s.frame_buffers = 1.0;  // the result
-    s.thread_bytes = oidn_thread_bytes;
+    s.held_bytes = oidn_held_bytes;
     s.help = "Intel Open Image Denoise's published network on our engine, with your copy of "
              "OIDN's weights (weights=FILE.tza or a folder of them; else $MCDN_OIDN_WEIGHTS, "
              "else <prefix>/share/mcdenoise/oidn/; mcdenoise does not ship them: they are "
              "OIDN's, Apache 2.0, from RenderKit/oidn-weights). The model follows the inputs: "
              "colour + albedo + normal (rt_hdr_alb_nrm), colour + albedo (rt_hdr_alb), colour "
-             "(rt_hdr). Tiled (tile=512). Extra AOVs (light groups and passes) are denoised by "
+             "(rt_hdr). Tiled (tile=768), a tile at a time with every thread in it. Extra AOVs "
+             "(light groups and passes) are denoised by "
              "the network too, each a run of its own, then shared so that extras that add up "
              "to the beauty still do (extras=0: keep them). A pixel holding one "
              "sample worth a hundred of its neighbours (a caustic, a firefly) enters the network "
@@ -350,17 +352,18 @@ std::vector<StageInfo> make_table()
                                      cnn_stage(),     oidn_stage(),      sure_stage(),
                                      choose_stage(),  mix_stage() };
     // The plan's memory is that of its longest chain (mcdn/denoise.h): cnn or oidn, sure,
-    // choose, mix; per thread, the larger of its denoisers' networks.
+    // choose, mix; besides, the larger of its denoisers' networks.
     for (const char* planned : { "cnn", "sure", "choose", "mix" }) {
         const auto& stage = *std::find_if(table.begin(), table.end(),
                                           [&](const StageInfo& s) { return s.name == planned; });
         table[0].frame_buffers += stage.frame_buffers;
     }
-    table[0].thread_bytes = [](const Settings& settings) {
+    table[0].held_bytes = [](const Settings& settings, int threads) {
         std::string path, unused;  // oidn takes the cnn's place where its weights are found
         const bool oidn = oidn_weights(path, OidnOptions(), true, true, unused)
                           || oidn_weights(path, OidnOptions(), false, false, unused);
-        return std::max(cnn_thread_bytes(settings), oidn ? oidn_thread_bytes(settings) : 0.0);
+        return std::max(cnn_held_bytes(settings, threads),
+                        oidn ? oidn_held_bytes(settings, threads) : 0.0);
     };
     return table;
 }
