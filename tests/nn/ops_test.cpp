@@ -2,6 +2,7 @@
 // on random inputs: 1e-5 relative.
 #include <tbb/global_control.h>
 
+#include "nn/net_plan.h"
 #include "nn_test_util.h"
 
 using namespace nn_test;
@@ -75,6 +76,31 @@ TEST(NnOps, PoolUpsampleConcatSlice)
                                              input.at(5, 6, 4), input.at(5, 7, 4) }));
     EXPECT_EQ(out[1].at(5, 9, 2), out[0].at(2, 4, 2));
     EXPECT_EQ(out[2].at(3, 4, 10), input.at(3, 4, 1));
+}
+
+TEST(NnOps, AnUpsampleReadOnlyByAConcatIsFusedIntoIt)
+{
+    // A UNet decoder's step: concat(upsample2(deep), skip). The oneDNN plan has no upsample
+    // step (the concat reads `deep` at half resolution) and gives the same values.
+    Net net("decoder");
+    Value x = net.input("x", 4);
+    Value deep = net.conv(net.max_pool2(x), "deep", 6, 3);
+    net.output("joined", net.concat({ net.upsample2(deep), x }));
+    const Tensor input = random_tensor(8, 12, 4, 7);
+    EXPECT_LT(onednn_vs_reference(net, { input }), tolerance);  // the conv's sums
+    const std::vector<Step> fused = plan_steps(net.nodes(), { int(net.nodes().size()) - 1 }, true);
+    EXPECT_TRUE(std::none_of(fused.begin(), fused.end(),
+                             [](const Step& step) { return step.kind == Step::Kind::upsample2; }));
+    const std::vector<Step> plain = plan_steps(net.nodes(), { int(net.nodes().size()) - 1 }, false);
+    EXPECT_TRUE(std::any_of(plain.begin(), plain.end(),
+                            [](const Step& step) { return step.kind == Step::Kind::upsample2; }));
+    // Read by another node too, it is run as written.
+    Net shared("shared");
+    Value y = shared.input("y", 4);
+    Value up = shared.upsample2(shared.max_pool2(y));
+    shared.output("joined", shared.concat({ up, y }));
+    shared.output("up", up);
+    EXPECT_EQ(onednn_vs_reference(shared, { input }), 0.0);
 }
 
 TEST(NnOps, ApplyKernelMatchesReference)

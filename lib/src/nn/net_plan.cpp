@@ -42,6 +42,9 @@ struct Schedule {
     /// never run; each apply_kernel computes its logits from the conv's input and rows of
     /// its weights (ops::apply_kernel_head). fused_head[conv] = 1.
     std::vector<char> fused_head;
+    /// An upsample2 read only by a concat (a UNet's decoder) is never run: the concat reads
+    /// its input at half resolution. upsample_into[upsample] = the concat, else -1.
+    std::vector<int> upsample_into;
 };
 
 Schedule make_schedule(const std::vector<Net::Node>& nodes, const std::vector<int>& outputs,
@@ -57,6 +60,7 @@ Schedule make_schedule(const std::vector<Net::Node>& nodes, const std::vector<in
     schedule.accumulate_in_place.assign(count, 0);
     schedule.view_of.assign(count, -1);
     schedule.fused_head.assign(count, 0);
+    schedule.upsample_into.assign(count, -1);
     std::vector<int> readers(count, 0), kernel_readers(count, 0);
     for (int id = 0; id < count; ++id)
         for (size_t k = 0; k < nodes[id].inputs.size(); ++k) {
@@ -89,6 +93,16 @@ Schedule make_schedule(const std::vector<Net::Node>& nodes, const std::vector<in
             schedule.residual_of[conv] = residual;
         }
     }
+    for (int id = 0; fuse && id < count; ++id)
+        if (nodes[id].op == Net::Op::upsample2 && readers[id] == 1
+            && nodes[schedule.last_reader[id]].op == Net::Op::concat
+            && nodes[schedule.last_reader[id]].inputs[0] == id) {
+            // The first part sets the concat's size: only it may be read at half resolution.
+            schedule.upsample_into[id] = schedule.last_reader[id];
+            const int source = nodes[id].inputs[0];
+            schedule.last_reader[source] =
+                std::max(schedule.last_reader[source], schedule.upsample_into[id]);
+        }
     std::vector<int> view_readers(count, 0);
     for (int id = 0; id < count; ++id)
         if (schedule.view_of[id] >= 0)
@@ -112,7 +126,7 @@ Schedule make_schedule(const std::vector<Net::Node>& nodes, const std::vector<in
     }
     for (int id = 0; id < count; ++id)
         if (schedule.last_reader[id] >= 0 && schedule.last_reader[id] < count
-            && !(schedule.fused_head[id]))
+            && !schedule.fused_head[id] && schedule.upsample_into[id] < 0)
             schedule.free_after[schedule.last_reader[id]].push_back(id);
     return schedule;
 }
@@ -153,11 +167,15 @@ std::vector<Step> plan_steps(const std::vector<Net::Node>& nodes, const std::vec
             steps.push_back(step);
             break;
         case Net::Op::upsample2:
+            if (schedule.upsample_into[id] >= 0)
+                break;  // read by its concat at half resolution
             step.kind = Step::Kind::upsample2;
             steps.push_back(step);
             break;
         case Net::Op::concat:
             step.kind = Step::Kind::concat;
+            for (int in : node.inputs)
+                step.upsampled.push_back(schedule.upsample_into[in] == id);
             steps.push_back(step);
             break;
         case Net::Op::slice:

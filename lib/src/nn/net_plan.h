@@ -36,6 +36,9 @@ struct Step {
     int first_channel = 0;        ///< apply_kernel(_head): the logits' first channel in `other`
     std::vector<int> free_after;  ///< values whose storage is free once this step has run
     int slot = -1;                ///< the storage slot its value is computed into (StoragePlan)
+    /// concat: the inputs read through an upsample2 that has no step of its own (fused:
+    /// the concat reads the upsample's input at half resolution), one flag per input.
+    std::vector<char> upsampled;
 };
 
 /// Where the values live, decided with the steps: each step that computes into fresh storage
@@ -50,8 +53,9 @@ struct StoragePlan {
 };
 
 /// The steps of `nodes` with `outputs` kept to the end; `fuse` (the oneDNN backend) folds
-/// residual adds into their convolutions, reads kernel logits in place and fuses 1×1 kernel
-/// heads; the reference backend runs every node as written.
+/// residual adds into their convolutions, reads kernel logits in place, fuses 1×1 kernel
+/// heads and upsamplings into the concat that reads them; the reference backend runs every
+/// node as written.
 std::vector<Step> plan_steps(const std::vector<Net::Node>& nodes, const std::vector<int>& outputs,
                              bool fuse);
 

@@ -135,9 +135,11 @@ void run_step(const Step& step, const std::vector<Net::Node>& nodes, NetState& s
     case Step::Kind::concat: {
         std::vector<const Tensor*> parts;
         for (int k = 0; k < int(node.inputs.size()); ++k)
-            parts.push_back(&in(k));
+            parts.push_back(step.upsampled[size_t(k)]  // the fused upsample's input
+                                ? v.value[size_t(nodes[size_t(node.inputs[size_t(k)])].inputs[0])]
+                                : &in(k));
         v.fresh(step, node);
-        fast ? ops::concat(parts, out) : reference::concat(parts, out);
+        fast ? ops::concat(parts, step.upsampled, out) : reference::concat(parts, out);
         break;
     }
     case Step::Kind::slice:

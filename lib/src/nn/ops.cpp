@@ -72,16 +72,25 @@ void upsample2(const Tensor& x, Tensor& out)
 
 void concat(const std::vector<const Tensor*>& parts, Tensor& out)
 {
+    concat(parts, std::vector<char>(parts.size(), 0), out);
+}
+
+void concat(const std::vector<const Tensor*>& parts, const std::vector<char>& upsampled,
+            Tensor& out)
+{
     int channels = 0;
     for (const Tensor* part : parts)
         channels += part->channels;
-    reshape(out, parts[0]->height, parts[0]->width, channels);
+    const int scale = upsampled[0] ? 2 : 1;
+    reshape(out, parts[0]->height * scale, parts[0]->width * scale, channels);
     parallel_rows(out.height, [&](int y) {
         for (int px = 0; px < out.width; ++px) {
             float* po = out.pixel(y, px);
-            for (const Tensor* part : parts) {
-                std::memcpy(po, part->pixel(y, px), part->channels * sizeof(float));
-                po += part->channels;
+            for (size_t k = 0; k < parts.size(); ++k) {
+                const Tensor& part = *parts[k];
+                const float* from = upsampled[k] ? part.pixel(y / 2, px / 2) : part.pixel(y, px);
+                std::memcpy(po, from, part.channels * sizeof(float));
+                po += part.channels;
             }
         }
     });

@@ -24,6 +24,10 @@ void add(const Tensor& a, const Tensor& b, Activation activation, Tensor& out);
 void max_pool2(const Tensor& x, Tensor& out);
 void upsample2(const Tensor& x, Tensor& out);
 void concat(const std::vector<const Tensor*>& parts, Tensor& out);
+/// concat with the parts marked in `upsampled` read through upsample2 (given at half
+/// resolution): each output pixel written once, no upsampled copy made first.
+void concat(const std::vector<const Tensor*>& parts, const std::vector<char>& upsampled,
+            Tensor& out);
 void slice(const Tensor& x, int first, int count, Tensor& out);
 void apply_kernel(const Tensor& logits, const Tensor& image, int kernel, Tensor& out);
 /// The same with the k×k logits at channels [first_channel, first_channel + k²) of `logits`
