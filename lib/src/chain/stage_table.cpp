@@ -244,14 +244,15 @@ bool make_oidn(MadeStage& made, const Settings& settings, const StageContext& co
 }
 
 // The network's buffers, one window at a time whatever the threads: the storage plan's
-// slots (nn/net_plan.h), 165 floats a pixel of OIDN's UNet, over (tile + 2 halo)^2.
+// slots (nn/net_plan.h), 173 floats a pixel of OIDN's UNet (172.5 for tests/nn/plan_test's
+// shape of it), over (tile + 2 halo)^2.
 double oidn_held_bytes(const Settings& settings, int)
 {
     OidnOptions o;
     std::string error;
     oidn_settings(o, settings, error);
     const double side = o.tile_size + 2 * 96;
-    return side * side * 165 * sizeof(float);
+    return side * side * 173 * sizeof(float);
 }
 
 StageInfo oidn_stage()
