@@ -83,14 +83,6 @@ void recombine(kpcn::OutputFrame& color_frame, kpcn::OutputFrame& frame, Rect re
     kpcn::write_extras(frame, rect, extras, split ? &diffuse : nullptr, specular);
 }
 
-/// The frame pixels of a tile's core that the op writes: inside the image and the ROI.
-Rect output_rect(const Rect& core, const ImageBuf& dst, ROI where)
-{
-    const ImageSpec& spec = dst.spec();
-    return { std::max(core.x0, where.xbegin - spec.x), std::max(core.y0, where.ybegin - spec.y),
-             std::min(core.x1, where.xend - spec.x), std::min(core.y1, where.yend - spec.y) };
-}
-
 /// The colour of the converged tiles inside `where` is the render's, sanitized (the frame
 /// holds the render there: it is sanitized in place).
 void pass_through_color(kpcn::OutputFrame& frame, const ImageBuf& dst,
@@ -144,25 +136,6 @@ kpcn::DroppedOutliers find_outliers(const ImageBuf& src, const AovSet& aovs,
         dropped.scale.push_back(scale);
     }
     return dropped;
-}
-
-// The network's tiles (nn/tiled.cpp) that write a pixel of `where`, only over tiles that are
-// not converged (nn/network_regions.h).
-bool network_tiles(std::vector<nn::Tile>& tiles, const nn::Net& net,
-                   const ConvergedTiles& converged, const CnnOptions& options, const ImageBuf& src,
-                   const ImageBuf& dst, const ROI& where, std::string& error)
-{
-    nn::TileOptions tile_options;
-    tile_options.tile_size = options.tile_size;
-    tile_options.regions = network_regions(converged, net, options.tile_size);
-    std::vector<nn::Tile> planned;
-    if (!nn::plan_tiles(net, src.spec().height, src.spec().width, tile_options, planned, error))
-        return false;
-    tiles.clear();
-    for (const nn::Tile& tile : planned)
-        if (!output_rect(tile.core, dst, where).empty())
-            tiles.push_back(tile);
-    return true;
 }
 
 // In place, the colour made in a frame of its own (colour channels 0-2) into the output's
@@ -269,7 +242,7 @@ bool run_tiles(Workers& worker, const std::string& path, int image_channels,
                     error = "cnn: '" + path + "': " + tile_error;
                 return false;
             }
-            recombine(color_frame, extras_frame, output_rect(tile.core, run.dst, run.where),
+            recombine(color_frame, extras_frame, output_rect(tile.core, run.dst.spec(), run.where),
                       tile.window, k, run.split, run.src, run.aovs, color_channels, run.extras,
                       run.converged);
             return progress.advance(error, failed);
@@ -357,7 +330,7 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
     const bool split = kpcn::has_split(aovs);
     const ROI where = output_roi(src, roi);
     std::vector<nn::Tile> tiles;
-    if (!network_tiles(tiles, first, converged, options, src, dst, where, error)) {
+    if (!network_tiles(tiles, first, converged, options.tile_size, src.spec(), where, error)) {
         dst.errorfmt("cnn: {}", error);
         return false;
     }

@@ -63,4 +63,27 @@ std::vector<Rect> network_regions(const ConvergedTiles& m, const nn::Net& net, i
     return regions;
 }
 
+Rect output_rect(const Rect& core, const OIIO::ImageSpec& spec, OIIO::ROI where)
+{
+    return { std::max(core.x0, where.xbegin - spec.x), std::max(core.y0, where.ybegin - spec.y),
+             std::min(core.x1, where.xend - spec.x), std::min(core.y1, where.yend - spec.y) };
+}
+
+bool network_tiles(std::vector<nn::Tile>& tiles, const nn::Net& net,
+                   const ConvergedTiles& converged, int tile_size, const OIIO::ImageSpec& spec,
+                   OIIO::ROI where, std::string& error)
+{
+    nn::TileOptions tile_options;
+    tile_options.tile_size = tile_size;
+    tile_options.regions = network_regions(converged, net, tile_size);
+    std::vector<nn::Tile> planned;
+    if (!nn::plan_tiles(net, spec.height, spec.width, tile_options, planned, error))
+        return false;
+    tiles.clear();
+    for (const nn::Tile& tile : planned)
+        if (!output_rect(tile.core, spec, where).empty())
+            tiles.push_back(tile);
+    return true;
+}
+
 }  // namespace mcdn

@@ -281,31 +281,6 @@ bool model_inputs(Inputs& in, std::string& path, std::shared_ptr<const nn::Weigh
     return true;
 }
 
-/// The frame pixels of a tile's core that the op writes: inside the image and the ROI.
-Rect output_rect(const Rect& core, const ImageSpec& spec, ROI where)
-{
-    return { std::max(core.x0, where.xbegin - spec.x), std::max(core.y0, where.ybegin - spec.y),
-             std::min(core.x1, where.xend - spec.x), std::min(core.y1, where.yend - spec.y) };
-}
-
-/// The network's tiles (nn/tiled.cpp) that write a pixel of `where`, only over tiles that are
-/// not converged (nn/network_regions.h).
-bool network_tiles(std::vector<nn::Tile>& tiles, const nn::Net& net,
-                   const ConvergedTiles& converged, int tile_size, const ImageBuf& src, ROI where,
-                   std::string& error)
-{
-    nn::TileOptions tile_options;
-    tile_options.tile_size = tile_size;
-    tile_options.regions = network_regions(converged, net, tile_size);
-    std::vector<nn::Tile> planned;
-    if (!nn::plan_tiles(net, src.spec().height, src.spec().width, tile_options, planned, error))
-        return false;
-    for (const nn::Tile& tile : planned)
-        if (!output_rect(tile.core, src.spec(), where).empty())
-            tiles.push_back(tile);
-    return true;
-}
-
 /// Every pass on every tile (but where a pass has no light in the window: tile_input), a tile
 /// at a time with every thread in the network's layers (as OIDN itself runs): one window's buffers
 /// whatever the threads, so windows can be larger and recompute less of their halo than a tile per
@@ -387,7 +362,7 @@ bool oidn_in_working_space(ImageBuf& dst, const ImageBuf& src, const OidnOptions
     }
     const ROI where = output_roi(src, roi);
     std::vector<nn::Tile> tiles;
-    if (!network_tiles(tiles, net, converged, options.tile_size, src, where, error)) {
+    if (!network_tiles(tiles, net, converged, options.tile_size, src.spec(), where, error)) {
         dst.errorfmt("oidn: {}", error);
         return false;
     }
