@@ -50,7 +50,7 @@ bool linear_transform(std::array<double, 9>& matrix, const std::string& from, co
 /// encoded again after them) is converted per pixel by OCIO, curve included; a variance has
 /// no such conversion: false with `error`.
 bool convert_color_channels(ImageBuf& buf, const AovSet& aovs, const std::string& from,
-                            const std::string& to, std::string& error);
+                            const std::string& to, std::string& error, int nthreads = 0);
 
 /// Whether `image`, its colour in `from`, needs into_working_space: not converted already,
 /// and another space or extras that hold light divided by a factor (Blender's light passes,
@@ -62,12 +62,13 @@ bool needs_working_conversion(const ImageSpec& image, const std::string& from, c
 /// light, factor × pass (before the conversion: the product is what adds up to the beauty),
 /// so that the denoisers filter light and a comp rebuilt from the passes adds up to the
 /// denoised beauty. Marks buf as converted (input_colorspace then says the working space).
+/// On `nthreads` threads (0: every core), pixel by pixel: the same result for any number.
 bool into_working_space(ImageBuf& buf, const AovSet& aovs, const std::string& from,
-                        std::string& error);
+                        std::string& error, int nthreads = 0);
 /// The way back: colour to `to`, then each factored extra divided by its factor again, by
 /// Cycles' rule where a factor channel is (near) 0: the mean of the other channels' quotients.
 bool out_of_working_space(ImageBuf& buf, const AovSet& aovs, const std::string& to,
-                          std::string& error);
+                          std::string& error, int nthreads = 0);
 
 /// Runs `op` in the working space: converts a copy of src in (into_working_space; when
 /// needs_working_conversion says so), runs op, converts dst's channels back. The common case

@@ -260,14 +260,14 @@ bool run_in_working_space_once(ImageBuf& dst, const ImageBuf& src, ImageBuf* own
         }
         converted = &copy;
     }
-    if (!into_working_space(*converted, aovs, from, error)) {
+    if (!into_working_space(*converted, aovs, from, error, nthreads)) {
         dst.errorfmt("chain: colorspace {}: {}", from, error);
         return true;
     }
     if (!run_chain_impl(dst, *converted, converted, o, roi, nthreads))
         return true;
     if (!resolve_aovs(aovs, o.aovs, dst.spec(), error)
-        || !out_of_working_space(dst, aovs, from, error))
+        || !out_of_working_space(dst, aovs, from, error, nthreads))
         dst.errorfmt("chain: colorspace {}: {}", from, error);
     return true;
 }

@@ -280,7 +280,7 @@ bool run_bands(const std::vector<Band>& bands, const ROI& whole, const FrameFact
         if (convert) {
             AovSet result_aovs;
             if (!resolve_aovs(result_aovs, o.aovs, result.spec(), error)
-                || !out_of_working_space(result, result_aovs, from, error))
+                || !out_of_working_space(result, result_aovs, from, error, nthreads))
                 return false;
         }
         ROI own = whole;
@@ -351,7 +351,7 @@ bool run_chain(const ImageBuf& input, const ChainOptions& o, const BandSink& sin
     ImageBuf converted;
     if (convert) {
         converted = input.copy(OIIO::TypeDesc::FLOAT);
-        if (!into_working_space(converted, aovs, from, error))
+        if (!into_working_space(converted, aovs, from, error, nthreads))
             return false;
     }
     const ImageBuf& src = convert ? converted : input;
@@ -407,7 +407,7 @@ bool run_chain(const ImageSpec& frame, const RowReader& read, const ChainOptions
         if (!read(rows, y0, y1, channels, error))
             return false;
         if (convert) {
-            if (!into_working_space(rows, aovs, from, error))
+            if (!into_working_space(rows, aovs, from, error, nthreads))
                 return false;
         }
         return true;

@@ -317,7 +317,7 @@ bool linear_transform(std::array<double, 9>& m, const std::string& from, const s
 }
 
 bool convert_color_channels(ImageBuf& buf, const AovSet& aovs, const std::string& from,
-                            const std::string& to, std::string& error)
+                            const std::string& to, std::string& error, int nthreads)
 {
     if (from == to)
         return true;
@@ -333,21 +333,23 @@ bool convert_color_channels(ImageBuf& buf, const AovSet& aovs, const std::string
     std::array<double, 9> m;
     if (!matrix_of(m, cpu))
         return convert_encoded(buf, aovs, from, to, cpu, error);
-    const size_t npixels = buf.spec().image_pixels();
-    for (const auto& group : color_groups(buf, aovs)) {
-        std::array<double, 9> w = m;
-        if (group.variance)
-            for (double& v : w)
-                v *= v;  // Var[Mx]_i = sum_j M_ij^2 Var[x_j]
-        const int* c = group.channels.data();
-        for (size_t p = 0; p < npixels; ++p) {
-            float* px = pixels + p * nch;
-            double in[3] = { px[c[0]], px[c[1]], px[c[2]] };
-            for (int i = 0; i < 3; ++i)
-                px[c[i]] =
-                    sanitize(float(w[i * 3] * in[0] + w[i * 3 + 1] * in[1] + w[i * 3 + 2] * in[2]));
+    const auto groups = color_groups(buf, aovs);
+    for_pixel_chunks(buf.spec().image_pixels(), nthreads, [&](size_t begin, size_t end) {
+        for (const auto& group : groups) {
+            std::array<double, 9> w = m;
+            if (group.variance)
+                for (double& v : w)
+                    v *= v;  // Var[Mx]_i = sum_j M_ij^2 Var[x_j]
+            const int* c = group.channels.data();
+            for (size_t p = begin; p < end; ++p) {
+                float* px = pixels + p * nch;
+                double in[3] = { px[c[0]], px[c[1]], px[c[2]] };
+                for (int i = 0; i < 3; ++i)
+                    px[c[i]] = sanitize(
+                        float(w[i * 3] * in[0] + w[i * 3 + 1] * in[1] + w[i * 3 + 2] * in[2]));
+            }
         }
-    }
+    });
     return true;
 }
 
@@ -360,32 +362,34 @@ constexpr float kSmallestFactor = 1e-4f;
 /// Extras that hold light divided by a factor (AovSet::Extra::factor), as light: each face
 /// (mean, halves: by their own factor where the inputs have it; variance: by its square)
 /// times the factor, or with `divide` the way back.
-void scale_factored_extras(ImageBuf& buf, const AovSet& aovs, bool divide)
+void scale_factored_extras(ImageBuf& buf, const AovSet& aovs, bool divide, int nthreads)
 {
     const int nch = buf.nchannels();
     float* pixels = static_cast<float*>(buf.localpixels());
-    const size_t npixels = buf.spec().image_pixels();
+    struct Face {
+        std::vector<int> pass, factor;
+        bool variance;
+    };
+    std::vector<Face> faces;
     for (const AovSet::Extra& extra : aovs.extras()) {
         if (extra.factor.size() != 3 || extra.channels.size() != 3)
             continue;
-        struct Face {
-            const std::vector<int>& pass;
-            const std::vector<int>& factor;
-            bool variance;
-        };
         const bool own_halves = extra.factor_a.size() == 3 && extra.factor_b.size() == 3;
-        const std::vector<int> noisy = noisy_channels(buf.spec(), extra.names);
-        const Face faces[] = { { extra.channels, extra.factor, false },
-                               { extra.half_a, own_halves ? extra.factor_a : extra.factor, false },
-                               { extra.half_b, own_halves ? extra.factor_b : extra.factor, false },
-                               { extra.variance, extra.factor, true },
-                               { noisy, extra.factor, false } };
-        for (const Face& face : faces) {
-            if (face.pass.size() != 3)
-                continue;
-            const float smallest =
-                face.variance ? kSmallestFactor * kSmallestFactor : kSmallestFactor;
-            for (size_t p = 0; p < npixels; ++p) {
+        for (Face face : { Face { extra.channels, extra.factor, false },
+                           Face { extra.half_a, own_halves ? extra.factor_a : extra.factor, false },
+                           Face { extra.half_b, own_halves ? extra.factor_b : extra.factor, false },
+                           Face { extra.variance, extra.factor, true },
+                           Face { noisy_channels(buf.spec(), extra.names), extra.factor, false } })
+            if (face.pass.size() == 3)
+                faces.push_back(std::move(face));
+    }
+    // A pixel at a time, every face of it (one pass over the frame's cache lines): a face
+    // writes only its own pass's channels and reads only its own and its factor's.
+    for_pixel_chunks(buf.spec().image_pixels(), nthreads, [&](size_t begin, size_t end) {
+        for (size_t p = begin; p < end; ++p)
+            for (const Face& face : faces) {
+                const float smallest =
+                    face.variance ? kSmallestFactor * kSmallestFactor : kSmallestFactor;
                 float* px = pixels + p * nch;
                 float f[3], v[3];
                 bool lit[3];
@@ -413,8 +417,7 @@ void scale_factored_extras(ImageBuf& buf, const AovSet& aovs, bool divide)
                 for (int c = 0; c < 3; ++c)
                     px[face.pass[c]] = face.variance ? sanitize_variance(v[c]) : sanitize(v[c]);
             }
-        }
-    }
+    });
 }
 
 }  // namespace
@@ -427,30 +430,30 @@ bool needs_working_conversion(const ImageSpec& image, const std::string& from, c
 }
 
 bool into_working_space(ImageBuf& buf, const AovSet& aovs, const std::string& from,
-                        std::string& error)
+                        std::string& error, int nthreads)
 {
     if (buf.spec().format != OIIO::TypeDesc::FLOAT || !buf.localpixels()) {
         error = "colour conversion needs a local float buffer";
         return false;
     }
-    scale_factored_extras(buf, aovs, false);
-    if (!convert_color_channels(buf, aovs, from, working_colorspace(), error))
+    scale_factored_extras(buf, aovs, false, nthreads);
+    if (!convert_color_channels(buf, aovs, from, working_colorspace(), error, nthreads))
         return false;
     buf.specmod().attribute(kInWorkingSpaceAttribute, 1);
     return true;
 }
 
 bool out_of_working_space(ImageBuf& buf, const AovSet& aovs, const std::string& to,
-                          std::string& error)
+                          std::string& error, int nthreads)
 {
     if (buf.spec().format != OIIO::TypeDesc::FLOAT || !buf.localpixels()) {
         error = "colour conversion needs a local float buffer";
         return false;
     }
     buf.specmod().erase_attribute(kInWorkingSpaceAttribute);
-    if (!convert_color_channels(buf, aovs, working_colorspace(), to, error))
+    if (!convert_color_channels(buf, aovs, working_colorspace(), to, error, nthreads))
         return false;
-    scale_factored_extras(buf, aovs, true);
+    scale_factored_extras(buf, aovs, true, nthreads);
     return true;
 }
 

@@ -38,6 +38,16 @@ void parallel_for_index(int n, int nthreads, const std::function<void(int)>& bod
     });
 }
 
+void for_pixel_chunks(size_t npixels, int nthreads,
+                      const std::function<void(size_t begin, size_t end)>& body)
+{
+    constexpr size_t kChunk = 16384;  // pixels: enough work per task, many tasks per thread
+    const size_t chunks = (npixels + kChunk - 1) / kChunk;
+    parallel_for_index(int(chunks), nthreads, [&](int i) {
+        body(size_t(i) * kChunk, std::min(npixels, size_t(i + 1) * kChunk));
+    });
+}
+
 namespace {
 
 // Where pixel (x, y) of a float frame (float_frame_pixels) starts.

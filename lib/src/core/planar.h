@@ -45,6 +45,11 @@ std::vector<Rect> make_tiles(int width, int height, int tile_size);
 /// Each call must write only its own outputs: results never depend on the scheduling.
 void parallel_for_index(int n, int nthreads, const std::function<void(int)>& body);
 
+/// Runs body(begin, end) over [0, npixels) in chunks of consecutive pixels on `nthreads`
+/// threads (parallel_for_index): for per-pixel work on an interleaved frame.
+void for_pixel_chunks(size_t npixels, int nthreads,
+                      const std::function<void(size_t begin, size_t end)>& body);
+
 /// Largest magnitude an op lets into its arithmetic: squares and window sums of
 /// (differences of) such values stay finite in float. validate_inputs refuses larger ones
 /// (mcdn/io.h kHugeValue, the same number: io.cpp checks it).
