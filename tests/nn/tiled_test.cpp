@@ -1,5 +1,7 @@
 // Tiled inference equals the whole-image run: same pooling grid, same border padding,
 // a halo as wide as the receptive field.
+#include <array>
+
 #include "nn_test_util.h"
 
 using namespace nn_test;
@@ -71,3 +73,65 @@ TEST(NnTiled, AnySizeIsExtendedAndCropped)
 }
 
 }  // namespace
+
+namespace {
+
+int64_t area(const mcdn::Rect& r)
+{
+    return int64_t(r.x1 - r.x0) * (r.y1 - r.y0);
+}
+
+}  // namespace
+
+// TileOptions::balanced: the cores tile the extended image exactly once, no window holds more
+// than a square tile's, the windows add up to no more than the square grid's, and the output
+// is the whole-image run's.
+TEST(NnTiled, BalancedGridsComputeLessHaloInTheSameMemory)
+{
+    Net net = small_unet();  // halo 20 (17 rounded up to the alignment 4)
+    std::string error;
+    for (const auto& [height, width, tile] : std::vector<std::array<int, 3>> { { 1080, 1920, 1024 },
+                                                                               { 1080, 1920, 768 },
+                                                                               { 37, 51, 12 },
+                                                                               { 4320, 7680, 1000 },
+                                                                               { 8, 8, 64 } }) {
+        TileOptions options;
+        options.tile_size = tile;
+        std::vector<Tile> square, balanced;
+        ASSERT_TRUE(plan_tiles(net, height, width, options, square, error)) << error;
+        options.balanced = true;
+        ASSERT_TRUE(plan_tiles(net, height, width, options, balanced, error)) << error;
+        const int padded_h = (height + 3) / 4 * 4, padded_w = (width + 3) / 4 * 4;
+        const int side = (tile + 3) / 4 * 4 + 2 * 20;
+        std::vector<int> covered(size_t(padded_h) * padded_w, 0);
+        int64_t square_area = 0, balanced_area = 0;
+        for (const Tile& t : square)
+            square_area += area(t.window);
+        for (const Tile& t : balanced) {
+            balanced_area += area(t.window);
+            EXPECT_LE(area(t.window), int64_t(side) * side) << width << "x" << height;
+            EXPECT_EQ(t.core.x0 % 4, 0);
+            EXPECT_EQ(t.core.y0 % 4, 0);
+            for (int y = t.core.y0; y < t.core.y1; ++y)
+                for (int x = t.core.x0; x < t.core.x1; ++x)
+                    ++covered[size_t(y) * padded_w + x];
+        }
+        EXPECT_TRUE(std::all_of(covered.begin(), covered.end(), [](int n) { return n == 1; }))
+            << width << "x" << height;
+        EXPECT_LE(balanced_area, square_area) << width << "x" << height;
+        if (tile == 1024) {
+            EXPECT_EQ(balanced.size(), 2u);  // two windows of 1004 x 1080, where squares make 4
+        }
+    }
+    ASSERT_TRUE(net.load(random_weights(net, 7), error)) << error;
+    const Tensor input = random_tensor(90, 130, 7, 8);
+    std::vector<Tensor> whole, tiled;
+    TileOptions options;
+    options.tile_size = 1 << 20;
+    ASSERT_TRUE(run_tiled(net, { input }, whole, error, options)) << error;
+    options.tile_size = 24;
+    options.balanced = true;
+    ASSERT_TRUE(run_tiled(net, { input }, tiled, error, options)) << error;
+    for (int o = 0; o < 2; ++o)
+        EXPECT_LT(relative_error(tiled[o], whole[o]), 1e-6) << "output " << o;
+}

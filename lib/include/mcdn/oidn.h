@@ -40,9 +40,11 @@ struct OidnOptions {
     /// up to the beauty still do (to float rounding); false: keep them as rendered.
     bool denoise_extras = true;
     /// Output tile side of the tiled inference, run a tile at a time with every thread in
-    /// its layers: memory follows (tile + 2 × halo)², not the frame nor the threads; the
-    /// output does not depend on it. Larger tiles recompute less of their halo.
-    int tile_size = 768;
+    /// its layers: a window (the tile and its halo) holds at most (tile + 2 × halo)² pixels,
+    /// in a grid that splits the frame evenly (nn::TileOptions::balanced), so memory follows
+    /// that, not the frame nor the threads; the output does not depend on it. Larger tiles
+    /// recompute less of their halo (1080p: two windows at 1024, three at 768).
+    int tile_size = 1024;
     /// Heavy-tailed samples (a caustic through glass, a firefly), by the rule and thresholds
     /// of NFOR's and the CNN's (lib/src/outliers/outliers.h): such a pixel's colour becomes
     /// its 5×5 neighbourhood's median in the network's input and its excess is dropped, as a

@@ -245,13 +245,14 @@ bool make_oidn(MadeStage& made, const Settings& settings, const StageContext& co
 
 // The network's buffers, one window at a time whatever the threads: the storage plan's
 // slots (nn/net_plan.h), 173 floats a pixel of OIDN's UNet (172.5 for tests/nn/plan_test's
-// shape of it), over (tile + 2 halo)^2.
+// shape of it), over at most (tile + 2 halo)^2 (nn::TileOptions::balanced); the halo is its
+// receptive radius rounded up to its alignment, 112.
 double oidn_held_bytes(const Settings& settings, int)
 {
     OidnOptions o;
     std::string error;
     oidn_settings(o, settings, error);
-    const double side = o.tile_size + 2 * 96;
+    const double side = o.tile_size + 2 * 112;
     return side * side * 173 * sizeof(float);
 }
 
@@ -270,7 +271,7 @@ StageInfo oidn_stage()
              "else <prefix>/share/mcdenoise/oidn/; mcdenoise does not ship them: they are "
              "OIDN's, Apache 2.0, from RenderKit/oidn-weights). The model follows the inputs: "
              "colour + albedo + normal (rt_hdr_alb_nrm), colour + albedo (rt_hdr_alb), colour "
-             "(rt_hdr). Tiled (tile=768), a tile at a time with every thread in it. Extra AOVs "
+             "(rt_hdr). Tiled (tile=1024), a tile at a time with every thread in it. Extra AOVs "
              "(light groups and passes) are denoised by "
              "the network too, each a run of its own, then shared so that extras that add up "
              "to the beauty still do (extras=0: keep them). A pixel holding one "

@@ -330,7 +330,8 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
     const bool split = kpcn::has_split(aovs);
     const ROI where = output_roi(src, roi);
     std::vector<nn::Tile> tiles;
-    if (!network_tiles(tiles, first, converged, options.tile_size, src.spec(), where, error)) {
+    if (!network_tiles(tiles, first, converged, options.tile_size, false, src.spec(), where,
+                       error)) {
         dst.errorfmt("cnn: {}", error);
         return false;
     }

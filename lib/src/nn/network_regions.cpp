@@ -70,11 +70,12 @@ Rect output_rect(const Rect& core, const OIIO::ImageSpec& spec, OIIO::ROI where)
 }
 
 bool network_tiles(std::vector<nn::Tile>& tiles, const nn::Net& net,
-                   const ConvergedTiles& converged, int tile_size, const OIIO::ImageSpec& spec,
-                   OIIO::ROI where, std::string& error)
+                   const ConvergedTiles& converged, int tile_size, bool balanced,
+                   const OIIO::ImageSpec& spec, OIIO::ROI where, std::string& error)
 {
     nn::TileOptions tile_options;
     tile_options.tile_size = tile_size;
+    tile_options.balanced = balanced;
     tile_options.regions = network_regions(converged, net, tile_size);
     std::vector<nn::Tile> planned;
     if (!nn::plan_tiles(net, spec.height, spec.width, tile_options, planned, error))

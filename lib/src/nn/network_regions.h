@@ -23,9 +23,9 @@ std::vector<Rect> network_regions(const ConvergedTiles& tiles, const nn::Net& ne
 Rect output_rect(const Rect& core, const OIIO::ImageSpec& spec, OIIO::ROI where);
 
 /// The network's tiles (nn/tiled.cpp) on the frame `spec` that write a pixel of `where`, only
-/// over tiles that are not converged (network_regions).
+/// over tiles that are not converged (network_regions); `balanced`: nn::TileOptions's.
 bool network_tiles(std::vector<nn::Tile>& tiles, const nn::Net& net,
-                   const ConvergedTiles& converged, int tile_size, const OIIO::ImageSpec& spec,
-                   OIIO::ROI where, std::string& error);
+                   const ConvergedTiles& converged, int tile_size, bool balanced,
+                   const OIIO::ImageSpec& spec, OIIO::ROI where, std::string& error);
 
 }  // namespace mcdn

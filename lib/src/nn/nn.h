@@ -215,6 +215,12 @@ struct TileOptions {
     /// halo (x0 and y0 multiples of alignment(); sides at most tile_size for bounded memory);
     /// the outputs are 0 elsewhere. Used to skip converged tiles (mcdn/skip.h).
     std::vector<Rect> regions;
+    /// Without regions: the grid of cores that split the image evenly, chosen so that the
+    /// windows add up to the fewest pixels (the least halo computed again) while each holds
+    /// at most (tile_size + 2 × halo)² — the memory of a square tile's window; 1080p at tile
+    /// 1024 (halo 96): two windows of 1056 × 1080 where square tiles make four, 1.10× the
+    /// image's pixels against 1.30×. Else square cores of tile_size from the corner.
+    bool balanced = false;
 };
 
 /// One tile of a tiled run: the output rectangle it owns (`core`, aligned; it may reach past

@@ -42,6 +42,72 @@ void extract_window(const Tensor& image, int y0, int y1, int x0, int x1, Tensor&
     });
 }
 
+/// Where cores split an extent (a multiple of `alignment`) into n: as evenly as the
+/// alignment allows.
+std::vector<int> even_edges(int extent, int n, int alignment)
+{
+    const int units = extent / alignment;
+    std::vector<int> edges(size_t(n) + 1);
+    for (int i = 0; i <= n; ++i)
+        edges[size_t(i)] = int(int64_t(units) * i / n) * alignment;
+    return edges;
+}
+
+/// Along one axis, for each number of cores n (index n - 1): the windows' total extent and
+/// the largest one's.
+struct AxisCost {
+    std::vector<int64_t> total;
+    std::vector<int> largest;
+};
+
+AxisCost axis_cost(int extent, int alignment, int halo)
+{
+    AxisCost cost;
+    for (int n = 1; n <= extent / alignment; ++n) {
+        const std::vector<int> e = even_edges(extent, n, alignment);
+        int64_t total = 0;
+        int largest = 0;
+        for (int i = 0; i < n; ++i) {
+            const int w =
+                std::min(e[size_t(i) + 1] + halo, extent) - std::max(e[size_t(i)] - halo, 0);
+            total += w;
+            largest = std::max(largest, w);
+        }
+        cost.total.push_back(total);
+        cost.largest.push_back(largest);
+    }
+    return cost;
+}
+
+/// TileOptions::balanced: the cores of the grid whose windows add up to the fewest pixels
+/// among those whose every window holds at most (tile + 2 × halo)² (fewer tiles on a tie).
+std::vector<Rect> balanced_cores(int height, int width, int tile, int halo, int alignment)
+{
+    const int64_t budget = int64_t(tile + 2 * halo) * (tile + 2 * halo);
+    const AxisCost xs = axis_cost(width, alignment, halo), ys = axis_cost(height, alignment, halo);
+    size_t best_x = xs.total.size() - 1, best_y = ys.total.size() - 1;
+    for (size_t nx = 0; nx < xs.total.size(); ++nx)
+        for (size_t ny = 0; ny < ys.total.size(); ++ny) {
+            if (int64_t(xs.largest[nx]) * ys.largest[ny] > budget)
+                continue;
+            const int64_t area = xs.total[nx] * ys.total[ny],
+                          best = xs.total[best_x] * ys.total[best_y];
+            if (area < best
+                || (area == best && (nx + 1) * (ny + 1) < (best_x + 1) * (best_y + 1))) {
+                best_x = nx;
+                best_y = ny;
+            }
+            break;  // more rows only add halo
+        }
+    const std::vector<int> ex = even_edges(width, int(best_x) + 1, alignment),
+                           ey = even_edges(height, int(best_y) + 1, alignment);
+    std::vector<Rect> cores;
+    for (size_t j = 0; j + 1 < ey.size(); ++j)
+        for (size_t i = 0; i + 1 < ex.size(); ++i)
+            cores.push_back({ ex[i], ey[j], ex[i + 1], ey[j + 1] });
+    return cores;
+}
+
 }  // namespace
 
 bool run_tiled(Net& net, const std::vector<Tensor>& inputs, std::vector<Tensor>& outputs,
@@ -79,6 +145,8 @@ bool plan_tiles(const Net& net, int height, int width, const TileOptions& option
     // The output cores: the caller's regions (mcdn/skip.h: only where something is not
     // converged), else a grid of tiles.
     std::vector<Rect> cores = options.regions;
+    if (cores.empty() && options.balanced)
+        cores = balanced_cores(padded_height, padded_width, tile, halo, alignment);
     if (cores.empty())
         for (int ty = 0; ty < padded_height; ty += tile)
             for (int tx = 0; tx < padded_width; tx += tile)

@@ -1,7 +1,7 @@
 // The oidn op (mcdn/oidn.h) top to bottom: find the user's weights for the inputs there are,
 // read them (oidn_steps.h read_tza) and build OIDN's UNet on our engine, the frame's exposure,
-// then per network tile: the transformed inputs, the network, the inverse transform into the
-// output's colour — one tile per worker thread, each with its own copy of the network.
+// then per pass (the beauty, each light AOV) the planes it reads and per network tile: the
+// transformed inputs, the network with every thread, the inverse transform into the output.
 #include "mcdn/oidn.h"
 
 #include <algorithm>
@@ -121,53 +121,78 @@ void find_outliers(Inputs& in, const ImageBuf& src, const AovSet& aovs,
     }
 }
 
+/// The frame's planes the tiles of a pass read (tile_input), taken before the pass writes:
+/// in place (the chain's own frame) a pass writes the channels it reads, and a tile's window
+/// reads its neighbours' cores. 9 floats a pixel, where a copy of the frame held all of its
+/// channels; tiles read them along rows.
+struct InputPlanes {
+    Plane color[3], albedo[3], normal[3];
+};
+
+/// The albedo and normal of `in` (never written by the op), once for every pass.
+void read_features(InputPlanes& planes, const ImageBuf& src, const Inputs& in, int nthreads)
+{
+    std::vector<PlaneRead> reads;
+    for (int c = 0; c < 3; ++c) {
+        if (in.has_albedo)
+            reads.push_back({ in.albedo[c], &planes.albedo[c] });
+        if (in.has_normal)
+            reads.push_back({ in.normal[c], &planes.normal[c] });
+    }
+    read_planes(src, reads, {}, nthreads);
+}
+
+/// A pass's colour as rendered.
+void read_color(InputPlanes& planes, const ImageBuf& src, const Inputs& in, int nthreads)
+{
+    read_planes(src,
+                { { in.color[0], &planes.color[0] },
+                  { in.color[1], &planes.color[1] },
+                  { in.color[2], &planes.color[2] } },
+                {}, nthreads);
+}
+
+/// Its heavy-tailed pixels then enter as their neighbourhood's colour (find_outliers).
+void enter_outliers(InputPlanes& planes, const Inputs& in)
+{
+    for (size_t k = 0; k < in.outliers.size(); ++k)
+        for (int c = 0; c < 3; ++c)
+            planes.color[c].px[in.outliers[k]] = in.outlier_color[k][size_t(c)];
+}
+
 /// The network's input on `window` (coordinates of the frame extended to a multiple of the
 /// network's alignment: rows and columns past the frame repeat its last ones). False when no
 /// colour value enters above 0: no light anywhere in the window (a light pass that sees none
 /// there, an empty background), whose result is 0 without the network (run_passes).
-bool tile_input(nn::Tensor& input, const ImageBuf& src, const Inputs& in, const Rect& window)
+bool tile_input(nn::Tensor& input, const InputPlanes& planes, const Inputs& in, const Rect& window)
 {
-    const ImageSpec& spec = src.spec();
-    // Reshaped in the storage of the worker's last tile (every value is written below):
-    // fresh pages cost a fault and a clear each.
+    // Reshaped in the storage of the last tile (every value is written below): fresh pages
+    // cost a fault and a clear each.
     input.height = window.height();
     input.width = window.width();
     input.channels = 3 + 3 * in.has_albedo + 3 * in.has_normal;
     if (input.data.size() < input.size())
         input.data.resize(input.size());
-    const Rect inside { window.x0, window.y0, std::min(window.x1, spec.width),
-                        std::min(window.y1, spec.height) };
-    std::vector<float> plane(size_t(inside.width()) * inside.height());
-    auto read = [&](int channel, int to, auto transform) {
-        src.get_pixels(OIIO::ROI(spec.x + inside.x0, spec.x + inside.x1, spec.y + inside.y0,
-                                 spec.y + inside.y1, 0, 1, channel, channel + 1),
-                       OIIO::TypeDesc::FLOAT, plane.data());
-        // A heavy-tailed pixel's colour enters as its neighbourhood's (find_outliers).
-        for (size_t k = 0; to < 3 && k < in.outliers.size(); ++k) {
-            const int x = int(in.outliers[k] % uint32_t(spec.width));
-            const int y = int(in.outliers[k] / uint32_t(spec.width));
-            if (x >= inside.x0 && x < inside.x1 && y >= inside.y0 && y < inside.y1)
-                plane[size_t(y - inside.y0) * inside.width() + (x - inside.x0)] =
-                    in.outlier_color[k][size_t(to)];
+    const int width = planes.color[0].width, height = planes.color[0].height;
+    auto read = [&](const Plane& plane, int to, auto transform) {
+        for (int y = window.y0; y < window.y1; ++y) {
+            const float* row = plane.row(std::min(y, height - 1));
+            for (int x = window.x0; x < window.x1; ++x)
+                input.at(y - window.y0, x - window.x0, to) = transform(row[std::min(x, width - 1)]);
         }
-        for (int y = window.y0; y < window.y1; ++y)
-            for (int x = window.x0; x < window.x1; ++x) {
-                const int sy = std::min(y, inside.y1 - 1), sx = std::min(x, inside.x1 - 1);
-                const float v = plane[size_t(sy - inside.y0) * inside.width() + (sx - inside.x0)];
-                input.at(y - window.y0, x - window.x0, to) = transform(sanitize(v));
-            }
     };
     bool lit = false;
     for (int c = 0; c < 3; ++c)
-        read(in.color[c], c, [&](float v) {
+        read(planes.color[c], c, [&](float v) {
             const float light = std::clamp(v * in.exposure, 0.0f, FLT_MAX);
             lit |= light > 0.0f;
             return oidn_net::pu_forward(light);
         });
     for (int c = 0; c < 3 && in.has_albedo; ++c)
-        read(in.albedo[c], 3 + c, [](float v) { return std::clamp(v, 0.0f, 1.0f); });
+        read(planes.albedo[c], 3 + c, [](float v) { return std::clamp(v, 0.0f, 1.0f); });
     for (int c = 0; c < 3 && in.has_normal; ++c)
-        read(in.normal[c], 6 + c, [](float v) { return std::clamp(v, -1.0f, 1.0f) * 0.5f + 0.5f; });
+        read(planes.normal[c], 6 + c,
+             [](float v) { return std::clamp(v, -1.0f, 1.0f) * 0.5f + 0.5f; });
     return lit;
 }
 
@@ -178,36 +203,41 @@ struct Pass {
     std::string partition;  // an extra's set (AovSet::Extra::partition)
 };
 
-/// The denoised extras still add up as the rendered ones did, each set of them
-/// (AovSet::Extra::partition) on its own: where the input's extras of a set sum to its beauty
-/// less a remainder R (light in none of them; 0 when they partition it), the result's sum to
-/// the denoised beauty less R, the difference shared among the set's extras by their denoised
-/// magnitude (equally where all are 0). Inside `where`, not on converged tiles (which are the
-/// render). `passes` is the beauty's and then one set's.
-void keep_set_summing(ImageBuf& dst, const ImageBuf& src, const std::vector<const Pass*>& passes,
-                      const ROI& where, const ConvergedTiles& converged)
+/// What the rendered extras of a set (AovSet::Extra::partition) leave of its beauty: the
+/// light in none of them (0 where they partition it), per colour channel, in double as it is
+/// summed; taken from the render's planes before the passes write (run_passes).
+struct SetRemainder {
+    std::string partition;
+    std::vector<double> rgb[3];
+};
+
+/// The denoised extras still add up as the rendered ones did, each set of them on its own:
+/// where the input's extras of a set sum to its beauty less a remainder R (SetRemainder), the
+/// result's sum to the denoised beauty less R, the difference shared among the set's extras
+/// by their denoised magnitude (equally where all are 0). Inside `where`, not on converged
+/// tiles (which are the render). `passes` is the beauty's and then one set's.
+void keep_set_summing(ImageBuf& dst, const SetRemainder& remainder,
+                      const std::vector<const Pass*>& passes, const ROI& where,
+                      const ConvergedTiles& converged)
 {
     const ImageSpec& spec = dst.spec();
     float* pixels = const_cast<float*>(float_frame_pixels(dst));
     const size_t n = passes.size() - 1;
-    std::vector<float> rendered(size_t(src.nchannels()));
     for (int y = where.ybegin - spec.y; y < where.yend - spec.y; ++y)
         for (int x = where.xbegin - spec.x; x < where.xend - spec.x; ++x) {
             if (converged.pixel(x, y))
                 continue;
-            src.getpixel(spec.x + x, spec.y + y, rendered.data(), src.nchannels());
-            float* pixel = pixels + (size_t(y) * spec.width + x) * spec.nchannels;
+            const size_t i = size_t(y) * spec.width + x;
+            float* pixel = pixels + i * spec.nchannels;
             for (int c = 0; c < 3; ++c) {
-                double sum_in = 0, sum_out = 0, magnitude = 0;
+                double sum_out = 0, magnitude = 0;
                 for (size_t e = 1; e <= n; ++e) {
                     const int ch = passes[e]->out[size_t(c)];
-                    sum_in += sanitize(rendered[size_t(ch)]);
                     sum_out += pixel[ch];
                     magnitude += std::abs(pixel[ch]);
                 }
                 const int beauty = passes[0]->out[size_t(c)];
-                const double remainder = sanitize(rendered[size_t(beauty)]) - sum_in;
-                const double missing = pixel[beauty] - remainder - sum_out;
+                const double missing = pixel[beauty] - remainder.rgb[c][i] - sum_out;
                 for (size_t e = 1; e <= n; ++e) {
                     float& v = pixel[passes[e]->out[size_t(c)]];
                     v = float(v + missing * (magnitude > 0 ? std::abs(v) / magnitude : 1.0 / n));
@@ -216,21 +246,42 @@ void keep_set_summing(ImageBuf& dst, const ImageBuf& src, const std::vector<cons
         }
 }
 
-void keep_extras_summing(ImageBuf& dst, const ImageBuf& src, const std::vector<Pass>& passes,
-                         const ROI& where, const ConvergedTiles& converged)
+void keep_extras_summing(ImageBuf& dst, const std::vector<SetRemainder>& remainders,
+                         const std::vector<Pass>& passes, const ROI& where,
+                         const ConvergedTiles& converged)
 {
-    std::vector<std::string> partitions;
-    for (size_t e = 1; e < passes.size(); ++e)
-        if (std::find(partitions.begin(), partitions.end(), passes[e].partition)
-            == partitions.end())
-            partitions.push_back(passes[e].partition);
-    for (const std::string& partition : partitions) {
+    for (const SetRemainder& remainder : remainders) {
         std::vector<const Pass*> set = { &passes[0] };
         for (size_t e = 1; e < passes.size(); ++e)
-            if (passes[e].partition == partition)
+            if (passes[e].partition == remainder.partition)
                 set.push_back(&passes[e]);
-        keep_set_summing(dst, src, set, where, converged);
+        keep_set_summing(dst, remainder, set, where, converged);
     }
+}
+
+/// Takes a pass's rendered colour (its planes, before it writes) out of its set's remainder;
+/// the beauty's (the first pass) starts every set's.
+void account_remainder(std::vector<SetRemainder>& remainders, const std::vector<Pass>& passes,
+                       size_t p, const InputPlanes& planes)
+{
+    if (p == 0) {
+        for (size_t e = 1; e < passes.size(); ++e) {
+            const std::string& partition = passes[e].partition;
+            if (std::any_of(remainders.begin(), remainders.end(),
+                            [&](const SetRemainder& r) { return r.partition == partition; }))
+                continue;
+            SetRemainder r { partition, {} };
+            for (int c = 0; c < 3; ++c)
+                r.rgb[c].assign(planes.color[c].px.begin(), planes.color[c].px.end());
+            remainders.push_back(std::move(r));
+        }
+        return;
+    }
+    for (SetRemainder& r : remainders)
+        if (r.partition == passes[p].partition)
+            for (int c = 0; c < 3; ++c)
+                for (size_t i = 0; i < r.rgb[c].size(); ++i)
+                    r.rgb[c][i] -= planes.color[c].px[i];
 }
 
 /// The network's output on the frame pixels `rect` (inside its tile's core) into dst's
@@ -285,31 +336,44 @@ bool model_inputs(Inputs& in, std::string& path, std::shared_ptr<const nn::Weigh
 /// at a time with every thread in the network's layers (as OIDN itself runs): one window's buffers
 /// whatever the threads, so windows can be larger and recompute less of their halo than a tile per
 /// thread in the same memory (1080p, 7 passes, 2 threads: 21.0 s and 2.02 GB at tile 768,
-/// against 24.3-25.3 s and 2.14 GB for tiles of 512 on two workers).
+/// against 24.3-25.3 s and 2.14 GB for tiles of 512 on two workers). Each pass reads its
+/// planes (InputPlanes) before it writes, so the op runs in the chain's own frame without a
+/// copy of it (then 19.8 s and 1.63 GB, two windows of 1072 × 1088 at tile 1024).
 bool run_passes(nn::Net& net, const std::string& path, const std::vector<nn::Tile>& tiles,
                 const std::vector<Pass>& passes, const ImageBuf& src, ImageBuf& dst, ROI where,
                 const ConvergedTiles& converged, float exposure, const ProgressCallback& callback,
                 int nthreads, std::string& error)
 {
-    const int count = int(tiles.size() * passes.size());
-    ProgressCounter progress(callback, "oidn", count);
+    ProgressCounter progress(callback, "oidn", int(tiles.size() * passes.size()));
     std::mutex failed;
-    return nn::with_threads(nthreads, [&] {
-        std::vector<nn::Tensor> input(1), result;
-        return nn::for_each_tile(count, 1, [&](int index, int) {
-            const Pass& pass = passes[size_t(index) / tiles.size()];
-            const nn::Tile& tile = tiles[size_t(index) % tiles.size()];
-            std::string tile_error;
-            const bool lit = tile_input(input[0], src, pass.in, tile.window);
-            if (lit && !net.run(input, result, tile_error)) {
-                error = format("oidn: '{}': {}", path, tile_error);
-                return false;
-            }
-            write_output(dst, pass.out.data(), lit ? &result[0] : nullptr, tile.window,
-                         output_rect(tile.core, src.spec(), where), exposure, converged);
-            return progress.advance(error, failed);
+    InputPlanes planes;
+    read_features(planes, src, passes[0].in, nthreads);
+    std::vector<SetRemainder> remainders;
+    std::vector<nn::Tensor> input(1), result;
+    for (size_t p = 0; p < passes.size(); ++p) {
+        const Pass& pass = passes[p];
+        read_color(planes, src, pass.in, nthreads);
+        account_remainder(remainders, passes, p, planes);
+        enter_outliers(planes, pass.in);
+        const bool ran = nn::with_threads(nthreads, [&] {
+            return nn::for_each_tile(int(tiles.size()), 1, [&](int index, int) {
+                const nn::Tile& tile = tiles[size_t(index)];
+                std::string tile_error;
+                const bool lit = tile_input(input[0], planes, pass.in, tile.window);
+                if (lit && !net.run(input, result, tile_error)) {
+                    error = format("oidn: '{}': {}", path, tile_error);
+                    return false;
+                }
+                write_output(dst, pass.out.data(), lit ? &result[0] : nullptr, tile.window,
+                             output_rect(tile.core, src.spec(), where), exposure, converged);
+                return progress.advance(error, failed);
+            });
         });
-    });
+        if (!ran)
+            return false;
+    }
+    keep_extras_summing(dst, remainders, passes, where, converged);
+    return true;
 }
 
 // ---- the op ---------------------------------------------------------------------------
@@ -317,13 +381,13 @@ bool run_passes(nn::Net& net, const std::string& path, const std::vector<nn::Til
 bool oidn_in_working_space(ImageBuf& dst, const ImageBuf& src, const OidnOptions& options, ROI roi,
                            int nthreads)
 {
-    // The tiles read the render's colour around them while others write theirs: in place,
-    // from a copy.
-    if (&dst == &src) {
+    // In place the passes read the planes they write first (run_passes); a colour-only probe
+    // frame (made anew by prepare_denoiser_output) or one not of floats in memory is copied.
+    const bool color_only = src.spec().get_int_attribute(kColorOnlyAttribute, 0) == 1;
+    if (&dst == &src && (color_only || !float_frame_pixels(src))) {
         const ImageBuf render = src.copy(OIIO::TypeDesc::FLOAT);
         return oidn_in_working_space(dst, render, options, roi, nthreads);
     }
-    const bool color_only = src.spec().get_int_attribute(kColorOnlyAttribute, 0) == 1;
     StageTrace trace("oidn");
     AovSet aovs;
     std::string error;
@@ -362,7 +426,7 @@ bool oidn_in_working_space(ImageBuf& dst, const ImageBuf& src, const OidnOptions
     }
     const ROI where = output_roi(src, roi);
     std::vector<nn::Tile> tiles;
-    if (!network_tiles(tiles, net, converged, options.tile_size, src.spec(), where, error)) {
+    if (!network_tiles(tiles, net, converged, options.tile_size, true, src.spec(), where, error)) {
         dst.errorfmt("oidn: {}", error);
         return false;
     }
@@ -385,8 +449,6 @@ bool oidn_in_working_space(ImageBuf& dst, const ImageBuf& src, const OidnOptions
         dst.errorfmt("{}", error);
         return false;
     }
-    if (passes.size() > 1)
-        keep_extras_summing(dst, src, passes, where, converged);
     trace.mark("network tiles");
     return true;
 }
