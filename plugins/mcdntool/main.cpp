@@ -41,6 +41,20 @@ namespace {
 // which the stages then take the halves' difference), the light split's only for the CNN.
 // Everything when a command names channels. --info without a stage reads what any stage
 // could, so that it says what each can do with the files given.
+// Whether a stage of the command line denoises the extra AOVs (a denoiser or plan with the
+// `extras` key, not set to 0), for -v.
+bool denoises_extras(const std::vector<Command>& commands)
+{
+    for (const auto& c : commands) {
+        const mcdn::StageInfo* stage = stage_of_command(c.name);
+        if (stage
+            && std::find(stage->keys.begin(), stage->keys.end(), "extras") != stage->keys.end()
+            && c.modifier("extras") != "0")
+            return true;
+    }
+    return false;
+}
+
 mcdn::InputSelection input_selection(const std::vector<Command>& commands)
 {
     mcdn::InputSelection selection;
@@ -285,6 +299,7 @@ bool run_frame(const std::vector<Command>& commands, const std::string& history,
     session.verbose = verbose;
     session.history = history;
     session.selection = input_selection(commands);
+    session.extras_denoised = denoises_extras(commands);
     size_t next = 0;  // the first command not yet run
     // A file of several Blender view layers: the stages up to the first -o run once per
     // layer, each on its own AOV set (the other layers' channels pass through).

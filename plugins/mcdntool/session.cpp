@@ -367,9 +367,13 @@ bool Session::open_rows(mcdn::InputRows& rows, std::string& error)
         std::vector<std::string> extras;
         for (const mcdn::AovSet::Extra& extra : m_aovs.extras())
             extras.push_back(extra.name.substr(extra.name.rfind('.') + 1));
-        if (!extras.empty())
+        if (!extras.empty() && extras_denoised)
             say_once(format("mcdntool: denoised with the beauty: {} (extras=0 keeps them as "
                             "rendered)\n",
+                            Strutil::join(extras, ", ")));
+        else if (!extras.empty())
+            say_once(format("mcdntool: kept as rendered: {} (no stage here denoises extra "
+                            "AOVs, or extras=0)\n",
                             Strutil::join(extras, ", ")));
     }
     return true;

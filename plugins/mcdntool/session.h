@@ -27,9 +27,10 @@ using StageOp = std::function<bool(OIIO::ImageBuf& dst, const OIIO::ImageBuf& sr
 class Session {
 public:
     int nthreads = 0;
-    int frame = -1;        // this frame's number in a sequence, -1 for a single file
-    bool verbose = false;  // a line per stage with its time (-v, or stderr is a terminal)
-    std::string history;   // the command line, for the written files' Exif:ImageHistory
+    int frame = -1;                // this frame's number in a sequence, -1 for a single file
+    bool verbose = false;          // a line per stage with its time (-v, or stderr is a terminal)
+    bool extras_denoised = false;  // a stage of the command line denoises the extra AOVs (-v)
+    std::string history;           // the command line, for the written files' Exif:ImageHistory
     /// Which variance and half channels to read (its aovs: the session's aov_spec).
     mcdn::InputSelection selection;
 

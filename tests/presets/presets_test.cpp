@@ -319,6 +319,15 @@ TEST(Presets, CyclesWithVarianceFileRunsTheMixedChain)
     EXPECT_NE(run.output.find("AOV preset 'cycles'"), std::string::npos) << run.output;
     EXPECT_NE(run.output.find("--denoise runs cnn -> sure -> mix (net):"), std::string::npos)
         << run.output;
+    // -v says what becomes of the light passes: denoised here, kept with extras=0.
+    EXPECT_NE(run.output.find("denoised with the beauty: DiffDir"), std::string::npos)
+        << run.output;
+    run =
+        run_mcdntool("-v -i " + test_data(kBox + ".exr") + " -i:as=variance "
+                     + test_data(kBox + "_var.exr") + " --denoise:extras=0 -o " + dir + "/out.exr");
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    EXPECT_EQ(run.output.find("denoised with the beauty"), std::string::npos) << run.output;
+    EXPECT_NE(run.output.find("kept as rendered: DiffDir"), std::string::npos) << run.output;
 }
 
 // A Tungsten buffer directory is detected from the folder layout.
