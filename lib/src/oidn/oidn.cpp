@@ -24,6 +24,7 @@
 #include "mcdn/color.h"
 #include "mcdn/version.h"
 #include "nn/network_regions.h"
+#include "nn/parallel.h"
 #include "nn/with_threads.h"
 #include "ops/color_planes.h"
 #include "outliers/outliers.h"
@@ -174,26 +175,30 @@ bool tile_input(nn::Tensor& input, const InputPlanes& planes, const Inputs& in, 
     if (input.data.size() < input.size())
         input.data.resize(input.size());
     const int width = planes.color[0].width, height = planes.color[0].height;
-    auto read = [&](const Plane& plane, int to, auto transform) {
-        for (int y = window.y0; y < window.y1; ++y) {
-            const float* row = plane.row(std::min(y, height - 1));
+    // Rows on the network's threads; each row says whether it saw light.
+    std::vector<char> lit(size_t(window.height()), 0);
+    nn::parallel_rows(window.height(), [&](int wy) {
+        const size_t at = size_t(std::min(window.y0 + wy, height - 1)) * width;
+        auto read = [&](const Plane& plane, int to, auto transform) {
+            const float* row = plane.data() + at;
             for (int x = window.x0; x < window.x1; ++x)
-                input.at(y - window.y0, x - window.x0, to) = transform(row[std::min(x, width - 1)]);
-        }
-    };
-    bool lit = false;
-    for (int c = 0; c < 3; ++c)
-        read(planes.color[c], c, [&](float v) {
-            const float light = std::clamp(v * in.exposure, 0.0f, FLT_MAX);
-            lit |= light > 0.0f;
-            return oidn_net::pu_forward(light);
-        });
-    for (int c = 0; c < 3 && in.has_albedo; ++c)
-        read(planes.albedo[c], 3 + c, [](float v) { return std::clamp(v, 0.0f, 1.0f); });
-    for (int c = 0; c < 3 && in.has_normal; ++c)
-        read(planes.normal[c], 6 + c,
-             [](float v) { return std::clamp(v, -1.0f, 1.0f) * 0.5f + 0.5f; });
-    return lit;
+                input.at(wy, x - window.x0, to) = transform(row[std::min(x, width - 1)]);
+        };
+        bool seen = false;
+        for (int c = 0; c < 3; ++c)
+            read(planes.color[c], c, [&](float v) {
+                const float light = std::clamp(v * in.exposure, 0.0f, FLT_MAX);
+                seen |= light > 0.0f;
+                return oidn_net::pu_forward(light);
+            });
+        for (int c = 0; c < 3 && in.has_albedo; ++c)
+            read(planes.albedo[c], 3 + c, [](float v) { return std::clamp(v, 0.0f, 1.0f); });
+        for (int c = 0; c < 3 && in.has_normal; ++c)
+            read(planes.normal[c], 6 + c,
+                 [](float v) { return std::clamp(v, -1.0f, 1.0f) * 0.5f + 0.5f; });
+        lit[size_t(wy)] = seen;
+    });
+    return std::find(lit.begin(), lit.end(), 1) != lit.end();
 }
 
 /// One run of the network over the frame: the beauty, or an extra AOV in the colour's place.
@@ -292,7 +297,8 @@ void write_output(ImageBuf& dst, const int out[3], const nn::Tensor* result, con
 {
     const ImageSpec& spec = dst.spec();
     float* pixels = const_cast<float*>(float_frame_pixels(dst));
-    for (int y = rect.y0; y < rect.y1; ++y)
+    nn::parallel_rows(rect.height(), [&](int ry) {
+        const int y = rect.y0 + ry;
         for (int x = rect.x0; x < rect.x1; ++x) {
             if (converged.pixel(x, y))
                 continue;
@@ -303,6 +309,7 @@ void write_output(ImageBuf& dst, const int out[3], const nn::Tensor* result, con
                     value ? sanitize(oidn_net::pu_inverse(std::max(value[c], 0.0f)) / exposure)
                           : 0.0f;
         }
+    });
 }
 
 /// The model for the AOVs present (oidn_weights: rt_hdr, rt_hdr_alb, rt_hdr_alb_nrm) and the
