@@ -217,6 +217,38 @@ TEST(RealFiles, FifosAndDevicesAreRefusedAtOnce)
     }
 }
 
+// An OpenEXR header whose attribute claims more bytes than the file has (a 2 KB file, a
+// string of 1.9 GB: OpenEXR would fill that much memory before saying the file ends; the fuzz
+// target found one): refused from the header at once, with little memory, the file named.
+TEST(RealFiles, AHeaderThatClaimsGigabytesIsRefusedAtOnce)
+{
+    const std::string dir = temp_dir("real_header");
+    std::ifstream box(kBox, std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(box)), std::istreambuf_iterator<char>());
+    // The first attribute's size (after the magic, the version, its name and type).
+    const size_t name_end = bytes.find('\0', 8), type_end = bytes.find('\0', name_end + 1);
+    ASSERT_NE(type_end, std::string::npos);
+    const uint32_t claimed = 0x6f6c0033;
+    for (int b = 0; b < 4; ++b)
+        bytes[type_end + 1 + size_t(b)] = char((claimed >> (8 * b)) & 0xff);
+    const std::string damaged = dir + "/damaged.exr";
+    std::ofstream(damaged, std::ios::binary) << bytes.substr(0, 2048);
+    mcdn_test::Run run =
+        run_mcdntool("-i " + quote(damaged) + " --denoise -o " + quote(dir + "/out.exr"), "",
+                     "timeout 30 /usr/bin/time -f 'rss %M' ");
+    EXPECT_EQ(run.exit_code, 1) << run.output;
+    EXPECT_NE(run.output.find(damaged + ": a damaged OpenEXR header: attribute '"),
+              std::string::npos)
+        << run.output;
+    EXPECT_NE(run.output.find("claims 1869348915 bytes, past the file's end (2048 bytes)"),
+              std::string::npos)
+        << run.output;
+    const size_t rss = run.output.find("rss ");
+    ASSERT_NE(rss, std::string::npos) << run.output;
+    EXPECT_LT(std::stol(run.output.substr(rss + 4)), 500000) << run.output;  // KB
+    EXPECT_FALSE(OIIO::Filesystem::exists(dir + "/out.exr"));
+}
+
 // 7. Half buffers of another render, mirrored, or with a corrupt block: an error naming the
 // halves, or (a block) the tile's halves are the render's, said with -v.
 TEST(RealFiles, HalvesThatAreNotTheRendersAreCaught)
