@@ -159,8 +159,12 @@ bool check_memory(const std::vector<Command>& commands, int threads, int paralle
         threads = int(std::max(1u, std::thread::hardware_concurrency()));
     const int frames_at_once = std::max(1, parallel_frames);
     const int per_frame_threads = std::max(1, threads / frames_at_once);
-    // A streamed chain's band: band_pixels and a halo of up to 128 rows each side.
-    const double band = streamed_chain_start(commands) ? double(band_pixels()) + 256 * width : 0;
+    // A streamed chain's band: band_pixels, or by default at least ChainOptions::band_halos
+    // halos, and a halo of up to 128 rows each side.
+    mcdn::ChainOptions chain;
+    set_chain_bands(chain);
+    const double own = std::max(double(chain.band_pixels), chain.band_halos * 128 * width);
+    const double band = streamed_chain_start(commands) ? own + 256 * width : 0;
     const double need =
         frames_at_once * estimated_peak_bytes(commands, pixels, channels, per_frame_threads, band);
     if (need <= available)

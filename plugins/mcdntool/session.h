@@ -12,6 +12,7 @@
 #include <OpenImageIO/imagebufalgo.h>
 
 #include "mcdn/aov.h"
+#include "mcdn/chain.h"
 #include "mcdn/io.h"
 #include "mcdn/settings.h"
 #include "mcdn/stages.h"
@@ -174,6 +175,9 @@ size_t streamed_chain_start(const std::vector<Command>& commands);
 /// Pixels of a streamed chain's band: $MCDN_BAND_PIXELS when set (0: the whole frame at
 /// once), else mcdn::ChainOptions' default.
 int64_t band_pixels();
+/// A streamed chain's bands: band_pixels(), exactly that when $MCDN_BAND_PIXELS is set
+/// (ChainOptions::band_halos 0), else ChainOptions' defaults.
+void set_chain_bands(mcdn::ChainOptions& chain);
 /// Runs such a command line: the inputs, then the stages as one chain in bands, each band's
 /// rows written as they are made (mcdn::run_chain's BandSink, mcdn::RowWriter). `streamed`
 /// false: only the inputs were run (a multi-part output is written whole); the caller runs

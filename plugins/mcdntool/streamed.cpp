@@ -27,6 +27,15 @@ int64_t band_pixels()
     return pixels >= 0 ? pixels : mcdn::ChainOptions().band_pixels;
 }
 
+// The chain's bands (session.h).
+void set_chain_bands(mcdn::ChainOptions& chain)
+{
+    chain.band_pixels = band_pixels();
+    const char* text = std::getenv("MCDN_BAND_PIXELS");
+    if (text && *text)
+        chain.band_halos = 0;  // exactly the bands asked for
+}
+
 size_t streamed_chain_start(const std::vector<Command>& commands)
 {
     // -i and --aov commands (and those set once for the run: --threads), then stages only,
@@ -94,7 +103,7 @@ bool run_streamed_chain(Session& s, const std::vector<Command>& commands, size_t
     chain.aovs = s.aov_spec;
     chain.progress = s.progress();
     chain.stages.clear();
-    chain.band_pixels = band_pixels();
+    set_chain_bands(chain);
     chain.output_channels_only = write.channels.empty();  // the writer's default
     for (size_t i = first; i + 1 < commands.size(); ++i) {
         const std::string stage = commands[i].name.substr(2);

@@ -47,6 +47,7 @@ void expect_bands_match(const Case& k)
     o.band_pixels = 0;
     ASSERT_TRUE(run_chain(whole, src, o)) << name << ": " << whole.geterror();
     o.band_pixels = 64 * 64;
+    o.band_halos = 0;
     ASSERT_GT(chain_reach(src.spec(), o), 0) << name;
     ASSERT_TRUE(run_chain(banded, src, o)) << name << ": " << banded.geterror();
     ASSERT_EQ(whole.spec().channelnames, banded.spec().channelnames) << name;

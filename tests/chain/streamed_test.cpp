@@ -1,6 +1,7 @@
 // A frame read a band of rows at a time (mcdn::InputRows, run_chain on a RowReader) gives what
 // the frame read whole gives: the same rows from scanline and tiled files, with and without a
 // selection of channels, and the same chain result.
+#include <algorithm>
 #include <gtest/gtest.h>
 
 #include <OpenImageIO/imagebufalgo.h>
@@ -139,6 +140,7 @@ TEST(Streamed, ChainOnRowsIsTheChainOnTheFrame)
     const auto files = tall_files(mcdn_test::temp_dir("streamed_chain"), false);
     ChainOptions o;
     o.band_pixels = 64 * 64;
+    o.band_halos = 0;
     o.stages = { "cnn", "sure", "mix" };
     o.settings = { { "mix.model", "analytic" } };
     expect_chain_match(files, o, 0.0);
@@ -155,6 +157,37 @@ TEST(Streamed, ChainOnRowsIsTheChainOnTheFrame)
     expect_chain_match(files, o, 0.0);
     o.stages = { "prefilter", "nfor", "sure", "mix" };
     expect_chain_match(files, o, 0.0);
+}
+
+// ChainOptions::band_halos: a band holds at least that many halos of its own rows whatever
+// band_pixels says (fewer rows computed again); 0: band_pixels alone.
+TEST(Streamed, BandsHoldAtLeastBandHalosOfTheirHalo)
+{
+    const auto files = tall_files(mcdn_test::temp_dir("streamed_halos"), false);  // 512 rows
+    InputRows rows;
+    std::string error;
+    ASSERT_TRUE(rows.open(files, InputSelection(), error)) << error;
+    ChainOptions o;
+    o.stages = { "prefilter", "nfor" };  // reach 77: a halo of 96 rows on the 32-row grid
+    o.band_pixels = int64_t(rows.spec().width) * 32;
+    for (int halos : { 0, 1, 2 }) {
+        o.band_halos = halos;
+        std::vector<int> own_rows;
+        auto read = [&](ImageBuf& band, int y0, int y1, const std::vector<bool>& channels,
+                        std::string& read_error) {
+            return rows.read(band, y0, y1, read_error, channels);
+        };
+        auto sink = [&](const ImageBuf&, OIIO::ROI own, std::string&) {
+            own_rows.push_back(own.height());
+            return true;
+        };
+        ASSERT_TRUE(run_chain(rows.spec(), read, o, sink, error)) << error;
+        const int fewest = *std::min_element(own_rows.begin(), own_rows.end() - 1);
+        if (halos == 0)
+            EXPECT_EQ(own_rows.size(), 16u);  // 32 rows each
+        else
+            EXPECT_GE(fewest, halos * 96) << halos << " halos, " << own_rows.size() << " bands";
+    }
 }
 
 // A chain without the CNN reads the light split's passes only as the extras it denoises

@@ -164,6 +164,7 @@ TEST(NforExtras, AnEmptyLightGroupIsLeftAsRendered)
             chain.aovs = p.spec;
             chain.stages = stages;
             chain.band_pixels = band_pixels;
+            chain.band_halos = 0;
             ImageBuf out;
             ASSERT_TRUE(run_chain(out, with_empty, chain, {}, 2)) << out.geterror();
             float largest = 0;

@@ -235,6 +235,7 @@ TEST(Oidn, SameForAnyThreadsTilesAndBands)
     chain.stages = { "oidn" };
     chain.settings = { { "oidn.weights", path }, { "oidn.skip", "0" } };
     chain.band_pixels = 83 * 16;
+    chain.band_halos = 0;  // bands of 16 rows, as asked
     ImageBuf banded;
     ASSERT_TRUE(run_chain(banded, src, chain, {}, 2)) << banded.geterror();
     EXPECT_LT(max_abs_difference(one, banded), 1e-5f);
