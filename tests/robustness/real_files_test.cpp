@@ -237,11 +237,10 @@ TEST(RealFiles, AHeaderThatClaimsGigabytesIsRefusedAtOnce)
         run_mcdntool("-i " + quote(damaged) + " --denoise -o " + quote(dir + "/out.exr"), "",
                      "timeout 30 /usr/bin/time -f 'rss %M' ");
     EXPECT_EQ(run.exit_code, 1) << run.output;
-    EXPECT_NE(run.output.find(damaged + ": a damaged OpenEXR header: attribute '"),
+    EXPECT_NE(run.output.find(damaged + ": a damaged OpenEXR header: Attribute '"),
               std::string::npos)
         << run.output;
-    EXPECT_NE(run.output.find("claims 1869348915 bytes, past the file's end (2048 bytes)"),
-              std::string::npos)
+    EXPECT_NE(run.output.find("type 'string': Invalid size 1869348915"), std::string::npos)
         << run.output;
     const size_t rss = run.output.find("rss ");
     ASSERT_NE(rss, std::string::npos) << run.output;
