@@ -50,6 +50,10 @@ CHAINS = [
     Chain("oidn", ["--oidn:weights=" + OIDN_WEIGHTS]),
     Chain("oidn+sure+mix:net", ["--oidn:weights=" + OIDN_WEIGHTS, "--sure",
                                 "--mix:model=net:alpha=1"], True),
+    # OIDN with its albedo and normal prefilters (Blender's "Accurate"), and the mix over it.
+    Chain("oidn:prefilter", ["--oidn:weights=" + OIDN_WEIGHTS + ":prefilter=1"]),
+    Chain("oidn:prefilter+sure+mix:net", ["--oidn:weights=" + OIDN_WEIGHTS + ":prefilter=1",
+                                          "--sure", "--mix:model=net:alpha=1"], True),
 ]
 ALPHA_CHANNELS = ["mix.alpha.R", "mix.alpha.G", "mix.alpha.B"]
 MEASURE_CHILD = os.path.join(os.path.dirname(os.path.abspath(__file__)), "measure_child.py")

@@ -244,6 +244,63 @@ TEST(Oidn, SameForAnyThreadsTilesAndBands)
     std::remove(path.c_str());
 }
 
+// prefilter=1: OIDN's networks for the albedo and the normal (rt_alb, rt_nrm, beside
+// rt_hdr_calb_cnrm) clean the features first; the same for any threads, tiles and bands (whose
+// halo doubles: the features reach as far again); without their files or the features, an
+// error says which.
+TEST(Oidn, PrefilteredFeaturesSameForAnyThreadsTilesAndBands)
+{
+    const std::string folder = temp_path("prefilter");
+    ASSERT_TRUE(OIIO::Filesystem::create_directory(folder));
+    // The same weights for both models: what differs is the prefilters' work.
+    write_tiny_tza(folder + "/rt_hdr_alb_nrm.tza", 9, 8, 12);
+    write_tiny_tza(folder + "/rt_hdr_calb_cnrm.tza", 9, 8, 12);
+    write_tiny_tza(folder + "/rt_alb.tza", 3, 8, 13);
+    write_tiny_tza(folder + "/rt_nrm.tza", 3, 8, 14);
+    const ImageBuf src = render(64, 300, 15);
+    OidnOptions o = options_with(folder);
+    o.outliers = OidnOptions::Outliers::Off;
+    ImageBuf plain, one, two, small_tiles;
+    ASSERT_TRUE(oidn(plain, src, o, {}, 2)) << plain.geterror();
+    const int plain_reach = receptive_radius(o);
+    o.prefilter = true;
+    EXPECT_EQ(receptive_radius(o), 2 * plain_reach);
+    ASSERT_TRUE(oidn(one, src, o, {}, 1)) << one.geterror();
+    ASSERT_TRUE(oidn(two, src, o, {}, 2)) << two.geterror();
+    EXPECT_EQ(max_abs_difference(one, two), 0.0f);
+    EXPECT_GT(max_abs_difference(one, plain), 1e-3f);
+    o.tile_size = 16;
+    ASSERT_TRUE(oidn(small_tiles, src, o, {}, 2)) << small_tiles.geterror();
+    EXPECT_LT(max_abs_difference(one, small_tiles), 1e-5f);
+    ChainOptions chain;
+    chain.aovs = o.aovs;
+    chain.stages = { "oidn" };
+    chain.settings = { { "oidn.weights", folder },
+                       { "oidn.skip", "0" },
+                       { "oidn.outliers", "off" },
+                       { "oidn.prefilter", "1" } };
+    chain.band_pixels = 64 * 16;
+    chain.band_halos = 0;  // bands of 16 rows
+    ImageBuf banded;
+    ASSERT_TRUE(run_chain(banded, src, chain, {}, 2)) << banded.geterror();
+    EXPECT_LT(max_abs_difference(one, banded), 1e-5f);
+    // Without a normal, or without a prefilter's file: one line saying which.
+    OidnOptions no_normal = o;
+    no_normal.aovs.overrides.erase("normal");
+    const ImageBuf rgb_albedo = OIIO::ImageBufAlgo::channels(src, 6, {});
+    ImageBuf out;
+    EXPECT_FALSE(oidn(out, rgb_albedo, no_normal));
+    EXPECT_NE(out.geterror().find("no normal"), std::string::npos) << out.geterror();
+    std::remove((folder + "/rt_nrm.tza").c_str());
+    ImageBuf missing;
+    EXPECT_FALSE(oidn(missing, src, o));
+    EXPECT_NE(missing.geterror().find(folder + "/rt_nrm.tza"), std::string::npos)
+        << missing.geterror();
+    for (const char* name : { "rt_hdr_alb_nrm", "rt_hdr_calb_cnrm", "rt_alb" })
+        std::remove((folder + "/" + name + ".tza").c_str());
+    std::remove(folder.c_str());
+}
+
 TEST(Oidn, ErrorsNameTheFileAndWhereWeightsComeFrom)
 {
     const ImageBuf src = render(32, 32, 6);

@@ -1,6 +1,7 @@
 """mcdntool --oidn against an independent PyTorch reading of OIDN's graph
 (training/oidn/reference.py), on box at 16 and 256 spp and on a crop of a size that is no
-multiple of 16 (the extension to the network's alignment). Exit 77 without ../shared's
+multiple of 16 (the extension to the network's alignment); with prefilter=1 on box at 64 spp
+and the crop. Exit 77 without ../shared's
 weights or torch.
 
     pytorch_reference.py --mcdntool PATH --shared DIR
@@ -34,13 +35,17 @@ def main():
         crop = os.path.join(tmp, "crop.exr")
         subprocess.run(["oiiotool", os.path.join(box, "box_0016spp.exr"), "--cut",
                         "250x243+3+7", "-o", crop], check=True)
-        inputs = [os.path.join(box, "box_0016spp.exr"), os.path.join(box, "box_0256spp.exr"), crop]
-        for i, render in enumerate(inputs):
+        # (render, prefilter=1): the features cleaned by OIDN's prefilters first.
+        inputs = [(os.path.join(box, "box_0016spp.exr"), False),
+                  (os.path.join(box, "box_0256spp.exr"), False), (crop, False),
+                  (os.path.join(box, "box_0064spp.exr"), True), (crop, True)]
+        for i, (render, prefilter) in enumerate(inputs):
             out = os.path.join(tmp, "out%d.exr" % i)
-            subprocess.run([args.mcdntool, "-i", render, "--oidn:weights=" + weights, "-o", out],
-                           check=True)
+            stage = "--oidn:weights=" + weights + (":prefilter=1" if prefilter else "")
+            subprocess.run([args.mcdntool, "-i", render, stage, "-o", out], check=True)
             code = subprocess.run([sys.executable, REFERENCE, "--weights", weights,
-                                   "--input", render, "--engine", out]).returncode
+                                   "--input", render, "--engine", out]
+                                  + (["--prefilter"] if prefilter else [])).returncode
             if code != 0:
                 return code
     return 0

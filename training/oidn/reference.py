@@ -3,9 +3,12 @@ facts alone (../shared/peers/oidn/README.md: the tensor archive's layout, the gr
 input transforms), to check our engine's `--oidn` against: never OIDN's code.
 
     reference.py --weights DIR --input RENDER.exr --engine OUT.exr [--tolerance 1e-3]
+                 [--prefilter]
 
 Runs the reading on RENDER's colour, albedo and normal (Blender's Combined, Denoising Albedo
-and Denoising Normal, or R,G,B only), and compares with OUT (mcdntool --oidn's result):
+and Denoising Normal, or R,G,B only), and compares with OUT (mcdntool --oidn's result;
+with --prefilter, --oidn:prefilter=1's: the albedo and normal first through OIDN's networks
+for them, rt_alb and rt_nrm, then rt_hdr_calb_cnrm):
 relative RMS of the difference over the frame, exit 1 above the tolerance. Exit 77 (skipped)
 without torch or the weights.
 """
@@ -88,6 +91,34 @@ def pu_inverse(x):
                              np.exp((x - p["g"]) / p["e"]) - p["f"]))
 
 
+def srgb(y):
+    """The sRGB curve (OIDN's low-dynamic-range transfer, the albedo prefilter's)."""
+    return np.where(y <= 0.0031308, 12.92 * y, 1.055 * np.power(np.maximum(y, 0), 1 / 2.4) - 0.055)
+
+
+def srgb_inverse(x):
+    return np.where(x <= 0.04045, x / 12.92, np.power((np.maximum(x, 0) + 0.055) / 1.055, 2.4))
+
+
+def run_unet(x, weights, torch):
+    """The UNet on an H x W x C image, extended by its last rows and columns to a multiple
+    of 16 and cut back."""
+    h, w, _ = x.shape
+    x = np.pad(x, ((0, -h % 16), (0, -w % 16), (0, 0)), mode="edge")
+    with torch.no_grad():
+        y = unet(torch.from_numpy(x.transpose(2, 0, 1)[None].astype(np.float32)), weights, torch)
+    return y[0].numpy().transpose(1, 2, 0)[:h, :w].astype(np.float64)
+
+
+def prefiltered(albedo, normal, folder, torch):
+    """The albedo and normal cleaned by rt_alb (in and out through the sRGB curve on [0, 1])
+    and rt_nrm ([-1, 1] mapped to [0, 1] and back)."""
+    a = run_unet(srgb(np.clip(albedo, 0, 1)), read_tza(os.path.join(folder, "rt_alb.tza")), torch)
+    n = run_unet(np.clip(normal, -1, 1) * 0.5 + 0.5, read_tza(os.path.join(folder, "rt_nrm.tza")), torch)
+    return (np.minimum(srgb_inverse(np.maximum(a, 0)), 1),
+            np.minimum(np.maximum(n, 0), 1) * 2 - 1)
+
+
 def autoexposure(rgb):
     """0.18 over the geometric mean of the mean luminances of ~16x16-pixel bins."""
     h, w, _ = rgb.shape
@@ -117,6 +148,7 @@ def main():
     parser.add_argument("--input", required=True)
     parser.add_argument("--engine", required=True)
     parser.add_argument("--tolerance", type=float, default=1e-3)
+    parser.add_argument("--prefilter", action="store_true")
     args = parser.parse_args()
     try:
         import torch
@@ -136,6 +168,12 @@ def main():
         colour, albedo, normal = channels(render, ["R", "G", "B"]), None, None
     model = "rt_hdr" + ("_alb" if albedo is not None else "") + \
         ("_nrm" if albedo is not None and normal is not None else "")
+    if args.prefilter:
+        if model != "rt_hdr_alb_nrm":
+            print("%s: --prefilter needs an albedo and a normal" % args.input)
+            return 2
+        albedo, normal = prefiltered(albedo, normal, args.weights, torch)
+        model = "rt_hdr_calb_cnrm"
     weights = read_tza(os.path.join(args.weights, model + ".tza"))
     scale = autoexposure(colour)
     norm = 1 / pu(np.float64(65504))
@@ -144,13 +182,7 @@ def main():
         planes.append(np.clip(albedo, 0, 1))
         if normal is not None:
             planes.append(np.clip(normal, -1, 1) * 0.5 + 0.5)
-    x = np.concatenate(planes, -1)
-    h, w, _ = x.shape
-    ph, pw = -h % 16, -w % 16  # the frame extended by its last rows and columns
-    x = np.pad(x, ((0, ph), (0, pw), (0, 0)), mode="edge")
-    with torch.no_grad():
-        y = unet(torch.from_numpy(x.transpose(2, 0, 1)[None].astype(np.float32)), weights, torch)
-    y = y[0].numpy().transpose(1, 2, 0)[:h, :w].astype(np.float64)
+    y = run_unet(np.concatenate(planes, -1), weights, torch)
     ours = pu_inverse(np.maximum(y, 0) / norm) / scale
     engine = channels(oiio.ImageBuf(args.engine), [layer + "Combined." + c for c in "RGB"])
     if engine is None:

@@ -218,6 +218,7 @@ bool oidn_settings(OidnOptions& o, const Settings& settings, std::string& error)
         .positive_int("tile", o.tile_size)
         .flag("extras", o.denoise_extras)
         .drop_or_off("outliers", o.outliers)
+        .flag("prefilter", o.prefilter)
         .skip(o.skip)
         .ok();
 }
@@ -261,28 +262,33 @@ StageInfo oidn_stage()
 {
     StageInfo s;
     s.name = "oidn";
-    s.keys = { "weights", "tile", "extras", "outliers", "skip", "converged" };
+    s.keys = { "weights", "tile", "extras", "outliers", "prefilter", "skip", "converged" };
     s.cross_frame = true;
     s.probes_in_place = true;
     s.facts.exposure = true;
     s.frame_buffers = 1.0;  // the result
     s.held_bytes = oidn_held_bytes;
-    s.help = "Intel Open Image Denoise's published network on our engine, with your copy of "
-             "OIDN's weights (weights=FILE.tza or a folder of them; else $MCDN_OIDN_WEIGHTS, "
-             "else <prefix>/share/mcdenoise/oidn/; mcdenoise does not ship them: they are "
-             "OIDN's, Apache 2.0, from RenderKit/oidn-weights). The model follows the inputs: "
-             "colour + albedo + normal (rt_hdr_alb_nrm), colour + albedo (rt_hdr_alb), colour "
-             "(rt_hdr). Tiled (tile=1024), a tile at a time with every thread in it. Extra AOVs "
-             "(light groups and passes) are denoised by "
-             "the network too, each a run of its own, then shared so that extras that add up "
-             "to the beauty still do (extras=0: keep them). A pixel holding one "
-             "sample worth a hundred of its neighbours (a caustic, a firefly) enters the network "
-             "as its neighbourhood and its excess is removed, by --nfor's rule (outliers=drop; "
-             "off: left in, where the network spreads it). Cross-frame, in a "
-             "sequence: frames=2 combines this frame with 2 previous and 2 next ones first, as "
-             "--cnn:frames=2 does. "
-             "--oidn --sure --mix is Progressive Denoising's configuration (§6): OIDN's result, "
-             "its SURE, and the mix that converges to the render.";
+    s.help =
+        "Intel Open Image Denoise's published network on our engine, with your copy of "
+        "OIDN's weights (weights=FILE.tza or a folder of them; else $MCDN_OIDN_WEIGHTS, "
+        "else <prefix>/share/mcdenoise/oidn/; mcdenoise does not ship them: they are "
+        "OIDN's, Apache 2.0, from RenderKit/oidn-weights). The model follows the inputs: "
+        "colour + albedo + normal (rt_hdr_alb_nrm), colour + albedo (rt_hdr_alb), colour "
+        "(rt_hdr); prefilter=1 first cleans the albedo and normal with OIDN's networks for them "
+        "(rt_alb, rt_nrm) and reads them with rt_hdr_calb_cnrm, as Blender's \"Accurate\" "
+        "prefilter and OIDN's cleanAux do (two more networks' work a frame; better at high "
+        "sample counts). Tiled (tile=1024), a tile at a time with every thread in it. "
+        "Extra AOVs "
+        "(light groups and passes) are denoised by "
+        "the network too, each a run of its own, then shared so that extras that add up "
+        "to the beauty still do (extras=0: keep them). A pixel holding one "
+        "sample worth a hundred of its neighbours (a caustic, a firefly) enters the network "
+        "as its neighbourhood and its excess is removed, by --nfor's rule (outliers=drop; "
+        "off: left in, where the network spreads it). Cross-frame, in a "
+        "sequence: frames=2 combines this frame with 2 previous and 2 next ones first, as "
+        "--cnn:frames=2 does. "
+        "--oidn --sure --mix is Progressive Denoising's configuration (§6): OIDN's result, "
+        "its SURE, and the mix that converges to the render.";
     s.needs = "the colour; the albedo and normal where present (Cycles' Denoising Albedo and "
               "Denoising Normal, any preset's). --sure and --mix after it need the colour's "
               "variance.";

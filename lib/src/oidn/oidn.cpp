@@ -41,10 +41,13 @@ namespace {
 
 // ---- weights --------------------------------------------------------------------------
 
-// OIDN's model for the inputs there are (it has none for a normal without an albedo).
-std::string model_name(bool albedo, bool normal)
+// OIDN's model for the inputs there are (it has none for a normal without an albedo);
+// `clean`: for prefiltered ones (OidnOptions::prefilter).
+std::string model_name(bool albedo, bool normal, bool clean = false)
 {
-    return albedo && normal ? "rt_hdr_alb_nrm" : albedo ? "rt_hdr_alb" : "rt_hdr";
+    return albedo && normal ? (clean ? "rt_hdr_calb_cnrm" : "rt_hdr_alb_nrm")
+           : albedo         ? "rt_hdr_alb"
+                            : "rt_hdr";
 }
 
 // A file's weights, read once per process while the file stays the same (SURE runs the
@@ -141,6 +144,113 @@ void read_features(InputPlanes& planes, const ImageBuf& src, const Inputs& in, i
             reads.push_back({ in.normal[c], &planes.normal[c] });
     }
     read_planes(src, reads, {}, nthreads);
+}
+
+// ---- the features' prefilters (OidnOptions::prefilter) --------------------------------
+
+/// OIDN's network for one auxiliary feature (rt_alb, rt_nrm), read beside the model.
+bool prefilter_net(nn::Net& net, const std::string& model_path, const char* name,
+                   std::string& error)
+{
+    const std::string folder = Filesystem::parent_path(model_path);
+    const std::string path = (folder.empty() ? std::string(".") : folder) + "/" + name + ".tza";
+    if (!Filesystem::is_regular(path)) {
+        error = format("prefilter=1 reads OIDN's albedo and normal prefilters (rt_alb.tza, "
+                       "rt_nrm.tza) beside {}: there is no {}",
+                       model_path, path);
+        return false;
+    }
+    std::shared_ptr<const nn::Weights> weights;
+    if (!cached_weights(weights, path, error) || !oidn_net::build_unet(net, *weights, error))
+        return false;
+    bool albedo = false, normal = false;
+    if (!network_inputs(*weights, albedo, normal, error) || albedo) {
+        error = format("{}: not a prefilter of one feature (3 input channels)", path);
+        return false;
+    }
+    return true;
+}
+
+/// A prefilter's input on `window` (rows and columns past the frame repeat its last ones, as
+/// in tile_input): the albedo clamped to [0, 1] through the sRGB curve; the normal clamped to
+/// [-1, 1] and mapped to [0, 1].
+void feature_input(nn::Tensor& input, const Plane (&feature)[3], bool albedo, const Rect& window)
+{
+    input.height = window.height();
+    input.width = window.width();
+    input.channels = 3;
+    if (input.data.size() < input.size())
+        input.data.resize(input.size());
+    const int width = feature[0].width, height = feature[0].height;
+    nn::parallel_rows(window.height(), [&](int wy) {
+        const int y = std::min(window.y0 + wy, height - 1);
+        for (int c = 0; c < 3; ++c) {
+            const float* row = feature[c].row(y);
+            for (int x = window.x0; x < window.x1; ++x) {
+                const float v = row[std::min(x, width - 1)];
+                input.at(wy, x - window.x0, c) =
+                    albedo ? oidn_net::srgb_forward(std::clamp(v, 0.0f, 1.0f))
+                           : std::clamp(v, -1.0f, 1.0f) * 0.5f + 0.5f;
+            }
+        }
+    });
+}
+
+/// The prefilter's output on the frame pixels `rect` back into the feature's range: clamped
+/// at 0, then the albedo through the sRGB curve's inverse, the normal mapped to [-1, 1]; both
+/// at most 1.
+void write_feature(Plane (&clean)[3], bool albedo, const nn::Tensor& result, const Rect& window,
+                   const Rect& rect)
+{
+    nn::parallel_rows(rect.height(), [&](int ry) {
+        const int y = rect.y0 + ry;
+        for (int x = rect.x0; x < rect.x1; ++x) {
+            const float* value = result.pixel(y - window.y0, x - window.x0);
+            for (int c = 0; c < 3; ++c) {
+                const float v = value[c] > 0.0f ? value[c] : 0.0f;  // NaN too
+                clean[c](x, y) = albedo ? std::min(oidn_net::srgb_inverse(v), 1.0f)
+                                        : std::min(v, 1.0f) * 2.0f - 1.0f;
+            }
+        }
+    });
+}
+
+/// The albedo and normal of `planes` replaced by the prefilters' estimates on `area` (frame
+/// coordinates: where the model's windows read them); elsewhere they stay as rendered. Each
+/// prefilter's buffers are freed before the next network runs.
+bool prefilter_features(InputPlanes& planes, const std::string& model_path, const ImageSpec& spec,
+                        ROI area, int tile_size, int nthreads, std::string& error)
+{
+    for (bool albedo : { true, false }) {
+        nn::Net net;
+        if (!prefilter_net(net, model_path, albedo ? "rt_alb" : "rt_nrm", error))
+            return false;
+        std::vector<nn::Tile> tiles;
+        if (!network_tiles(tiles, net, ConvergedTiles(), tile_size, true, spec, area, error))
+            return false;
+        Plane(&feature)[3] = albedo ? planes.albedo : planes.normal;
+        Plane clean[3] = { feature[0], feature[1], feature[2] };
+        std::vector<nn::Tensor> input(1), result;
+        const bool ran = nn::with_threads(nthreads, [&] {
+            return nn::for_each_tile(int(tiles.size()), 1, [&](int index, int) {
+                const nn::Tile& tile = tiles[size_t(index)];
+                feature_input(input[0], feature, albedo, tile.window);
+                std::string tile_error;
+                if (!net.run(input, result, tile_error)) {
+                    error = format("oidn: prefilter: {}", tile_error);
+                    return false;
+                }
+                write_feature(clean, albedo, result[0], tile.window,
+                              output_rect(tile.core, spec, area));
+                return true;
+            });
+        });
+        if (!ran)
+            return false;
+        for (int c = 0; c < 3; ++c)
+            feature[c] = std::move(clean[c]);
+    }
+    return true;
 }
 
 /// A pass's colour as rendered.
@@ -320,6 +430,14 @@ bool model_inputs(Inputs& in, std::string& path, std::shared_ptr<const nn::Weigh
 {
     const bool has_albedo = aovs.channels(Role::Albedo).size() == 3;
     const bool has_normal = aovs.channels(Role::Normal).size() == 3;
+    if (options.prefilter && !(has_albedo && has_normal)) {
+        error = format("prefilter=1 cleans the albedo and the normal, and the input has {} "
+                       "(-v --info lists its AOVs)",
+                       has_albedo   ? "no normal"
+                       : has_normal ? "no albedo"
+                                    : "neither");
+        return false;
+    }
     if (!oidn_weights(path, options, has_albedo, has_normal, error)
         || !cached_weights(weights, path, error)
         || !network_inputs(*weights, in.has_albedo, in.has_normal, error))
@@ -347,14 +465,12 @@ bool model_inputs(Inputs& in, std::string& path, std::shared_ptr<const nn::Weigh
 /// planes (InputPlanes) before it writes, so the op runs in the chain's own frame without a
 /// copy of it (then 19.8 s and 1.63 GB, two windows of 1072 × 1088 at tile 1024).
 bool run_passes(nn::Net& net, const std::string& path, const std::vector<nn::Tile>& tiles,
-                const std::vector<Pass>& passes, const ImageBuf& src, ImageBuf& dst, ROI where,
-                const ConvergedTiles& converged, float exposure, const ProgressCallback& callback,
-                int nthreads, std::string& error)
+                const std::vector<Pass>& passes, InputPlanes& planes, const ImageBuf& src,
+                ImageBuf& dst, ROI where, const ConvergedTiles& converged, float exposure,
+                const ProgressCallback& callback, int nthreads, std::string& error)
 {
     ProgressCounter progress(callback, "oidn", int(tiles.size() * passes.size()));
     std::mutex failed;
-    InputPlanes planes;
-    read_features(planes, src, passes[0].in, nthreads);
     std::vector<SetRemainder> remainders;
     std::vector<nn::Tensor> input(1), result;
     for (size_t p = 0; p < passes.size(); ++p) {
@@ -450,8 +566,25 @@ bool oidn_in_working_space(ImageBuf& dst, const ImageBuf& src, const OidnOptions
                     pass.in.color[c] = extra.channels[size_t(c)];
                 passes.push_back(pass);
             }
-    const bool ran = run_passes(net, path, tiles, passes, src, dst, where, converged, in.exposure,
-                                options.progress, nthreads, error);
+    // The features, once for every pass; cleaned by OIDN's prefilters first where asked, on
+    // the model's reach of `where`.
+    InputPlanes planes;
+    read_features(planes, src, in, nthreads);
+    if (options.prefilter) {
+        const int reach = net.receptive_radius();
+        const ROI frame = src.roi();
+        const ROI area(
+            std::max(where.xbegin - reach, frame.xbegin), std::min(where.xend + reach, frame.xend),
+            std::max(where.ybegin - reach, frame.ybegin), std::min(where.yend + reach, frame.yend));
+        if (!prefilter_features(planes, path, src.spec(), area, options.tile_size, nthreads,
+                                error)) {
+            dst.errorfmt("oidn: {}", error);
+            return false;
+        }
+        trace.mark("prefilters");
+    }
+    const bool ran = run_passes(net, path, tiles, passes, planes, src, dst, where, converged,
+                                in.exposure, options.progress, nthreads, error);
     if (!ran) {
         dst.errorfmt("{}", error);
         return false;
@@ -474,7 +607,8 @@ bool oidn_weights(std::string& path, const OidnOptions& options, bool has_albedo
     const std::string given = !options.weights.empty() ? options.weights
                               : env && *env            ? std::string(env)
                                                        : oidn_weights_dir();
-    const std::string model = model_name(has_albedo, has_normal) + ".tza";
+    const std::string model =
+        model_name(has_albedo, has_normal, options.prefilter && has_albedo && has_normal) + ".tza";
     path = Filesystem::is_directory(given) ? given + "/" + model : given;
     if (Filesystem::is_regular(path))
         return true;
@@ -495,8 +629,9 @@ int receptive_radius(const OidnOptions& options)
         nn::Net net;
         if (oidn_weights(path, options, albedo, albedo, error)
             && cached_weights(weights, path, error) && oidn_net::build_unet(net, *weights, error))
-            // Outliers are decided on the 5×5 neighbourhood of the input.
-            return net.receptive_radius()
+            // Outliers are decided on the 5×5 neighbourhood of the input; the prefilters'
+            // features reach as far again.
+            return net.receptive_radius() * (options.prefilter ? 2 : 1)
                    + (options.outliers == OidnOptions::Outliers::Drop ? OutlierRule::radius : 0);
     }
     return -1;

@@ -43,5 +43,10 @@ bool build_unet(nn::Net& net, const nn::Weights& weights, std::string& error);
 float pu_forward(float y);
 float pu_inverse(float x);
 
+/// OIDN's low-dynamic-range transfer, which its albedo prefilter (rt_alb) reads and writes
+/// through: the sRGB curve (IEC 61966-2-1) on [0, 1]; its inverse.
+float srgb_forward(float y);
+float srgb_inverse(float x);
+
 }  // namespace oidn_net
 }  // namespace mcdn

@@ -89,5 +89,15 @@ float pu_inverse(float x)
     return pu_inverse_raw(x / kNorm);
 }
 
+float srgb_forward(float y)
+{
+    return y <= 0.0031308f ? 12.92f * y : 1.055f * std::pow(y, 1.0f / 2.4f) - 0.055f;
+}
+
+float srgb_inverse(float x)
+{
+    return x <= 0.04045f ? x / 12.92f : std::pow((x + 0.055f) / 1.055f, 2.4f);
+}
+
 }  // namespace oidn_net
 }  // namespace mcdn
