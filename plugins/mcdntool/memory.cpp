@@ -2,6 +2,7 @@
 
 #include "session.h"
 
+#include "mcdn/chain.h"
 #include "mcdn/stages.h"
 
 #include <algorithm>
@@ -124,6 +125,7 @@ bool check_memory(const std::vector<Command>& commands, int threads, int paralle
     // half file (the reader takes only the roles' faces of those: mcdn::InputSelection).
     double pixels = 0, width = 0;
     int channels = 0, in_files = 0;
+    OIIO::ImageSpec first_spec;  // the first input's: the stages' reach on its channels
     for (const auto& c : commands) {
         if (c.name != "-i")
             continue;
@@ -139,6 +141,8 @@ bool check_memory(const std::vector<Command>& commands, int threads, int paralle
         int file_channels = 0;
         for (int s = 0; in->seek_subimage(s, 0); ++s) {
             const OIIO::ImageSpec& spec = in->spec();
+            if (first_spec.width == 0)
+                first_spec = spec;
             pixels = std::max(pixels, double(spec.width) * spec.height);
             width = std::max(width, double(spec.width));
             file_channels += spec.nchannels;
@@ -160,11 +164,21 @@ bool check_memory(const std::vector<Command>& commands, int threads, int paralle
     const int frames_at_once = std::max(1, parallel_frames);
     const int per_frame_threads = std::max(1, threads / frames_at_once);
     // A streamed chain's band: band_pixels, or by default at least ChainOptions::band_halos
-    // halos, and a halo of up to 128 rows each side.
-    mcdn::ChainOptions chain;
-    set_chain_bands(chain);
-    const double own = std::max(double(chain.band_pixels), chain.band_halos * 128 * width);
-    const double band = streamed_chain_start(commands) ? own + 256 * width : 0;
+    // halos, and a halo each side: the chain's reach (mcdn::chain_reach) on the band grid of
+    // 32 rows. A plan (--denoise) picks its stages on the merged input, which the first file
+    // does not describe: 160 rows, its reach with halves.
+    double band = 0;
+    if (const size_t first_stage = streamed_chain_start(commands)) {
+        mcdn::ChainOptions chain;
+        set_chain_bands(chain);
+        set_chain_stages(chain, commands, first_stage);
+        const mcdn::StageInfo* stage = mcdn::find_stage(chain.stages[0]);
+        const bool plan = stage && stage->kind == mcdn::StageKind::Plan;
+        const int reach = plan ? -1 : mcdn::chain_reach(first_spec, chain);
+        const double halo = reach >= 0 ? (reach + 31) / 32 * 32 : 160;
+        band =
+            std::max(double(chain.band_pixels), chain.band_halos * halo * width) + 2 * halo * width;
+    }
     const double need =
         frames_at_once * estimated_peak_bytes(commands, pixels, channels, per_frame_threads, band);
     if (need <= available)

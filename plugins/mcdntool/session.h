@@ -178,6 +178,9 @@ int64_t band_pixels();
 /// A streamed chain's bands: band_pixels(), exactly that when $MCDN_BAND_PIXELS is set
 /// (ChainOptions::band_halos 0), else ChainOptions' defaults.
 void set_chain_bands(mcdn::ChainOptions& chain);
+/// A streamed chain's stages and their settings: the commands from `first` to the -o.
+void set_chain_stages(mcdn::ChainOptions& chain, const std::vector<Command>& commands,
+                      size_t first);
 /// Runs such a command line: the inputs, then the stages as one chain in bands, each band's
 /// rows written as they are made (mcdn::run_chain's BandSink, mcdn::RowWriter). `streamed`
 /// false: only the inputs were run (a multi-part output is written whole); the caller runs

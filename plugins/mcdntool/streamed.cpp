@@ -36,6 +36,17 @@ void set_chain_bands(mcdn::ChainOptions& chain)
         chain.band_halos = 0;  // exactly the bands asked for
 }
 
+void set_chain_stages(mcdn::ChainOptions& chain, const std::vector<Command>& commands, size_t first)
+{
+    chain.stages.clear();
+    for (size_t i = first; i + 1 < commands.size(); ++i) {
+        const std::string stage = commands[i].name.substr(2);
+        chain.stages.push_back(stage);
+        for (const auto& [key, value] : commands[i].modifiers)
+            chain.settings[stage + "." + key] = value;
+    }
+}
+
 size_t streamed_chain_start(const std::vector<Command>& commands)
 {
     // -i and --aov commands (and those set once for the run: --threads), then stages only,
@@ -102,15 +113,9 @@ bool run_streamed_chain(Session& s, const std::vector<Command>& commands, size_t
     mcdn::ChainOptions chain;
     chain.aovs = s.aov_spec;
     chain.progress = s.progress();
-    chain.stages.clear();
     set_chain_bands(chain);
+    set_chain_stages(chain, commands, first);
     chain.output_channels_only = write.channels.empty();  // the writer's default
-    for (size_t i = first; i + 1 < commands.size(); ++i) {
-        const std::string stage = commands[i].name.substr(2);
-        chain.stages.push_back(stage);
-        for (const auto& [key, value] : commands[i].modifiers)
-            chain.settings[stage + "." + key] = value;
-    }
     if (s.verbose && stage_of_command(commands[first].name)->kind == mcdn::StageKind::Plan) {
         mcdn::DenoisePlan plan;
         if (mcdn::plan_denoise(plan, input, s.aov_spec, error))
