@@ -30,7 +30,7 @@ install(TARGETS mcdenoise EXPORT mcdenoiseTargets
 install(DIRECTORY ${CMAKE_SOURCE_DIR}/lib/include/mcdn DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}
         FILES_MATCHING PATTERN "*.h")
 install(FILES ${CMAKE_SOURCE_DIR}/models/kpcn.mcdnw ${CMAKE_SOURCE_DIR}/models/mix.mcdnw
-              ${CMAKE_SOURCE_DIR}/models/mix_cnn.mcdnw
+              ${CMAKE_SOURCE_DIR}/models/mix_cnn.mcdnw ${CMAKE_SOURCE_DIR}/models/mix_oidn.mcdnw
         DESTINATION ${CMAKE_INSTALL_DATADIR}/mcdenoise/models)
 install(FILES ${CMAKE_SOURCE_DIR}/ocio/config.ocio
         DESTINATION ${CMAKE_INSTALL_DATADIR}/mcdenoise/ocio)

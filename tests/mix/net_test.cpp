@@ -244,7 +244,8 @@ TEST(MixNet, PicksTheNetworkOfTheDenoiserThatMadeTheFrame)
     // denoiser's network; NFOR's for a denoiser it does not know.
     auto file = [](const std::string& path) { return path.substr(path.find_last_of('/') + 1); };
     EXPECT_EQ(file(default_mix_weights("cnn")), "mix_cnn.mcdnw");
-    for (const char* other : { "nfor", "", "oidn" })
+    EXPECT_EQ(file(default_mix_weights("oidn")), "mix_oidn.mcdnw");
+    for (const char* other : { "nfor", "", "blur" })
         EXPECT_EQ(file(default_mix_weights(other)), "mix.mcdnw") << other;
 
     ImageBuf src, with_sure;

@@ -6,6 +6,9 @@ and remakes the PyTorch-vs-C++ fixture of tests/mix/net_test.cpp from the same w
     # the KPCN op's network (mcdn::mix picks it for frames the cnn op made):
     /usr/bin/python3 training/mix/export.py --run-dir DIR --denoiser cnn \
         --out models/mix_cnn.mcdnw --fixture ''
+    # OIDN's (PD §6: the mix over the pre-trained OIDN):
+    /usr/bin/python3 training/mix/export.py --run-dir DIR --denoiser oidn \
+        --out models/mix_oidn.mcdnw --fixture ''
 
 Writes
   models/mix.mcdnw            the weights (state_dict keys = the C++ parameter names) and
@@ -90,9 +93,9 @@ def main():
     ap.add_argument("--fixture", default=os.path.join(ROOT, "tests", "data", "mix", "mix_net_io.mcdnw"),
                     help="the C++ equivalence fixture to remake ('' for none: one fixture checks "
                          "the C++ forward, made from models/mix.mcdnw)")
-    ap.add_argument("--denoiser", choices=("nfor", "cnn"), default="nfor",
+    ap.add_argument("--denoiser", choices=("nfor", "cnn", "oidn"), default="nfor",
                     help="the denoiser this network mixes (the ops' mcdn:denoiser attribute; "
-                         "cnn: export to models/mix_cnn.mcdnw)")
+                         "cnn: export to models/mix_cnn.mcdnw, oidn: models/mix_oidn.mcdnw)")
     args = ap.parse_args()
     ck = torch.load(os.path.join(args.run_dir, "checkpoint.pt"))
     net = M.MixNet()
@@ -114,7 +117,8 @@ def main():
         "input_layout": M.INPUT_LAYOUT,
         "inputs": "HDR, DEN: sign(v) log(1 + |v|); VAR, SURE, sigma^2 f'(x), ||y - x||^2: "
                   "arctan(v / (y^2 + 0.01)), y = denoised; 18 channels, RGB each, in that order",
-        "denoiser": "mcdntool --%s (defaults) --sure:probes=1" % args.denoiser,
+        "denoiser": "mcdntool --%s (defaults) --sure:probes=1" % args.denoiser
+                    + (" (OIDN 2.x rt_hdr_alb_nrm weights, a user's own copy)" if args.denoiser == "oidn" else ""),
         "data": {"datasets": targs["datasets"], "train_files": len(train_files),
                  "train_crops": len(crops(train_files)), "validation_files": len(val_files),
                  "validation_crops": crops(val_files),

@@ -3,7 +3,7 @@
 sample count, runs our denoiser and its SURE through mcdntool and stores what the network
 reads and what the loss compares with.
 
-    /usr/bin/python3 training/mix/prepare.py [--datasets full,small] [--denoiser nfor|cnn]
+    /usr/bin/python3 training/mix/prepare.py [--datasets full,small] [--denoiser nfor|cnn|oidn]
                                              [--watch MINUTES]
 
 Reads   $CACHE/datasets/<set>/<crop>/<crop>_00NNspp{,_var,_A,_B}.exr and <crop>_ref.exr
@@ -15,6 +15,9 @@ Writes  $CACHE/mix/prepared/<set>/<crop>_00NNspp.npz, float32 arrays [3, H, W]:
         the generator adds crops. With --denoiser cnn, y is the KPCN op's output (--cnn,
         models/kpcn.mcdnw) and the files go to $CACHE/mix/prepared/<set>.cnn/ (train.py
         --datasets full,small,full.cnn,small.cnn trains on both denoisers' outputs).
+        With --denoiser oidn, y is OIDN's published network on our engine (--oidn, PD §6's
+        configuration), its weights from $MCDN_OIDN_WEIGHTS, else ../shared/peers/oidn (a
+        user's own copy: we never ship them); the files go to <set>.oidn/.
         With --denoiser blur, y is a deliberately biased "denoiser", the colour blurred by a
         Gaussian BLUR_WIDTHS[crop number % 2] pixels wide, and its SURE (mcdenoise.sure with
         a Python callable), into <set>.blur/: a network that only ever saw good denoisers
@@ -42,6 +45,8 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
 CACHE = os.environ.get("MCDN_CACHE", os.path.expanduser("~/.cache/mcdenoise"))
 MCDNTOOL = os.environ.get("MCDNTOOL", os.path.join(ROOT, "build", "bin", "mcdntool"))
+OIDN_WEIGHTS = os.environ.get("MCDN_OIDN_WEIGHTS",
+                              os.path.normpath(os.path.join(ROOT, "..", "shared", "peers", "oidn")))
 
 # Widths of the blur "denoiser" (--denoiser blur), alternating by crop number; bench_mix
 # --blur 5 measures between them.
@@ -83,7 +88,9 @@ def prepare_one(stem, reference, out_path, probes=1, denoiser="nfor"):
         exr = os.path.join(tmp, "sure.exr")
         cmd = [MCDNTOOL, "-i", stem + ".exr", "-i:as=variance", stem + "_var.exr",
                "-i:as=halfA", stem + "_A.exr", "-i:as=halfB", stem + "_B.exr",
-               "--aov:preset=cycles", "--" + denoiser, "--sure:probes=%d" % probes,
+               "--aov:preset=cycles",
+               "--oidn:weights=" + OIDN_WEIGHTS if denoiser == "oidn" else "--" + denoiser,
+               "--sure:probes=%d" % probes,
                "--ch", ",".join(all_channels), "-o", exr]
         run = subprocess.run(cmd, capture_output=True, text=True)
         if run.returncode != 0:
@@ -158,7 +165,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--datasets", default="full,small")
     ap.add_argument("--probes", type=int, default=1, help="SURE's K (PD §3.2)")
-    ap.add_argument("--denoiser", choices=("nfor", "cnn", "blur"), default="nfor",
+    ap.add_argument("--denoiser", choices=("nfor", "cnn", "oidn", "blur"), default="nfor",
                     help="the mcdntool stage whose output the mix learns to combine (blur: "
                          "a biased stand-in, see above)")
     ap.add_argument("--watch", type=float, default=0,

@@ -21,7 +21,7 @@ through, its gradient vanishes on them). Adam, one-cycle schedule.
 An "epoch" is as many patches as there are training files.
 
 Validation: whole crops of the held-out generated crops (crop number % 6 == 4 in
-datasets/full), no swap, as at inference (without the t-test, which is applied after the
+datasets/full and datasets/mix-hq), no swap, as at inference (without the t-test, which is applied after the
 network, PD §4.2).
 """
 import argparse
@@ -38,17 +38,20 @@ import torch
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from model import PLANES, MixNet, load_sample, log_l1, mix, relmse, smape  # noqa: E402
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
+from weights import read_weights  # noqa: E402
+
 CACHE = os.environ.get("MCDN_CACHE", os.path.expanduser("~/.cache/mcdenoise"))
 PREPARED = os.path.join(CACHE, "mix", "prepared")
 INPUT_PLANES = PLANES[:-1]
 
 
 def is_validation(path):
-    """Held-out crops: datasets/full crops whose number % 6 == 4 (0004, 0010, ...), with
-    any denoiser's outputs (prepared/full, prepared/full.cnn, prepared/full.blur)."""
+    """Held-out crops: datasets/full and datasets/mix-hq crops whose number % 6 == 4 (0004,
+    0010, ...), with any denoiser's outputs (prepared/full, prepared/full.cnn, ...)."""
     name = os.path.basename(path)
     dataset = os.path.basename(os.path.dirname(path)).split(".")[0]
-    return dataset == "full" and int(name[:4]) % 6 == 4
+    return dataset in ("full", "mix-hq") and int(name[:4]) % 6 == 4
 
 
 def scan(datasets):
@@ -188,6 +191,9 @@ def main():
     ap.add_argument("--checkpoint-every", type=int, default=100)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--restart", action="store_true", help="ignore an existing checkpoint")
+    ap.add_argument("--init", default="",
+                    help="a fresh run starts from this exported network (e.g. models/mix.mcdnw, "
+                         "to fine-tune the NFOR network for another denoiser) instead of at random")
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
     os.makedirs(args.run_dir, exist_ok=True)
@@ -218,8 +224,13 @@ def main():
         rng.bit_generator.state = ck["numpy_rng"]
         torch.set_rng_state(ck["torch_rng"])
         print("resumed at step %d (%.0f s trained)" % (state["step"], state["seconds"]), flush=True)
-    elif os.path.exists(csv_path):
-        os.remove(csv_path)
+    else:
+        if os.path.exists(csv_path):
+            os.remove(csv_path)
+        if args.init:
+            _, tensors = read_weights(args.init)
+            net.load_state_dict({k: torch.from_numpy(v) for k, v in tensors.items()})
+            print("started from %s" % args.init, flush=True)
     if args.extend:
         if state["step"] < state["cycle_start"] + state["cycle_steps"]:
             sys.exit("train: --extend needs a finished cycle; rerun without it to finish")

@@ -83,7 +83,8 @@ struct MixOptions {
 };
 
 /// The mixing network trained for `denoiser`'s outputs (PD §5.3 trains one per denoiser):
-/// mix_cnn.mcdnw for "cnn" (the KPCN op), mix.mcdnw for "nfor" and for any other (with a
+/// mix_cnn.mcdnw for "cnn" (the KPCN op), mix_oidn.mcdnw for "oidn" (OIDN's network, PD §6),
+/// mix.mcdnw for "nfor" and for any other (with a
 /// deliberately biased one, bench_mix's blur: models/README.md), in the models directory
 /// ($MCDN_MODELS when set, else share/mcdenoise/models installed with the library).
 /// mix() asks for the denoiser its input names in the "mcdn:denoiser" attribute, which the

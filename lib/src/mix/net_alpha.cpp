@@ -35,7 +35,9 @@ float signed_log1p(float v)
 
 std::string default_mix_weights(const std::string& denoiser)
 {
-    return nn::model_file(denoiser == "cnn" ? "mix_cnn.mcdnw" : "mix.mcdnw");
+    if (denoiser == "cnn" || denoiser == "oidn")
+        return nn::model_file("mix_" + denoiser + ".mcdnw");
+    return nn::model_file("mix.mcdnw");
 }
 
 bool load_mix_net(nn::Net& net, const std::string& path, std::string& error)
