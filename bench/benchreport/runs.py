@@ -50,6 +50,8 @@ CHAINS = [
     Chain("oidn", ["--oidn:weights=" + OIDN_WEIGHTS]),
     Chain("oidn+sure+mix:net", ["--oidn:weights=" + OIDN_WEIGHTS, "--sure",
                                 "--mix:model=net:alpha=1"], True),
+    # The plan a user gets by default: with $MCDN_OIDN_WEIGHTS set, over OIDN's network.
+    Chain("denoise", ["--denoise"]),
     # OIDN with its albedo and normal prefilters (Blender's "Accurate"), and the mix over it.
     Chain("oidn:prefilter", ["--oidn:weights=" + OIDN_WEIGHTS + ":prefilter=1"]),
     Chain("oidn:prefilter+sure+mix:net", ["--oidn:weights=" + OIDN_WEIGHTS + ":prefilter=1",
