@@ -50,6 +50,9 @@ CHAINS = [
     Chain("oidn", ["--oidn:weights=" + OIDN_WEIGHTS]),
     Chain("oidn+sure+mix:net", ["--oidn:weights=" + OIDN_WEIGHTS, "--sure",
                                 "--mix:model=net:alpha=1"], True),
+    # Our CNN beside OIDN, weighed per pixel by their SURE (--choose:with=cnn), then the mix.
+    Chain("oidn+sure+choose:cnn+mix:net", ["--oidn:weights=" + OIDN_WEIGHTS, "--sure",
+                                           "--choose:with=cnn", "--mix:model=net:alpha=1"], True),
     # The plan a user gets by default: with $MCDN_OIDN_WEIGHTS set, over OIDN's network.
     Chain("denoise", ["--denoise"]),
     # OIDN with its albedo and normal prefilters (Blender's "Accurate"), and the mix over it.

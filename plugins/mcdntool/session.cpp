@@ -216,8 +216,8 @@ void report_fallback(const OIIO::ImageSpec& result, const std::string& stage)
     const float pixels = result.get_float_attribute(kChoosePixels, 0);
     if ((stage.empty() || stage == "choose")
         && (result.find_attribute(mcdn::kChooseShareAttribute) || pixels > 0))
-        std::cerr << format("mcdntool: choose: NFOR's weight averages {:.0f}% over the frame "
-                            "(the rest is the denoiser's before --sure)\n",
+        std::cerr << format("mcdntool: choose: the second denoiser's weight (with=) averages "
+                            "{:.0f}% over the frame (the rest is the one's before --sure)\n",
                             100.0f
                                 * (pixels > 0
                                        ? result.get_float_attribute(kChooseShareSum) / pixels

@@ -161,6 +161,9 @@ bool run_plan(Session& s, const Command& c, std::string& error)
         if ((mcdn::find_stage(name)->kind == mcdn::StageKind::Denoiser || name == "choose")
             && c.has("extras"))
             step.modifiers["extras"] = c.modifier("extras");
+        for (const auto& [key, value] : plan.settings)  // mix.model=net
+            if (key.compare(0, name.size() + 1, name + ".") == 0)
+                step.modifiers[key.substr(name.size() + 1)] = value;
         if (!run_stage(s, step, error))
             return false;
     }

@@ -130,6 +130,7 @@ TEST(Choose, WithoutSureOrHalvesItSaysWhatIsMissing)
             && a.spec().channelnames[c].compare(0, 2, "B.") != 0)
             kept.push_back(c);
     const ImageBuf no_halves = OIIO::ImageBufAlgo::channels(a, int(kept.size()), kept);
+    options.other_needs_halves = true;  // as the stage's NFOR (with=nfor)
     EXPECT_FALSE(choose(out, no_halves, box_denoiser(1), options));
     EXPECT_NE(out.geterror().find("half buffers"), std::string::npos) << out.geterror();
 }
@@ -169,7 +170,7 @@ TEST(Choose, VerboseSaysNforsShareOnce)
         const auto run = run_mcdntool(inputs + chain + " -o " + dir + "/out.exr",
                                       "MCDN_OIDN_WEIGHTS=/nonexistent");
         ASSERT_EQ(run.exit_code, 0) << run.output;
-        const std::string line = "choose: NFOR's weight averages ";
+        const std::string line = "choose: the second denoiser's weight (with=) averages ";
         const size_t at = run.output.find(line);
         ASSERT_NE(at, std::string::npos) << chain << "\n" << run.output;
         EXPECT_EQ(run.output.find(line, at + 1), std::string::npos) << chain << "\n" << run.output;

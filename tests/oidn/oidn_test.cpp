@@ -8,6 +8,7 @@
 #include <cstring>
 #include <unistd.h>
 #include <fstream>
+#include <functional>
 #include <random>
 
 #include <Imath/half.h>
@@ -15,6 +16,7 @@
 #include <OpenImageIO/imagebufalgo.h>
 
 #include "mcdn/chain.h"
+#include "mcdn/denoise.h"
 #include "mcdn/io.h"
 #include "mcdn/metrics.h"
 #include "mcdn/oidn.h"
@@ -125,6 +127,26 @@ ImageBuf render(int w, int h, uint32_t seed)
             for (int c = 6; c < 9; ++c)
                 p[c] = 2.0f * u(random) - 1.0f;
             buf.setpixel(x, y, p);
+        }
+    return buf;
+}
+
+// The render with `names` added after its 9 channels, their values from fill(x, y, p): p holds
+// the render's 9 values and room for the added ones after them.
+ImageBuf with_channels(const ImageBuf& render, const std::vector<std::string>& names,
+                       const std::function<void(int x, int y, float* p)>& fill)
+{
+    ImageSpec spec = render.spec();
+    for (const std::string& name : names)
+        spec.channelnames.push_back(name);
+    spec.nchannels = int(spec.channelnames.size());
+    ImageBuf buf(spec);
+    std::vector<float> p(size_t(spec.nchannels));
+    for (int y = 0; y < spec.height; ++y)
+        for (int x = 0; x < spec.width; ++x) {
+            render.getpixel(x, y, p.data(), 9);
+            fill(x, y, p.data());
+            buf.setpixel(x, y, p.data(), spec.nchannels);
         }
     return buf;
 }
@@ -301,6 +323,55 @@ TEST(Oidn, PrefilteredFeaturesSameForAnyThreadsTilesAndBands)
     std::remove(folder.c_str());
 }
 
+// --choose:with=cnn weighs our CNN beside OIDN by their SURE (--denoise does not: it runs
+// oidn, sure, mix). Streamed in bands of rows it gives the whole frame's result: the CNN that
+// choose runs reads the frame's depth range, not the band's, and the bands' halos reach as far
+// as choose's CNN does.
+TEST(Oidn, ChooseWithTheCnnSameInBandsAsWhole)
+{
+    const std::string path = temp_path("choose.tza");
+    write_tiny_tza(path, 9, 8, 16);
+    const int w = 24, h = 480;  // taller than the chain's reach (167 rows) and its halos
+    const ImageBuf src =
+        with_channels(render(w, h, 17), { "variance.R", "variance.G", "variance.B", "Z" },
+                      [](int, int y, float* p) {
+                          for (int c = 0; c < 3; ++c)
+                              p[9 + c] = 0.05f * (p[c] * p[c] + 0.01f);
+                          // each band's depth range is its own
+                          p[12] = 1.0f + 0.1f * float(y);
+                      });
+    const AovSpec aovs = options_with(path).aovs;
+    DenoisePlan plan;
+    std::string error;
+    ASSERT_TRUE(plan_denoise(plan, src.spec(), aovs, error, { { "oidn.weights", path } })) << error;
+    EXPECT_EQ(plan.stages, (std::vector<std::string> { "oidn", "sure", "mix" }));
+
+    ChainOptions chain;
+    chain.aovs = aovs;
+    chain.stages = { "oidn", "sure", "choose", "mix" };
+    chain.settings = { { "oidn.weights", path }, { "choose.with", "cnn" } };
+    ImageBuf whole, banded, without;
+    ASSERT_TRUE(run_chain(whole, src, chain, {}, 2)) << whole.geterror();
+    chain.band_pixels = w * 64;
+    chain.band_halos = 0;  // bands of 64 rows
+    ASSERT_TRUE(run_chain(banded, src, chain, {}, 2)) << banded.geterror();
+    EXPECT_LT(max_abs_difference(whole, banded), 1e-5f);
+    // The CNN's share changes the result.
+    chain.band_pixels = 0;
+    chain.stages = { "oidn", "sure", "mix" };
+    chain.settings.erase("choose.with");
+    ASSERT_TRUE(run_chain(without, src, chain, {}, 2)) << without.geterror();
+    EXPECT_GT(max_abs_difference(whole, without), 1e-3f);
+    // Not a denoiser choose knows: the setting's error says which it takes.
+    chain.stages = { "oidn", "sure", "choose", "mix" };
+    chain.settings["choose.with"] = "mix";
+    ImageBuf refused;
+    EXPECT_FALSE(run_chain(refused, src, chain, {}, 2));
+    EXPECT_NE(refused.geterror().find("nfor, cnn or oidn"), std::string::npos)
+        << refused.geterror();
+    std::remove(path.c_str());
+}
+
 TEST(Oidn, ErrorsNameTheFileAndWhereWeightsComeFrom)
 {
     const ImageBuf src = render(32, 32, 6);
@@ -379,22 +450,15 @@ TEST(Oidn, ExtrasStillSumToTheBeauty)
     const std::string path = temp_path("extras.tza");
     write_tiny_tza(path, 9, 8, 10);
     const int w = 70, h = 50;
-    const ImageBuf base = render(w, h, 11);
-    ImageSpec spec(w, h, 15, OIIO::TypeDesc::FLOAT);
-    spec.channelnames = base.spec().channelnames;
-    for (const char* c : { "key.R", "key.G", "key.B", "fill.R", "fill.G", "fill.B" })
-        spec.channelnames.push_back(c);
-    ImageBuf src(spec);
-    for (int y = 0; y < h; ++y)
-        for (int x = 0; x < w; ++x) {
-            float p[15];
-            base.getpixel(x, y, p, 9);
-            for (int c = 0; c < 3; ++c) {
-                p[9 + c] = p[c] * float(x) / float(w);  // the key's share of the beauty
-                p[12 + c] = p[c] - p[9 + c];
-            }
-            src.setpixel(x, y, p, 15);
-        }
+    const ImageBuf src =
+        with_channels(render(w, h, 11), { "key.R", "key.G", "key.B", "fill.R", "fill.G", "fill.B" },
+                      [w](int x, int, float* p) {
+                          for (int c = 0; c < 3; ++c) {
+                              // the key's share of the beauty
+                              p[9 + c] = p[c] * float(x) / float(w);
+                              p[12 + c] = p[c] - p[9 + c];
+                          }
+                      });
     OidnOptions o = options_with(path);
     o.aovs.extras = { { "key", { "key.R", "key.G", "key.B" } },
                       { "fill", { "fill.R", "fill.G", "fill.B" } } };

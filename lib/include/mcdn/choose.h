@@ -24,8 +24,8 @@
 //
 // a is the image src holds (a denoiser's result after sure: its colour, sure.*, noisy.*);
 // b is `other` run by choose itself on the render that sure recorded (noisy.*), with its own
-// SURE (K probes, mcdn/sure.h). --denoise runs it after --cnn (or --oidn) --sure with NFOR
-// (prefilter, nfor) as b where the render has half buffers.
+// SURE (K probes, mcdn/sure.h). --denoise runs it after --cnn --sure with NFOR (prefilter,
+// nfor) as b where the render has half buffers, and after --oidn --sure with the CNN as b.
 #pragma once
 
 #include <OpenImageIO/imagebuf.h>
@@ -47,6 +47,9 @@ struct ChooseOptions {
     SureOptions sure;
     /// How far `other` reaches (SureOptions::denoiser_radius); -1: not known.
     int other_radius = -1;
+    /// `other` is NFOR, whose input is the colour's half buffers: without them it would run
+    /// its one-buffer path, which choose was not measured with; choose says so before it runs.
+    bool other_needs_halves = false;
     /// Handed to the stage that makes `other` (NforOptions::denoise_extras for --denoise's
     /// NFOR): its extras are denoised as the image before's were (extras=0: as rendered).
     bool denoise_extras = true;

@@ -14,7 +14,8 @@
 //       cnn                         KPCN alone (SURE and the mix need the variance)
 // Where the user has Open Image Denoise's weights (mcdn/oidn.h: $MCDN_OIDN_WEIGHTS or
 // <prefix>/share/mcdenoise/oidn/), its network takes the CNN's place: oidn -> sure -> mix, or
-// oidn alone (on the inputs we measure it is the more accurate: docs/accuracy.md).
+// oidn alone (on the inputs we measure it is the more accurate: docs/accuracy.md; our CNN
+// weighed beside it, --choose:with=cnn, wins on some and loses on others).
 // The CNN runs on any size and on whatever features there are; missing ones (albedo, normal,
 // depth) are zero, which DenoisePlan names. NFOR alone is not picked: it needs half
 // buffers, and where they are, choose keeps it where its SURE says it is the better.
@@ -33,7 +34,9 @@ namespace mcdn {
 
 /// What denoise() runs on an input, and why, in words a log line can hold.
 struct DenoisePlan {
-    std::vector<std::string> stages;       // "cnn" or "oidn", "sure", "choose", "mix"
+    std::vector<std::string> stages;  // "cnn" or "oidn", "sure", "choose", "mix"
+    /// Settings of its stages ("mix.model" -> "net"); a setting the caller gives wins.
+    std::map<std::string, std::string> settings;
     std::string why;                       // "the input has a colour variance (variance.R,...)"
     std::vector<std::string> zero_filled;  // features the CNN reads as zero: "albedo", ...
 

@@ -342,18 +342,11 @@ bool run_stages(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOp
     if (o.stages.size() == 1 && find_stage(o.stages[0])->kind == StageKind::Plan) {
         // What mcdn::denoise runs, with this chain's bands.
         DenoisePlan plan;
-        if (!plan_denoise(plan, src.spec(), o.aovs, error, o.settings)) {
+        ChainOptions planned;
+        if (!planned_chain(planned, src.spec(), o, error, &plan)) {
             dst.errorfmt("denoise: {}", error);
             return false;
         }
-        ChainOptions planned = o;
-        planned.stages = plan.stages;
-        if (auto it = o.settings.find("denoise.extras"); it != o.settings.end())
-            for (const std::string& stage : plan.stages)
-                if (find_stage(stage)->kind == StageKind::Denoiser || stage == "choose")
-                    planned.settings.emplace(stage + ".extras", it->second);
-        if (!planned.settings.count("mix.model"))
-            planned.settings["mix.model"] = "net";
         if (!run_chain_impl(dst, src, own, planned, roi, nthreads))
             return false;
         dst.specmod().attribute("mcdn:denoise_plan", plan.describe());

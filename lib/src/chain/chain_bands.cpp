@@ -38,14 +38,10 @@ namespace {
 bool resolved_stages(std::vector<std::string>& stages, const ImageSpec& spec, const ChainOptions& o,
                      std::string& error)
 {
-    stages = o.stages;
-    const StageInfo* plan = stages.size() == 1 ? find_stage(stages[0]) : nullptr;
-    if (plan && plan->kind == StageKind::Plan) {
-        DenoisePlan plan;
-        if (!plan_denoise(plan, spec, o.aovs, error, o.settings))
-            return false;
-        stages = plan.stages;
-    }
+    ChainOptions planned;
+    if (!planned_chain(planned, spec, o, error))
+        return false;
+    stages = planned.stages;
     return true;
 }
 
@@ -202,12 +198,13 @@ private:
 
 }  // namespace
 
-int chain_reach(const ImageSpec& spec, const ChainOptions& o)
+int chain_reach(const ImageSpec& spec, const ChainOptions& given)
 {
-    std::vector<std::string> stages;
+    ChainOptions o;
     std::string error;
-    if (!resolved_stages(stages, spec, o, error))
+    if (!planned_chain(o, spec, given, error))
         return -1;
+    const std::vector<std::string>& stages = o.stages;
     // Each stage's reach; chain_radius knows that nfor reaches less after a prefilter.
     std::vector<StageReach> reaches;
     std::string denoiser = "nfor";  // a mix with no denoiser before it: mix.mcdnw's reach

@@ -4,8 +4,16 @@
 #include <string>
 
 #include "mcdn/chain.h"
+#include "mcdn/denoise.h"
 
 namespace mcdn {
+
+/// `o` with a plan (a chain of the one stage "denoise") replaced by the chain it plans for a
+/// frame of `spec` (mcdn/denoise.h): its stages; its settings where `o` has none of its own;
+/// denoise.extras as the extras of its denoisers and choose. `plan` (when given) gets the
+/// plan. A chain of stages comes back as it is.
+bool planned_chain(ChainOptions& planned, const ImageSpec& spec, const ChainOptions& o,
+                   std::string& error, DenoisePlan* plan = nullptr);
 
 /// mcdn::run_chain on the whole of a src that is the caller's own (a band it read or cut,
 /// a frame it read), which it uses up: sure probes src itself instead of a copy

@@ -3,6 +3,7 @@
 
 #include <OpenImageIO/strutil.h>
 
+#include "chain/chain_steps.h"
 #include "mcdn/chain.h"
 #include "mcdn/oidn.h"
 #include "mcdn/stages.h"
@@ -39,25 +40,27 @@ bool plan_denoise(DenoisePlan& plan, const ImageSpec& merged, const AovSpec& spe
     std::string weights, unused;
     const bool has_oidn = oidn_weights(weights, oidn, albedo, normal, unused);
     const std::string denoiser = has_oidn ? "oidn" : "cnn";
-    const auto nfor_setting = settings.find("denoise.nfor");
-    const bool nfor = nfor_setting == settings.end() || nfor_setting->second != "0";
     const bool halves = aovs.has(Role::ColorA) && aovs.has(Role::ColorB);
+    plan.settings["mix.model"] = "net";
     if (aovs.has(Role::ColorVariance)) {
         plan.stages = { denoiser, "sure", "mix" };
         plan.why = format("the input has a colour variance ({})",
                           Strutil::join(aovs.names(Role::ColorVariance), ","));
         // Cross-frame, the CNN's input is combined with its neighbours against flicker;
-        // choose's NFOR would be this frame's alone. Beside OIDN, choose was better on some
-        // renders and worse on others (docs/accuracy.md): run by name there.
+        // choose's NFOR would be this frame's alone. Beside OIDN, neither NFOR nor our CNN
+        // weighed by choose was better everywhere (docs/accuracy.md): --choose by name.
         const auto frames = settings.find("denoise.frames");
         const bool cross_frame = frames != settings.end() && frames->second != "0";
+        const auto nfor_setting = settings.find("denoise.nfor");
+        const bool nfor = nfor_setting == settings.end() || nfor_setting->second != "0";
         if (halves && nfor && !cross_frame && !has_oidn) {
             plan.stages.insert(plan.stages.begin() + 2, "choose");
             plan.why +=
                 " and half buffers (NFOR beside it, weighed per pixel by SURE; nfor=0: not)";
         } else if (halves && nfor) {
             plan.why += cross_frame ? " (cross-frame: NFOR is not weighed beside the CNN)"
-                                    : " (NFOR is not weighed beside OIDN: --choose by name)";
+                                    : " (no second denoiser weighed beside OIDN: --choose by "
+                                      "name, with=cnn or nfor)";
         }
     } else {
         plan.stages = { denoiser };
@@ -73,6 +76,28 @@ bool plan_denoise(DenoisePlan& plan, const ImageSpec& merged, const AovSpec& spe
     for (Role r : { Role::Albedo, Role::Normal, Role::Depth })
         if (!aovs.has(r))
             plan.zero_filled.push_back(role_name(r));
+    return true;
+}
+
+bool planned_chain(ChainOptions& planned, const ImageSpec& spec, const ChainOptions& o,
+                   std::string& error, DenoisePlan* plan_out)
+{
+    planned = o;
+    const StageInfo* stage = o.stages.size() == 1 ? find_stage(o.stages[0]) : nullptr;
+    if (!stage || stage->kind != StageKind::Plan)
+        return true;
+    DenoisePlan plan;
+    if (!plan_denoise(plan, spec, o.aovs, error, o.settings))
+        return false;
+    planned.stages = plan.stages;
+    if (auto it = o.settings.find("denoise.extras"); it != o.settings.end())
+        for (const std::string& name : plan.stages)
+            if (find_stage(name)->kind == StageKind::Denoiser || name == "choose")
+                planned.settings.emplace(name + ".extras", it->second);
+    for (const auto& [key, value] : plan.settings)  // the caller's own settings win
+        planned.settings.emplace(key, value);
+    if (plan_out)
+        *plan_out = std::move(plan);
     return true;
 }
 

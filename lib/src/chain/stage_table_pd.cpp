@@ -122,57 +122,90 @@ StageInfo mix_stage()
 
 // ---- choose (PD §3.2, NFOR §5.3's selection) -------------------------------------------
 
-// NFOR as choose runs it (prefilter, nfor at their defaults) and how far it reaches.
-bool make_nfor_chain(Denoiser& denoiser, int& radius, const ChooseOptions& o,
-                     const StageContext& context, std::string& error)
+// The stage's settings: ChooseOptions', and `with`, the denoiser choose runs beside the one
+// before it: nfor (prefilter, nfor at their defaults), or a Denoiser of the table (cnn, oidn)
+// at its defaults.
+struct ChooseSettings {
+    ChooseOptions o;
+    std::string with = "nfor";
+};
+
+bool choose_settings(ChooseSettings& c, const Settings& s, std::string& error)
+{
+    return SettingsReader(s, "choose", error)
+        .width("window", c.o.window_radius)
+        .width("blend", c.o.blend_radius)
+        .positive_int("probes", c.o.sure.probes)
+        .flag("extras", c.o.denoise_extras)
+        .flag("weight-aov", c.o.output_weight)
+        .custom("with", "must be nfor, cnn or oidn",
+                [&](const std::string& v) {
+                    c.with = v;
+                    return v == "nfor" || v == "cnn" || v == "oidn";
+                })
+        .ok();
+}
+
+// The settings choose hands the denoiser it runs: its extras as choose's.
+Settings with_settings(const ChooseSettings& c)
+{
+    return { { "extras", c.o.denoise_extras ? "1" : "0" } };
+}
+
+// The denoiser choose runs as it runs it; how far it reaches and what it reads into c.o.
+bool make_other(Denoiser& denoiser, ChooseSettings& c, const StageContext& context,
+                std::string& error)
 {
     StageContext quiet = context;
     quiet.progress = {};  // choose reports for it
     quiet.previous_frames.clear();
     quiet.next_frames.clear();
+    if (c.with != "nfor") {
+        MadeStage made;
+        if (!find_stage(c.with)->make(made, with_settings(c), quiet, error))
+            return false;
+        c.o.other_radius = chain_radius({ made.reach });
+        denoiser = std::move(made.run);
+        return true;
+    }
+    c.o.other_needs_halves = true;
     MadeStage prefilter, nfor;
     if (!make_prefilter(prefilter, {}, quiet, error)
-        || !make_nfor(nfor, { { "extras", o.denoise_extras ? "1" : "0" } }, quiet, error))
+        || !make_nfor(nfor, with_settings(c), quiet, error))
         return false;
-    radius = chain_radius({ prefilter.reach, nfor.reach });
+    c.o.other_radius = chain_radius({ prefilter.reach, nfor.reach });
     denoiser = compose_in_place(
         { { "prefilter", std::move(prefilter.run) }, { "nfor", std::move(nfor.run) } });
     return true;
 }
 
-bool choose_settings(ChooseOptions& o, const Settings& s, std::string& error)
+// Its denoiser's reach (as choose runs it), then its windows'.
+StageReach choose_reach(const ChooseSettings& c)
 {
-    return SettingsReader(s, "choose", error)
-        .width("window", o.window_radius)
-        .width("blend", o.blend_radius)
-        .positive_int("probes", o.sure.probes)
-        .flag("extras", o.denoise_extras)
-        .flag("weight-aov", o.output_weight)
-        .ok();
-}
-
-// Its NFOR's reach (prefilter, nfor at their defaults, as choose runs them), then its windows'.
-StageReach choose_reach(const ChooseOptions& o)
-{
-    const int r = chain_radius({ stage_reach(PrefilterOptions()), stage_reach(NforOptions()) })
-                  + receptive_radius(o);
+    const int other =
+        c.with == "nfor"
+            ? chain_radius({ stage_reach(PrefilterOptions()), stage_reach(NforOptions()) })
+            : chain_radius({ find_stage(c.with)->reach(with_settings(c), "") });
+    if (other < 0)
+        return {};
+    const int r = other + receptive_radius(c.o);
     return { r, r, false };
 }
 
 bool make_choose(MadeStage& made, const Settings& settings, const StageContext& context,
                  std::string& error)
 {
-    ChooseOptions o;
+    ChooseSettings c;
     Denoiser other;
-    if (!choose_settings(o, settings, error))
+    if (!choose_settings(c, settings, error))
         return false;
-    o.aovs = context.aovs;
-    o.progress = context.progress;
-    if (!make_nfor_chain(other, o.other_radius, o, context, error))
+    c.o.aovs = context.aovs;
+    c.o.progress = context.progress;
+    if (!make_other(other, c, context, error))
         return false;
-    made.reach = choose_reach(o);
-    made.run = [o, other, roi = context.roi, n = context.nthreads](ImageBuf& dst,
-                                                                   const ImageBuf& src) {
+    made.reach = choose_reach(c);
+    made.run = [o = c.o, other, roi = context.roi, n = context.nthreads](ImageBuf& dst,
+                                                                         const ImageBuf& src) {
         return choose(dst, src, other, o, roi, n);
     };
     return true;
@@ -183,31 +216,48 @@ StageInfo choose_stage()
     StageInfo s;
     s.name = "choose";
     s.kind = StageKind::Mixer;
-    s.keys = { "window", "blend", "probes", "extras", "weight-aov" };
+    s.keys = { "window", "blend", "probes", "extras", "weight-aov", "with" };
+    // What any of its denoisers reads (the table's flags are not per setting): NFOR the
+    // halves and constant features, the CNN the light split and depth range, OIDN the
+    // exposure.
     s.reads_halves = true;
+    s.reads_light_split = true;
     s.facts.color_sums = true;
     s.facts.constant_features = true;
-    s.frame_buffers = 4.0;  // the render rebuilt, NFOR's result with its SURE, NFOR's own
-    s.help = "After --cnn (or --oidn) --sure: runs NFOR (--prefilter --nfor) and its SURE on "
-             "the render, and weighs the two per pixel by their SURE summed over the window "
-             "around it, relative to the value and the render's variance (each its share of "
-             "the inverse errors: PD §3.2, NFOR §5.3), the weight smoothed; light AOVs take the "
-             "same weights, so they still add up. --mix after it mixes the result with the "
-             "render. window=17 (the sums' width), blend=9 (the weight's smoothing), probes=1 "
-             "(NFOR's SURE costs probes+1 NFOR runs), weight-aov=1 adds channel choose.weight "
-             "(1: NFOR's). --denoise runs it where the render has half buffers.";
-    s.needs = "what --sure adds after a denoiser; the colour's half buffers and variance (NFOR "
-              "§5's input).";
+    s.facts.depth_range = true;
+    s.facts.exposure = true;
+    s.frame_buffers = 4.0;  // the render rebuilt, the other's result with its SURE, its own
+    s.held_bytes = [](const Settings& settings, int threads) {
+        ChooseSettings c;
+        std::string error;
+        const StageInfo* with =
+            choose_settings(c, settings, error) && c.with != "nfor" ? find_stage(c.with) : nullptr;
+        return with && with->held_bytes ? with->held_bytes(with_settings(c), threads) : 0.0;
+    };
+    s.help = "After a denoiser and --sure (--cnn --sure, --oidn --sure): runs a second "
+             "denoiser and its SURE on the render, and weighs the two per pixel by their SURE "
+             "summed over the window around it, relative to the value and the render's "
+             "variance (each its share of the inverse errors: PD §3.2, NFOR §5.3), the weight "
+             "smoothed; light AOVs take the same weights, so they still add up. --mix after it "
+             "mixes the result with the render. with=nfor (--prefilter --nfor: the halves), "
+             "cnn or oidn (at their defaults), the second denoiser; window=17 (the sums' width), "
+             "blend=9 (the weight's smoothing), probes=1 (its SURE costs probes+1 runs of it), "
+             "weight-aov=1 adds channel choose.weight (1: the second's). --denoise runs it with "
+             "NFOR beside the CNN where the render has half buffers; beside OIDN, not (our CNN "
+             "beside it wins on some renders and loses on others: docs/accuracy.md).";
+    s.needs = "what --sure adds after a denoiser; the colour's variance; with=nfor its half "
+              "buffers too (NFOR §5's input).";
     s.check = [](const Settings& settings, std::string& error) {
-        ChooseOptions o;
-        return choose_settings(o, settings, error);
+        ChooseSettings c;
+        return choose_settings(c, settings, error);
     };
     s.make = make_choose;
     s.reach = [](const Settings& settings, const std::string&) {
-        ChooseOptions o;
+        ChooseSettings c;
         std::string error;
-        return choose_settings(o, settings, error) ? choose_reach(o) : StageReach();
+        return choose_settings(c, settings, error) ? choose_reach(c) : StageReach();
     };
+    // As with=nfor, its default, runs.
     s.can_run = [](const AovSet& aovs, std::string& how) {
         const bool ok = has_halves(aovs) && aovs.has(Role::ColorVariance);
         how = ok ? "after --sure: NFOR on the halves, weighed per pixel by SURE"

@@ -189,9 +189,7 @@ bool choose(ImageBuf& dst, const ImageBuf& src, const Denoiser& other, const Cho
         dst.errorfmt("{}", error.compare(0, 8, "choose: ") == 0 ? error : "choose: " + error);
         return false;
     }
-    // NFOR §5's input: without halves it would run its one-buffer path, which choose was not
-    // measured with.
-    if (!aovs.has(Role::ColorA) || !aovs.has(Role::ColorB)) {
+    if (options.other_needs_halves && (!aovs.has(Role::ColorA) || !aovs.has(Role::ColorB))) {
         dst.errorfmt("choose: needs the colour's half buffers (-i:as=halfA, -i:as=halfB; a "
                      "Tungsten folder has them): NFOR beside the denoiser reads them");
         return false;
