@@ -163,10 +163,9 @@ bool check_memory(const std::vector<Command>& commands, int threads, int paralle
         threads = int(std::max(1u, std::thread::hardware_concurrency()));
     const int frames_at_once = std::max(1, parallel_frames);
     const int per_frame_threads = std::max(1, threads / frames_at_once);
-    // A streamed chain's band: band_pixels, or by default at least ChainOptions::band_halos
-    // halos, and a halo each side: the chain's reach (mcdn::chain_reach) on the band grid of
-    // 32 rows. A plan (--denoise) picks its stages on the merged input, which the first file
-    // does not describe: 160 rows, its reach with halves.
+    // A streamed chain's band (mcdn::chain_band) and its halo each side. A plan (--denoise)
+    // picks its stages on the merged input, which the first file does not describe: a reach
+    // of 160 rows, its reach with halves.
     double band = 0;
     if (const size_t first_stage = streamed_chain_start(commands)) {
         mcdn::ChainOptions chain;
@@ -175,9 +174,8 @@ bool check_memory(const std::vector<Command>& commands, int threads, int paralle
         const mcdn::StageInfo* stage = mcdn::find_stage(chain.stages[0]);
         const bool plan = stage && stage->kind == mcdn::StageKind::Plan;
         const int reach = plan ? -1 : mcdn::chain_reach(first_spec, chain);
-        const double halo = reach >= 0 ? (reach + 31) / 32 * 32 : 160;
-        band =
-            std::max(double(chain.band_pixels), chain.band_halos * halo * width) + 2 * halo * width;
+        const mcdn::ChainBand cut = mcdn::chain_band(int(width), chain, reach >= 0 ? reach : 160);
+        band = double(cut.own_pixels) + 2.0 * cut.halo_rows * width;
     }
     const double need =
         frames_at_once * estimated_peak_bytes(commands, pixels, channels, per_frame_threads, band);

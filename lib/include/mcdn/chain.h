@@ -92,4 +92,13 @@ bool run_chain(const ImageSpec& frame, const RowReader& read, const ChainOptions
 /// receptive radii (the halo of its bands); -1 when one is unknown.
 int chain_reach(const ImageSpec& spec, const ChainOptions& options);
 
+/// A band of a chain that reaches `reach` pixels (chain_reach) across a frame `width` pixels
+/// wide: its own pixels, ChainOptions::band_pixels raised to band_halos halos, and the rows
+/// of halo it reads each side, `reach` rounded up to whole converged tiles (mcdn/skip.h).
+struct ChainBand {
+    int64_t own_pixels = 0;
+    int halo_rows = 0;
+};
+ChainBand chain_band(int width, const ChainOptions& options, int reach);
+
 }  // namespace mcdn

@@ -291,15 +291,20 @@ bool run_bands(const std::vector<Band>& bands, const ROI& whole, const FrameFact
     return true;
 }
 
-// ChainOptions::band_pixels, raised where a band of them would hold fewer than band_halos
-// halos of rows (the halo on the grid plan_bands puts it on).
-int64_t chain_band_pixels(const ImageSpec& spec, const ChainOptions& o, int reach)
+}  // namespace
+
+ChainBand chain_band(int width, const ChainOptions& o, int reach)
 {
-    if (o.band_pixels <= 0 || o.band_halos <= 0)
-        return o.band_pixels;
-    const int64_t halo = (reach + kConvergedTileSize - 1) / kConvergedTileSize * kConvergedTileSize;
-    return std::max(o.band_pixels, int64_t(o.band_halos) * halo * spec.width);
+    ChainBand band;
+    band.halo_rows =
+        (std::max(reach, 0) + kConvergedTileSize - 1) / kConvergedTileSize * kConvergedTileSize;
+    band.own_pixels = o.band_pixels <= 0 || o.band_halos <= 0
+                          ? o.band_pixels
+                          : std::max(o.band_pixels, int64_t(o.band_halos) * band.halo_rows * width);
+    return band;
 }
+
+namespace {
 
 // The chain's bands of `spec`'s frame; one band: the whole frame at once.
 std::vector<Band> chain_bands(const ImageSpec& spec, const ChainOptions& o)
@@ -307,7 +312,7 @@ std::vector<Band> chain_bands(const ImageSpec& spec, const ChainOptions& o)
     const int reach = chain_reach(spec, o);
     // A band of a larger frame (it carries the frame's facts) is never cut again.
     return reach >= 0 && !is_frame_band(spec)
-               ? plan_bands(spec.roi(), reach, chain_band_pixels(spec, o, reach))
+               ? plan_bands(spec.roi(), reach, chain_band(spec.width, o, reach).own_pixels)
                : plan_bands(spec.roi(), 0, 0);
 }
 

@@ -171,28 +171,41 @@ bool prefilter_net(nn::Net& net, const std::string& model_path, const char* name
     return true;
 }
 
-/// A prefilter's input on `window` (rows and columns past the frame repeat its last ones, as
-/// in tile_input): the albedo clamped to [0, 1] through the sRGB curve; the normal clamped to
-/// [-1, 1] and mapped to [0, 1].
-void feature_input(nn::Tensor& input, const Plane (&feature)[3], bool albedo, const Rect& window)
+/// `input` shaped to `window` with `channels` channels, in the storage of the last tile (the
+/// caller writes every value): fresh pages cost a fault and a clear each.
+void shape_input(nn::Tensor& input, const Rect& window, int channels)
 {
     input.height = window.height();
     input.width = window.width();
-    input.channels = 3;
+    input.channels = channels;
     if (input.data.size() < input.size())
         input.data.resize(input.size());
-    const int width = feature[0].width, height = feature[0].height;
+}
+
+/// Channel `to` of the input's row `wy`: `plane` on the window's columns of frame row
+/// window.y0 + wy, through `transform`. The window's coordinates are those of the frame
+/// extended to a multiple of the network's alignment: rows and columns past the frame repeat
+/// its last ones.
+template <class Transform>
+void read_window_row(nn::Tensor& input, int wy, int to, const Plane& plane, const Rect& window,
+                     Transform transform)
+{
+    const float* row = plane.row(std::min(window.y0 + wy, plane.height - 1));
+    for (int x = window.x0; x < window.x1; ++x)
+        input.at(wy, x - window.x0, to) = transform(row[std::min(x, plane.width - 1)]);
+}
+
+/// A prefilter's input on `window`: the albedo clamped to [0, 1] through the sRGB curve; the
+/// normal clamped to [-1, 1] and mapped to [0, 1].
+void feature_input(nn::Tensor& input, const Plane (&feature)[3], bool albedo, const Rect& window)
+{
+    shape_input(input, window, 3);
     nn::parallel_rows(window.height(), [&](int wy) {
-        const int y = std::min(window.y0 + wy, height - 1);
-        for (int c = 0; c < 3; ++c) {
-            const float* row = feature[c].row(y);
-            for (int x = window.x0; x < window.x1; ++x) {
-                const float v = row[std::min(x, width - 1)];
-                input.at(wy, x - window.x0, c) =
-                    albedo ? oidn_net::srgb_forward(std::clamp(v, 0.0f, 1.0f))
-                           : std::clamp(v, -1.0f, 1.0f) * 0.5f + 0.5f;
-            }
-        }
+        for (int c = 0; c < 3; ++c)
+            read_window_row(input, wy, c, feature[c], window, [albedo](float v) {
+                return albedo ? oidn_net::srgb_forward(std::clamp(v, 0.0f, 1.0f))
+                              : std::clamp(v, -1.0f, 1.0f) * 0.5f + 0.5f;
+            });
     });
 }
 
@@ -271,41 +284,28 @@ void enter_outliers(InputPlanes& planes, const Inputs& in)
             planes.color[c].px[in.outliers[k]] = in.outlier_color[k][size_t(c)];
 }
 
-/// The network's input on `window` (coordinates of the frame extended to a multiple of the
-/// network's alignment: rows and columns past the frame repeat its last ones). False when no
-/// colour value enters above 0: no light anywhere in the window (a light pass that sees none
-/// there, an empty background), whose result is 0 without the network (run_passes).
+/// The network's input on `window` (read_window_row). False when no colour value enters
+/// above 0: no light anywhere in the window (a light pass that sees none there, an empty
+/// background), whose result is 0 without the network (run_passes).
 bool tile_input(nn::Tensor& input, const InputPlanes& planes, const Inputs& in, const Rect& window)
 {
-    // Reshaped in the storage of the last tile (every value is written below): fresh pages
-    // cost a fault and a clear each.
-    input.height = window.height();
-    input.width = window.width();
-    input.channels = 3 + 3 * in.has_albedo + 3 * in.has_normal;
-    if (input.data.size() < input.size())
-        input.data.resize(input.size());
-    const int width = planes.color[0].width, height = planes.color[0].height;
+    shape_input(input, window, 3 + 3 * in.has_albedo + 3 * in.has_normal);
     // Rows on the network's threads; each row says whether it saw light.
     std::vector<char> lit(size_t(window.height()), 0);
     nn::parallel_rows(window.height(), [&](int wy) {
-        const size_t at = size_t(std::min(window.y0 + wy, height - 1)) * width;
-        auto read = [&](const Plane& plane, int to, auto transform) {
-            const float* row = plane.data() + at;
-            for (int x = window.x0; x < window.x1; ++x)
-                input.at(wy, x - window.x0, to) = transform(row[std::min(x, width - 1)]);
-        };
         bool seen = false;
         for (int c = 0; c < 3; ++c)
-            read(planes.color[c], c, [&](float v) {
+            read_window_row(input, wy, c, planes.color[c], window, [&](float v) {
                 const float light = std::clamp(v * in.exposure, 0.0f, FLT_MAX);
                 seen |= light > 0.0f;
                 return oidn_net::pu_forward(light);
             });
         for (int c = 0; c < 3 && in.has_albedo; ++c)
-            read(planes.albedo[c], 3 + c, [](float v) { return std::clamp(v, 0.0f, 1.0f); });
+            read_window_row(input, wy, 3 + c, planes.albedo[c], window,
+                            [](float v) { return std::clamp(v, 0.0f, 1.0f); });
         for (int c = 0; c < 3 && in.has_normal; ++c)
-            read(planes.normal[c], 6 + c,
-                 [](float v) { return std::clamp(v, -1.0f, 1.0f) * 0.5f + 0.5f; });
+            read_window_row(input, wy, 6 + c, planes.normal[c], window,
+                            [](float v) { return std::clamp(v, -1.0f, 1.0f) * 0.5f + 0.5f; });
         lit[size_t(wy)] = seen;
     });
     return std::find(lit.begin(), lit.end(), 1) != lit.end();
