@@ -145,7 +145,7 @@ bool run_plan(Session& s, const Command& c, std::string& error)
         return false;
     mcdn::DenoisePlan plan;
     std::map<std::string, std::string> plan_settings;
-    for (const char* key : { "nfor", "frames" })
+    for (const char* key : { "choose", "frames" })
         if (c.has(key))
             plan_settings[std::string("denoise.") + key] = c.modifier(key);
     if (!mcdn::plan_denoise(plan, s.image().spec(), s.aov_spec, error, plan_settings)) {
@@ -161,7 +161,7 @@ bool run_plan(Session& s, const Command& c, std::string& error)
         if ((mcdn::find_stage(name)->kind == mcdn::StageKind::Denoiser || name == "choose")
             && c.has("extras"))
             step.modifiers["extras"] = c.modifier("extras");
-        for (const auto& [key, value] : plan.settings)  // mix.model=net
+        for (const auto& [key, value] : plan.settings)  // choose.with=cnn, mix.model=net
             if (key.compare(0, name.size() + 1, name + ".") == 0)
                 step.modifiers[key.substr(name.size() + 1)] = value;
         if (!run_stage(s, step, error))

@@ -118,7 +118,7 @@ bool run_streamed_chain(Session& s, const std::vector<Command>& commands, size_t
     chain.output_channels_only = write.channels.empty();  // the writer's default
     if (s.verbose && stage_of_command(commands[first].name)->kind == mcdn::StageKind::Plan) {
         mcdn::DenoisePlan plan;
-        if (mcdn::plan_denoise(plan, input, s.aov_spec, error))
+        if (mcdn::plan_denoise(plan, input, s.aov_spec, error, chain.settings))
             std::cerr << "mcdntool: " << commands[first].name << " runs " << plan.describe()
                       << "\n";
     }

@@ -100,6 +100,50 @@ TEST(Choose, KeepsEachDenoiserWhereItsSureIsLower)
         }
 }
 
+// max_noise: the other denoiser weighs only where the render's relative variance, over the
+// window, is below it, and is not run where it weighs nowhere.
+TEST(Choose, WeighsTheOtherOnlyWhereTheRenderIsCleanEnough)
+{
+    const ImageBuf render = noisy_render(kSize, kSize, checker, 0.01f, 7);
+    ImageBuf a = after_sure(render, half_oracle(true));
+    // The right half's variance a ten-thousandth of the left's: Var / (y^2 + 0.01) is below
+    // 1e-4 there and 0.01-0.5 on the left.
+    const int variance = a.spec().channelindex("variance.R");
+    ASSERT_GE(variance, 0);
+    const ROI right_half(kSize / 2, kSize, 0, kSize, 0, 1, variance, variance + 3);
+    ASSERT_TRUE(OIIO::ImageBufAlgo::mul(a, a, 1e-4f, right_half));
+    ChooseOptions options;
+    options.aovs = generic_spec();
+    options.output_weight = true;
+    options.max_noise = 0.005f;
+    int runs = 0;
+    const Denoiser right_oracle = half_oracle(false);
+    const Denoiser counted = [&](ImageBuf& dst, const ImageBuf& src) {
+        ++runs;
+        return right_oracle(dst, src);
+    };
+    ImageBuf out;
+    ASSERT_TRUE(choose(out, a, counted, options)) << out.geterror();
+    EXPECT_EQ(runs, 2);  // its result and one probe
+    const int weight = out.spec().channelindex("choose.weight");
+    const ROI left(0, kSize / 2 - 13, 0, kSize), right(kSize / 2 + 13, kSize, 0, kSize);
+    EXPECT_EQ(OIIO::ImageBufAlgo::computePixelStats(out, left).max[weight], 0.0);
+    EXPECT_GT(OIIO::ImageBufAlgo::computePixelStats(out, right).avg[weight], 0.5);
+    // Noisier than the bound everywhere: not run, the image before as it was.
+    options.max_noise = 1e-6f;
+    ImageBuf kept;
+    ASSERT_TRUE(choose(kept, a, counted, options)) << kept.geterror();
+    EXPECT_EQ(runs, 2);
+    EXPECT_EQ(kept.spec().get_float_attribute(kChooseShareAttribute, -1), 0.0f);
+    EXPECT_EQ(
+        OIIO::ImageBufAlgo::computePixelStats(kept).max[kept.spec().channelindex("choose.weight")],
+        0.0);
+    const int n = a.nchannels();
+    EXPECT_EQ(
+        OIIO::ImageBufAlgo::compare(OIIO::ImageBufAlgo::channels(kept, n, {}), a, 0, 0).maxerror,
+        0.0);
+}
+
 TEST(Choose, SameBitsForAnyThreadsAndInPlace)
 {
     const ImageBuf render = noisy_render(kSize, kSize, checker, 0.02f, 11);
@@ -145,7 +189,7 @@ TEST(Choose, DenoisePlansItWhereTheRenderHasHalves)
     ASSERT_TRUE(plan_denoise(plan, render.spec(), generic_spec(), error, cnn)) << error;
     EXPECT_EQ(plan.stages, (std::vector<std::string> { "cnn", "sure", "choose", "mix" }));
     ASSERT_TRUE(plan_denoise(plan, render.spec(), generic_spec(), error,
-                             { { "oidn.weights", "/nonexistent" }, { "denoise.nfor", "0" } }));
+                             { { "oidn.weights", "/nonexistent" }, { "denoise.choose", "0" } }));
     EXPECT_EQ(plan.stages, (std::vector<std::string> { "cnn", "sure", "mix" }));
     // Without halves there is no NFOR to choose.
     const ImageBuf no_halves = OIIO::ImageBufAlgo::channels(render, 6, { 0, 1, 2, 3, 4, 5 });

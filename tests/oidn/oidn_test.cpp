@@ -16,6 +16,7 @@
 #include <OpenImageIO/imagebufalgo.h>
 
 #include "mcdn/chain.h"
+#include "mcdn/choose.h"
 #include "mcdn/denoise.h"
 #include "mcdn/io.h"
 #include "mcdn/metrics.h"
@@ -323,10 +324,11 @@ TEST(Oidn, PrefilteredFeaturesSameForAnyThreadsTilesAndBands)
     std::remove(folder.c_str());
 }
 
-// --choose:with=cnn weighs our CNN beside OIDN by their SURE (--denoise does not: it runs
-// oidn, sure, mix). Streamed in bands of rows it gives the whole frame's result: the CNN that
-// choose runs reads the frame's depth range, not the band's, and the bands' halos reach as far
-// as choose's CNN does.
+// --choose:with=cnn weighs our CNN beside OIDN by their SURE, as --denoise does with OIDN's
+// weights and a variance. Streamed in bands of rows it gives the whole frame's result: the CNN
+// that choose runs reads the frame's depth range, not the band's, and the bands' halos reach
+// as far as choose's CNN does. Where the render is noisier than noise= over every window, the
+// CNN is not run and the result is OIDN's with the mix.
 TEST(Oidn, ChooseWithTheCnnSameInBandsAsWhole)
 {
     const std::string path = temp_path("choose.tza");
@@ -344,24 +346,38 @@ TEST(Oidn, ChooseWithTheCnnSameInBandsAsWhole)
     DenoisePlan plan;
     std::string error;
     ASSERT_TRUE(plan_denoise(plan, src.spec(), aovs, error, { { "oidn.weights", path } })) << error;
+    EXPECT_EQ(plan.stages, (std::vector<std::string> { "oidn", "sure", "choose", "mix" }));
+    EXPECT_EQ(plan.settings["choose.with"], "cnn");
+    EXPECT_NE(plan.describe().find("choose (cnn)"), std::string::npos) << plan.describe();
+    ASSERT_TRUE(plan_denoise(plan, src.spec(), aovs, error,
+                             { { "oidn.weights", path }, { "denoise.choose", "0" } }));
     EXPECT_EQ(plan.stages, (std::vector<std::string> { "oidn", "sure", "mix" }));
 
+    // Weighed everywhere (noise=0: this render's relative variance is 0.05).
     ChainOptions chain;
     chain.aovs = aovs;
     chain.stages = { "oidn", "sure", "choose", "mix" };
-    chain.settings = { { "oidn.weights", path }, { "choose.with", "cnn" } };
-    ImageBuf whole, banded, without;
+    chain.settings = { { "oidn.weights", path },
+                       { "choose.with", "cnn" },
+                       { "choose.noise", "0" } };
+    ImageBuf whole, banded, without, gated;
     ASSERT_TRUE(run_chain(whole, src, chain, {}, 2)) << whole.geterror();
+    EXPECT_GT(whole.spec().get_float_attribute(kChooseShareAttribute, 0), 0.01f);
     chain.band_pixels = w * 64;
     chain.band_halos = 0;  // bands of 64 rows
     ASSERT_TRUE(run_chain(banded, src, chain, {}, 2)) << banded.geterror();
     EXPECT_LT(max_abs_difference(whole, banded), 1e-5f);
-    // The CNN's share changes the result.
+    // The CNN's share changes the result; with the default noise=0.003 it weighs nowhere
+    // here, and the result is the chain's without choose.
     chain.band_pixels = 0;
+    chain.settings.erase("choose.noise");
+    ASSERT_TRUE(run_chain(gated, src, chain, {}, 2)) << gated.geterror();
+    EXPECT_EQ(gated.spec().get_float_attribute(kChooseShareAttribute, -1), 0.0f);
     chain.stages = { "oidn", "sure", "mix" };
     chain.settings.erase("choose.with");
     ASSERT_TRUE(run_chain(without, src, chain, {}, 2)) << without.geterror();
     EXPECT_GT(max_abs_difference(whole, without), 1e-3f);
+    EXPECT_LT(max_abs_difference(gated, without), 1e-5f);
     // Not a denoiser choose knows: the setting's error says which it takes.
     chain.stages = { "oidn", "sure", "choose", "mix" };
     chain.settings["choose.with"] = "mix";

@@ -339,7 +339,7 @@ TEST(Presets, TungstenDirectoryIsDetected)
     ASSERT_EQ(run.exit_code, 0) << run.output;
     EXPECT_NE(run.output.find("AOV preset 'tungsten'"), std::string::npos) << run.output;
     // A Tungsten folder has half buffers: NFOR is weighed beside the CNN.
-    EXPECT_NE(run.output.find("--denoise runs cnn -> sure -> choose -> mix (net):"),
+    EXPECT_NE(run.output.find("--denoise runs cnn -> sure -> choose (nfor) -> mix (net):"),
               std::string::npos)
         << run.output;
 }

@@ -145,7 +145,7 @@ class OpsTakeAndReturnImageBufs(unittest.TestCase):
 
     def test_denoise_picks_the_chain_and_denoises(self):
         # The render has half buffers: NFOR is weighed beside the CNN (mcdn/choose.h).
-        self.assertTrue(mcdenoise.plan(self.render).startswith("cnn -> sure -> choose -> mix (net)"))
+        self.assertTrue(mcdenoise.plan(self.render).startswith("cnn -> sure -> choose (nfor) -> mix (net)"))
         noisy = mcdenoise.metrics(self.render, self.reference)
         after = mcdenoise.metrics(mcdenoise.denoise(self.render), self.reference)
         self.assertLess(after["relmse"], 0.5 * noisy["relmse"])

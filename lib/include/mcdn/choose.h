@@ -43,6 +43,11 @@ struct ChooseOptions {
     int window_radius = 8;
     /// The weight's smoothing radius (9×9), as NFOR §5.3 filters its selection maps.
     int blend_radius = 4;
+    /// `other` weighs only where the render's relative variance Var / (y^2 + 0.01) (y the
+    /// image before), averaged over R, G, B and the window, is below this; where it weighs
+    /// nowhere, choose does not run it. 0: everywhere (NFOR beside the CNN).
+    /// kChooseNetworksMaxNoise for a network beside another.
+    float max_noise = 0;
     /// SURE of `other` (probes, eps, seed, its safety net); aovs and progress are this op's.
     SureOptions sure;
     /// How far `other` reaches (SureOptions::denoiser_radius); -1: not known.
@@ -57,6 +62,14 @@ struct ChooseOptions {
     bool output_weight = false;
     ProgressCallback progress;
 };
+
+/// ChooseOptions::max_noise for two networks (--choose:with=cnn after --oidn, --denoise's
+/// plan with OIDN's weights): where the render is noisier, their SUREs are not equally wrong
+/// (on box 16 spp the CNN's says 580 where its error is 2186, OIDN's 1028 for 1353) and the
+/// choice followed them to results up to 34 % worse than OIDN's; below it, on the 35 inputs of
+/// docs/accuracy.md, none is worse than OIDN's by more than 2 %. The largest bound of 0.002,
+/// 0.003, 0.005, 0.01 and 0.03 with none worse (0.005: one input 4 % worse, 0.03: one 23 %).
+constexpr float kChooseNetworksMaxNoise = 0.003f;
 
 /// Float attribute of choose's output: the mean of w over the frame (how much of the
 /// result is `other`'s).

@@ -5,17 +5,17 @@
 //                                  of render and denoised image by the network trained for
 //                                  the KPCN op, bounded by the t-test: never much worse than
 //                                  the better of the two
-//   and half buffers too (not with settings denoise.nfor=0, nor cross-frame: denoise.frames,
-//   nor with OIDN, beside which it was better on some renders and worse on others):
-//       cnn -> sure -> choose -> mix
+//   and half buffers too (not with settings denoise.choose=0, nor cross-frame: denoise.frames):
+//       cnn -> sure -> choose (nfor) -> mix
 //                                  NFOR and its SURE beside the CNN, the two weighed per pixel
 //                                  by their SURE (mcdn/choose.h), then the mix
 //   without one:
 //       cnn                         KPCN alone (SURE and the mix need the variance)
 // Where the user has Open Image Denoise's weights (mcdn/oidn.h: $MCDN_OIDN_WEIGHTS or
-// <prefix>/share/mcdenoise/oidn/), its network takes the CNN's place: oidn -> sure -> mix, or
-// oidn alone (on the inputs we measure it is the more accurate: docs/accuracy.md; our CNN
-// weighed beside it, --choose:with=cnn, wins on some and loses on others).
+// <prefix>/share/mcdenoise/oidn/), its network takes the CNN's place, and with a variance our
+// CNN is the one choose weighs beside it where the render is clean enough for SURE to tell the
+// two apart (ChooseOptions::max_noise): oidn -> sure -> choose (cnn) -> mix, or oidn alone
+// (docs/accuracy.md).
 // The CNN runs on any size and on whatever features there are; missing ones (albedo, normal,
 // depth) are zero, which DenoisePlan names. NFOR alone is not picked: it needs half
 // buffers, and where they are, choose keeps it where its SURE says it is the better.
@@ -35,7 +35,8 @@ namespace mcdn {
 /// What denoise() runs on an input, and why, in words a log line can hold.
 struct DenoisePlan {
     std::vector<std::string> stages;  // "cnn" or "oidn", "sure", "choose", "mix"
-    /// Settings of its stages ("mix.model" -> "net"); a setting the caller gives wins.
+    /// Settings of its stages ("mix.model" -> "net", "choose.with" -> "cnn"); a setting the
+    /// caller gives wins.
     std::map<std::string, std::string> settings;
     std::string why;                       // "the input has a colour variance (variance.R,...)"
     std::vector<std::string> zero_filled;  // features the CNN reads as zero: "albedo", ...

@@ -15,9 +15,15 @@ namespace Strutil = OIIO::Strutil;
 
 std::string DenoisePlan::describe() const
 {
+    const auto choose_with = [&] {
+        const auto it = settings.find("choose.with");
+        return it == settings.end() ? std::string("nfor") : it->second;
+    };
     std::vector<std::string> shown;
     for (const std::string& s : stages)
-        shown.push_back(s == "mix" ? "mix (net)" : s);
+        shown.push_back(s == "mix"      ? "mix (net)"
+                        : s == "choose" ? "choose (" + choose_with() + ")"
+                                        : s);
     std::string line = Strutil::join(shown, " -> ") + ": " + why;
     if (!zero_filled.empty())
         line += "; no " + Strutil::join(zero_filled, ", ") + " (read as zero by the CNN)";
@@ -46,21 +52,28 @@ bool plan_denoise(DenoisePlan& plan, const ImageSpec& merged, const AovSpec& spe
         plan.stages = { denoiser, "sure", "mix" };
         plan.why = format("the input has a colour variance ({})",
                           Strutil::join(aovs.names(Role::ColorVariance), ","));
-        // Cross-frame, the CNN's input is combined with its neighbours against flicker;
-        // choose's NFOR would be this frame's alone. Beside OIDN, neither NFOR nor our CNN
-        // weighed by choose was better everywhere (docs/accuracy.md): --choose by name.
+        // A second denoiser weighed beside it per pixel by SURE (choose): NFOR beside the
+        // CNN where the render has halves; our CNN beside OIDN where the render is clean
+        // enough for SURE to tell the networks apart (kChooseNetworksMaxNoise). Not
+        // cross-frame: the denoiser's input is then combined with its neighbours against
+        // flicker, and choose's second denoiser would see this frame's alone.
         const auto frames = settings.find("denoise.frames");
         const bool cross_frame = frames != settings.end() && frames->second != "0";
-        const auto nfor_setting = settings.find("denoise.nfor");
-        const bool nfor = nfor_setting == settings.end() || nfor_setting->second != "0";
-        if (halves && nfor && !cross_frame && !has_oidn) {
+        const auto choose = settings.find("denoise.choose");
+        const bool off = choose != settings.end() && choose->second == "0";
+        if (cross_frame) {
+            plan.why += " (cross-frame: no second denoiser weighed beside it)";
+        } else if (off) {
+            plan.why += " (choose=0: no second denoiser weighed beside it)";
+        } else if (has_oidn) {
+            plan.stages.insert(plan.stages.begin() + 2, "choose");
+            plan.settings["choose.with"] = "cnn";
+            plan.why += " (our CNN beside OIDN, weighed per pixel by SURE where the render is "
+                        "clean enough to tell them apart; choose=0: not)";
+        } else if (halves) {
             plan.stages.insert(plan.stages.begin() + 2, "choose");
             plan.why +=
-                " and half buffers (NFOR beside it, weighed per pixel by SURE; nfor=0: not)";
-        } else if (halves && nfor) {
-            plan.why += cross_frame ? " (cross-frame: NFOR is not weighed beside the CNN)"
-                                    : " (no second denoiser weighed beside OIDN: --choose by "
-                                      "name, with=cnn or nfor)";
+                " and half buffers (NFOR beside it, weighed per pixel by SURE; choose=0: not)";
         }
     } else {
         plan.stages = { denoiser };

@@ -328,17 +328,17 @@ StageInfo denoise_stage()
     s.name = "denoise";
     s.kind = StageKind::Plan;
     s.cross_frame = true;
-    s.keys = { "extras", "nfor" };
+    s.keys = { "extras", "choose" };
     s.reads_light_split = true;
     s.reads_halves = true;  // choose's NFOR, where the render has them
     s.help = "The best chain the inputs allow: with a colour variance --cnn --sure --mix "
              "(KPCN, its SURE, the progressive mix by the network: never much worse than the "
              "better of render and CNN), with half buffers too --choose before --mix (NFOR "
-             "beside the CNN, per pixel by SURE; nfor=0: not, and not its cost; not with "
-             "frames=N), without a "
-             "variance --cnn alone; with OIDN's weights where "
-             "--oidn finds them, --oidn in the CNN's place (and no --choose: by name, "
-             "--choose:with=cnn weighs our CNN beside it). -v prints which and why. "
+             "beside the CNN, per pixel by SURE), without a variance --cnn alone; with OIDN's "
+             "weights where --oidn finds them, --oidn in the CNN's place, with a variance "
+             "--oidn --sure --choose:with=cnn --mix (our CNN beside OIDN where the render is "
+             "clean enough for SURE to tell them apart: at high sample counts). choose=0: no "
+             "--choose, nor its cost; none with frames=N. -v prints which and why. "
              "To choose stages and their settings, name them instead. In a sequence, frames=2 "
              "is cross-frame: the CNN's input is this frame combined with 2 previous and 2 next "
              "ones where they agree (as --cnn:frames=2), against flicker: it needs the motion "

@@ -132,17 +132,21 @@ struct ChooseSettings {
 
 bool choose_settings(ChooseSettings& c, const Settings& s, std::string& error)
 {
-    return SettingsReader(s, "choose", error)
-        .width("window", c.o.window_radius)
+    SettingsReader reader(s, "choose", error);
+    reader.width("window", c.o.window_radius)
         .width("blend", c.o.blend_radius)
         .positive_int("probes", c.o.sure.probes)
         .flag("extras", c.o.denoise_extras)
         .flag("weight-aov", c.o.output_weight)
-        .custom("with", "must be nfor, cnn or oidn",
-                [&](const std::string& v) {
-                    c.with = v;
-                    return v == "nfor" || v == "cnn" || v == "oidn";
-                })
+        .custom("with", "must be nfor, cnn or oidn", [&](const std::string& v) {
+            c.with = v;
+            return v == "nfor" || v == "cnn" || v == "oidn";
+        });
+    // NFOR beside the CNN everywhere; a network beside OIDN where SURE can tell them apart.
+    c.o.max_noise = c.with == "nfor" ? 0.0f : kChooseNetworksMaxNoise;
+    return reader.number("noise", c.o.max_noise)
+        .custom("noise", "must be at least 0",
+                [&](const std::string&) { return c.o.max_noise >= 0; })
         .ok();
 }
 
@@ -216,7 +220,7 @@ StageInfo choose_stage()
     StageInfo s;
     s.name = "choose";
     s.kind = StageKind::Mixer;
-    s.keys = { "window", "blend", "probes", "extras", "weight-aov", "with" };
+    s.keys = { "window", "blend", "probes", "extras", "weight-aov", "with", "noise" };
     // What any of its denoisers reads (the table's flags are not per setting): NFOR the
     // halves and constant features, the CNN the light split and depth range, OIDN the
     // exposure.
@@ -240,11 +244,14 @@ StageInfo choose_stage()
              "variance (each its share of the inverse errors: PD §3.2, NFOR §5.3), the weight "
              "smoothed; light AOVs take the same weights, so they still add up. --mix after it "
              "mixes the result with the render. with=nfor (--prefilter --nfor: the halves), "
-             "cnn or oidn (at their defaults), the second denoiser; window=17 (the sums' width), "
-             "blend=9 (the weight's smoothing), probes=1 (its SURE costs probes+1 runs of it), "
-             "weight-aov=1 adds channel choose.weight (1: the second's). --denoise runs it with "
-             "NFOR beside the CNN where the render has half buffers; beside OIDN, not (our CNN "
-             "beside it wins on some renders and loses on others: docs/accuracy.md).";
+             "cnn or oidn (at their defaults), the second denoiser; noise=0.003 (with=cnn or "
+             "oidn; with=nfor: 0, everywhere): the second weighs only where the render's "
+             "relative variance Var/(y^2+0.01), averaged over the window, is below it (where two "
+             "networks' SUREs cannot tell them apart) and is not run where it weighs nowhere; "
+             "window=17 (the sums' width), blend=9 (the weight's smoothing), probes=1 (its "
+             "SURE costs probes+1 runs of it), weight-aov=1 adds channel choose.weight (1: the "
+             "second's). --denoise runs it: NFOR beside the CNN where the render has half "
+             "buffers, the CNN beside OIDN.";
     s.needs = "what --sure adds after a denoiser; the colour's variance; with=nfor its half "
               "buffers too (NFOR §5's input).";
     s.check = [](const Settings& settings, std::string& error) {

@@ -2,6 +2,7 @@
 // sure's record, the other denoiser and its SURE on it, the weight map, the blend.
 #include "mcdn/choose.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <OpenImageIO/strutil.h>
@@ -12,6 +13,7 @@
 #include "core/progress.h"
 #include "core/trace.h"
 #include "ops/window_sums.h"
+#include "skip/converged_tiles.h"
 #include "sure/sure_steps.h"
 
 namespace mcdn {
@@ -84,10 +86,63 @@ bool rebuild_render(ImageBuf& render, const ImageBuf& src, const ChooseChannels&
     return true;
 }
 
+// Where b may weigh (ChooseOptions::max_noise): 1 where the render's relative variance
+// Var / (y_a^2 + 0.01), averaged over R, G, B and the window, is below max_noise, else 0;
+// 1 everywhere without a bound.
+Plane trusted_windows(const ImageBuf& src, const ChooseChannels& ch, const ChooseOptions& options,
+                      int nthreads)
+{
+    if (options.max_noise <= 0)
+        return Plane(src.spec().width, src.spec().height, 1.0f);
+    Plane noise(src.spec().width, src.spec().height);
+    for (int k = 0; k < 3; ++k) {
+        Plane ya, variance;
+        read_planes(src, { { ch.a.y[k], &ya }, { ch.variance[k], &variance, true } }, {}, nthreads);
+        for (size_t i = 0; i < noise.size(); ++i) {
+            const float r = variance.px[i] / (ya.px[i] * ya.px[i] + kRelativeOffset);
+            noise.px[i] += std::isfinite(r) ? r / 3.0f : INFINITY;  // never trusted
+        }
+    }
+    const Plane mean =
+        separable_window_sum(noise, std::vector<double>(size_t(2 * options.window_radius + 1), 1.0),
+                             options.window_radius, true);
+    for (size_t i = 0; i < noise.size(); ++i)
+        noise.px[i] = mean.px[i] < options.max_noise ? 1.0f : 0.0f;
+    return noise;
+}
+
+// The render's converged tiles (those sure and the other denoiser skip: mcdn/skip.h) and
+// those with no trusted pixel within `reach`: b is read only within the window of a trusted
+// pixel (its error sums there; the blend reaches less far), so the other denoiser and its
+// probes pass the rest through.
+ConvergedTiles skipped_tiles(const ImageBuf& render, const Plane& trusted, const AovSet& aovs,
+                             const ChooseOptions& options, int reach)
+{
+    ConvergedTiles m = converged_tiles_of(render, aovs, options.sure.skip);
+    if (m.converged.empty()) {
+        m = empty_tile_map(trusted.width, trusted.height);
+        m.converged.assign(size_t(m.tiles_x) * m.tiles_y, 0);
+    }
+    const Plane near =
+        separable_window_sum(trusted, std::vector<double>(size_t(2 * reach + 1), 1.0), reach);
+    for (int ty = 0; ty < m.tiles_y; ++ty)
+        for (int tx = 0; tx < m.tiles_x; ++tx) {
+            bool needed = false;
+            for (int y = ty * kConvergedTileSize;
+                 y < std::min((ty + 1) * kConvergedTileSize, near.height) && !needed; ++y)
+                for (int x = tx * kConvergedTileSize;
+                     x < std::min((tx + 1) * kConvergedTileSize, near.width) && !needed; ++x)
+                    needed = near(x, y) > 0.0f;
+            if (!needed)
+                m.converged[size_t(ty) * m.tiles_x + tx] = 1;
+        }
+    return m;
+}
+
 // w of mcdn/choose.h: each candidate's SURE relative to (ybar^2 + 0.01 + Var), summed over
 // the window; b's share of the inverse errors; smoothed.
 Plane choice_weight(const ImageBuf& src, const ImageBuf& other, const ChooseChannels& ch,
-                    const ChooseOptions& options, int nthreads)
+                    const Plane& trusted, const ChooseOptions& options, int nthreads)
 {
     Plane ea, eb;
     for (int k = 0; k < 3; ++k) {
@@ -114,7 +169,7 @@ Plane choice_weight(const ImageBuf& src, const ImageBuf& other, const ChooseChan
         // positive): such a candidate is as good as the estimate can tell.
         const double a = std::max(double(sum_a.px[i]), kLeastError),
                      b = std::max(double(sum_b.px[i]), kLeastError);
-        ea.px[i] = float(a / (a + b));
+        ea.px[i] = trusted.px[i] * float(a / (a + b));
     }
     return separable_window_sum(ea, std::vector<double>(size_t(2 * options.blend_radius + 1), 1.0),
                                 options.blend_radius, true);
@@ -212,11 +267,30 @@ bool choose(ImageBuf& dst, const ImageBuf& src, const Denoiser& other, const Cho
                     ch.recorded_extras.emplace_back(noisy, extra.channels[k]);
     // Two steps: b with its SURE (K + 1 runs of other), then the choice and the blend.
     ProgressCounter progress(options.progress, "choose", 2);
+    const Plane trusted = trusted_windows(src, ch, options, nthreads);
+    if (std::find(trusted.px.begin(), trusted.px.end(), 1.0f) == trusted.px.end()) {
+        // b weighs nowhere: the result is src's, without running other.
+        if (&dst != &src && !prepare_op(dst, src, options.aovs, aovs, "choose", nthreads))
+            return false;
+        dst.specmod().attribute(kChooseShareAttribute, 0.0f);
+        if (options.output_weight)
+            write_plane(dst, add_channels(dst, { "choose.weight" })[0], trusted, dst.roi());
+        trace.mark("the other denoiser: not run (max_noise)");
+        if (!progress.advance() || !progress.advance()) {
+            dst.errorfmt("{}", progress.error());
+            return false;
+        }
+        return true;
+    }
     ImageBuf render, b;
     if (!rebuild_render(render, src, ch, nthreads, error)) {
         dst.errorfmt("choose: {}", error);
         return false;
     }
+    if (options.max_noise > 0 && options.sure.skip.enabled)
+        render.specmod().attribute(kConvergedAttribute,
+                                   encode_converged_tiles(skipped_tiles(
+                                       render, trusted, aovs, options, options.window_radius)));
     SureOptions sure_options = options.sure;
     sure_options.aovs = options.aovs;
     sure_options.denoiser_radius = options.other_radius;
@@ -243,7 +317,7 @@ bool choose(ImageBuf& dst, const ImageBuf& src, const Denoiser& other, const Cho
     }
     for (const auto& [noisy, channel] : ch.recorded_extras)
         ch.extras.emplace_back(channel, b.spec().channelindex(src.spec().channel_name(channel)));
-    const Plane w = choice_weight(src, b, ch, options, nthreads);
+    const Plane w = choice_weight(src, b, ch, trusted, options, nthreads);
     if (&dst != &src && !prepare_op(dst, src, options.aovs, aovs, "choose", nthreads))
         return false;
     blend(dst, b, ch, w, nthreads);
