@@ -179,8 +179,9 @@ bool input_layout(FileLayout& layout, ImageBuf& whole, size_t& own, const InputF
 /// An OpenEXR file's headers parse with OpenEXR's own C core, which checks each attribute's
 /// size against the file: the C++ library OIIO reads with allocates what an attribute claims
 /// before it reads it, so a damaged 1 KB file could make it fill gigabytes (a string of 1.9
-/// GB; a tiled file without its tiles, whose channel list then reads past the header: both
-/// found by the fuzz target) before it says the file ends early. Other formats: true.
+/// GB, first or later among the attributes; a tiled file without its tiles, whose channel list
+/// then reads past the header: all found by the fuzz target) before it says the file ends
+/// early. Other formats: true.
 bool exr_headers_fit(const std::string& path, std::string& error)
 {
     std::unique_ptr<FILE, int (*)(FILE*)> f(std::fopen(path.c_str(), "rb"), &std::fclose);
@@ -189,20 +190,30 @@ bool exr_headers_fit(const std::string& path, std::string& error)
         || magic[2] != 0x31 || magic[3] != 0x01)
         return true;  // not OpenEXR (or unreadable: OIIO says)
     f.reset();
-    std::string message;
+    // The first message, and whether any said an attribute's size does not fit: the core
+    // skips such an attribute and goes on (exr_start_read succeeds), but OpenEXR's C++
+    // library, which OIIO reads with, allocates the size it claims.
+    struct Said {
+        std::string message;
+        bool size_mismatch = false;
+    } said;
     exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
-    init.user_data = &message;
-    init.error_handler_fn = [](exr_const_context_t exr, exr_result_t, const char* text) {
+    init.user_data = &said;
+    init.error_handler_fn = [](exr_const_context_t exr, exr_result_t code, const char* text) {
         void* user = nullptr;
-        if (exr_get_user_data(exr, &user) == EXR_ERR_SUCCESS && user && text
-            && static_cast<std::string*>(user)->empty())
-            *static_cast<std::string*>(user) = text;  // the first: the cause
+        if (exr_get_user_data(exr, &user) != EXR_ERR_SUCCESS || !user)
+            return;
+        Said& s = *static_cast<Said*>(user);
+        s.size_mismatch |= code == EXR_ERR_ATTR_SIZE_MISMATCH;
+        if (text && s.message.empty())
+            s.message = text;  // the first: the cause
     };
     exr_context_t exr = nullptr;
     const exr_result_t parsed = exr_start_read(&exr, path.c_str(), &init);
     exr_finish(&exr);
-    if (parsed == EXR_ERR_SUCCESS)
+    if (parsed == EXR_ERR_SUCCESS && !said.size_mismatch)
         return true;
+    const std::string& message = said.message;
     error = format("{}: a damaged OpenEXR header: {}", path,
                    message.empty() ? std::string(exr_get_default_error_message(parsed))
                                    : one_line(message));
