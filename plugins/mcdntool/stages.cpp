@@ -145,7 +145,7 @@ bool run_plan(Session& s, const Command& c, std::string& error)
         return false;
     mcdn::DenoisePlan plan;
     std::map<std::string, std::string> plan_settings;
-    for (const char* key : { "choose", "frames" })
+    for (const char* key : { "choose", "frames", "extras" })
         if (c.has(key))
             plan_settings[std::string("denoise.") + key] = c.modifier(key);
     if (!mcdn::plan_denoise(plan, s.image().spec(), s.aov_spec, error, plan_settings)) {
@@ -158,10 +158,7 @@ bool run_plan(Session& s, const Command& c, std::string& error)
         Command step { "--" + name, {}, {} };
         if (mcdn::find_stage(name)->cross_frame && c.has("frames"))
             step.modifiers["frames"] = c.modifier("frames");
-        if ((mcdn::find_stage(name)->kind == mcdn::StageKind::Denoiser || name == "choose")
-            && c.has("extras"))
-            step.modifiers["extras"] = c.modifier("extras");
-        for (const auto& [key, value] : plan.settings)  // choose.with=cnn, mix.model=net
+        for (const auto& [key, value] : plan.settings)  // choose.with=cnn, cnn.extras=0, ...
             if (key.compare(0, name.size() + 1, name + ".") == 0)
                 step.modifiers[key.substr(name.size() + 1)] = value;
         if (!run_stage(s, step, error))

@@ -35,8 +35,8 @@ namespace mcdn {
 /// What denoise() runs on an input, and why, in words a log line can hold.
 struct DenoisePlan {
     std::vector<std::string> stages;  // "cnn" or "oidn", "sure", "choose", "mix"
-    /// Settings of its stages ("mix.model" -> "net", "choose.with" -> "cnn"); a setting the
-    /// caller gives wins.
+    /// Settings of its stages ("mix.model" -> "net", "choose.with" -> "cnn", denoise.extras
+    /// as its denoisers' and choose's "extras"); a setting the caller gives wins.
     std::map<std::string, std::string> settings;
     std::string why;                       // "the input has a colour variance (variance.R,...)"
     std::vector<std::string> zero_filled;  // features the CNN reads as zero: "albedo", ...

@@ -9,9 +9,8 @@
 namespace mcdn {
 
 /// `o` with a plan (a chain of the one stage "denoise") replaced by the chain it plans for a
-/// frame of `spec` (mcdn/denoise.h): its stages; its settings where `o` has none of its own;
-/// denoise.extras as the extras of its denoisers and choose. `plan` (when given) gets the
-/// plan. A chain of stages comes back as it is.
+/// frame of `spec` (mcdn/denoise.h): its stages, and its settings where `o` has none of its
+/// own. `plan` (when given) gets the plan. A chain of stages comes back as it is.
 bool planned_chain(ChainOptions& planned, const ImageSpec& spec, const ChainOptions& o,
                    std::string& error, DenoisePlan* plan = nullptr);
 

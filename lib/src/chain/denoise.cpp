@@ -80,6 +80,11 @@ bool plan_denoise(DenoisePlan& plan, const ImageSpec& merged, const AovSpec& spe
         plan.why = "no colour variance, which SURE and the mix need (render one, or give "
                    "-i:as=variance FILE, for the mixed chain)";
     }
+    // denoise.extras: its denoisers' and choose's.
+    if (auto it = settings.find("denoise.extras"); it != settings.end())
+        for (const std::string& name : plan.stages)
+            if (find_stage(name)->kind == StageKind::Denoiser || name == "choose")
+                plan.settings[name + ".extras"] = it->second;
     if (has_oidn) {
         plan.why += "; OIDN's weights " + weights;
         if (!albedo || !normal)
@@ -103,10 +108,6 @@ bool planned_chain(ChainOptions& planned, const ImageSpec& spec, const ChainOpti
     if (!plan_denoise(plan, spec, o.aovs, error, o.settings))
         return false;
     planned.stages = plan.stages;
-    if (auto it = o.settings.find("denoise.extras"); it != o.settings.end())
-        for (const std::string& name : plan.stages)
-            if (find_stage(name)->kind == StageKind::Denoiser || name == "choose")
-                planned.settings.emplace(name + ".extras", it->second);
     for (const auto& [key, value] : plan.settings)  // the caller's own settings win
         planned.settings.emplace(key, value);
     if (plan_out)
