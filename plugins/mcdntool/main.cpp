@@ -37,8 +37,9 @@ namespace Strutil = OIIO::Strutil;
 namespace {
 
 // What the command line's stages read of the variance and half-buffer files: the faces of
-// the roles, and the halves only for NFOR and its prefilter (or where no variance is given, from
-// which the stages then take the halves' difference), the light split's only for the CNN.
+// the roles, and the halves only where NFOR or its prefilter runs (StageInfo::reads_halves:
+// --denoise and --choose run it beside the CNN; or where no variance is given, from which the
+// stages then take the halves' difference), the light split's only for the CNN.
 // Everything when a command names channels. --info without a stage reads what any stage
 // could, so that it says what each can do with the files given.
 // Whether a stage of the command line denoises the extra AOVs (a denoiser or plan with the
@@ -69,7 +70,7 @@ mcdn::InputSelection input_selection(const std::vector<Command>& commands)
             selection.only_roles = false;
         const mcdn::StageInfo* reads = stage_of_command(c.name);
         selection.light_split |= (reads && reads->reads_light_split) || c.name == "--info";
-        halves |= reads && reads->reads_halves;
+        halves |= reads && reads->reads_halves && reads->reads_halves(c.modifiers);
         variance |=
             c.name == "-i" && (c.modifier("as") == "variance" || c.modifier("as") == "seed");
         if (reads && c.has("features"))  // a stage's extra feature channels

@@ -21,6 +21,7 @@
 #include "mcdn/io.h"
 #include "mcdn/metrics.h"
 #include "mcdn/oidn.h"
+#include "mcdn/stages.h"
 #include "oidn/oidn_steps.h"
 
 #include "mcdn_test.h"
@@ -386,6 +387,33 @@ TEST(Oidn, ChooseWithTheCnnSameInBandsAsWhole)
     EXPECT_NE(refused.geterror().find("nfor, cnn or oidn"), std::string::npos)
         << refused.geterror();
     std::remove(path.c_str());
+}
+
+// The half files are read only for a stage that runs NFOR (mcdntool's input selection):
+// --denoise with OIDN's weights runs our CNN beside OIDN, which read none; without them NFOR
+// beside the CNN, as choose does by default. At 1080p reading them cost 0.6 GB of 2.5.
+TEST(Oidn, HalvesReadOnlyWhereNforRuns)
+{
+    const std::string folder = mcdn_test::temp_dir("oidn_halves");
+    write_tiny_tza(folder + "/rt_hdr_alb_nrm.tza", 9, 8, 3);
+    const StageInfo& denoise = *find_stage("denoise");
+    const StageInfo& choose = *find_stage("choose");
+    ASSERT_TRUE(denoise.reads_halves && choose.reads_halves);
+    EXPECT_TRUE(find_stage("nfor")->reads_halves && find_stage("nfor")->reads_halves({}));
+    EXPECT_FALSE(find_stage("oidn")->reads_halves);
+    EXPECT_FALSE(find_stage("cnn")->reads_halves);
+    EXPECT_TRUE(choose.reads_halves({}));
+    EXPECT_TRUE(choose.reads_halves({ { "with", "nfor" } }));
+    EXPECT_FALSE(choose.reads_halves({ { "with", "cnn" } }));
+    EXPECT_FALSE(choose.reads_halves({ { "with", "oidn" } }));
+    setenv("MCDN_OIDN_WEIGHTS", "/nonexistent", 1);
+    EXPECT_TRUE(denoise.reads_halves({}));
+    setenv("MCDN_OIDN_WEIGHTS", folder.c_str(), 1);
+    EXPECT_FALSE(denoise.reads_halves({}));
+    EXPECT_FALSE(denoise.reads_halves({ { "choose", "0" } }));
+    EXPECT_TRUE(denoise.reads_halves({ { "frames", "2" } }));  // the neighbours' agreement
+    unsetenv("MCDN_OIDN_WEIGHTS");
+    std::remove((folder + "/rt_hdr_alb_nrm.tza").c_str());
 }
 
 TEST(Oidn, ErrorsNameTheFileAndWhereWeightsComeFrom)

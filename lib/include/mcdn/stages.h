@@ -80,8 +80,10 @@ struct StageInfo {
     /// probed input itself when it is SURE's only denoiser.
     bool probes_in_place = false;
     /// What it reads of variance and half files (mcdn::InputSelection): the halves of the
-    /// colour and features (else the variance serves), the light split's components.
-    bool reads_halves = false, reads_light_split = false;
+    /// colour and features (else the variance serves) with these settings (null: never),
+    /// the light split's components.
+    bool (*reads_halves)(const Settings& settings) = nullptr;
+    bool reads_light_split = false;
     StageFacts facts;
     /// Frame-sized float buffers of the merged input it adds at its peak.
     double frame_buffers = 0;

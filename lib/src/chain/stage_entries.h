@@ -48,6 +48,12 @@ inline bool has_features(const AovSet& aovs)
     return false;
 }
 
+// StageInfo::reads_halves of a stage that reads them with any settings (NFOR, its prefilter).
+inline bool always(const Settings&)
+{
+    return true;
+}
+
 inline bool has_halves(const AovSet& aovs)
 {
     return aovs.has(Role::ColorA) && aovs.has(Role::ColorB);

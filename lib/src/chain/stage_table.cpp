@@ -62,7 +62,7 @@ StageInfo prefilter_stage()
     s.name = "prefilter";
     s.keys = { "window", "patch", "k", "features", "features-out", "skip", "converged" };
     s.changes_features = true;
-    s.reads_halves = true;
+    s.reads_halves = always;
     s.facts.constant_features = true;
     s.frame_buffers = 0.5;  // the prefiltered features beside the frame
     s.help = "NFOR feature prefilter (§5.1): NL-means cross-filtering of albedo, normal, depth "
@@ -112,7 +112,7 @@ StageInfo nfor_stage()
                "features", "features-out", "halves", "extras",   "outliers",
                "fallback", "fallback-aov", "skip",   "converged" };
     s.cross_frame = true;
-    s.reads_halves = true;
+    s.reads_halves = always;
     s.facts.color_sums = true;
     s.facts.constant_features = true;
     s.frame_buffers = 2.0;  // the result and the per-buffer regression outputs
@@ -249,6 +249,14 @@ bool make_oidn(MadeStage& made, const Settings& settings, const StageContext& co
 // unfused plan, 172.5 for tests/nn/plan_test's shape of it), over at most (tile + 2 halo)^2
 // (nn::TileOptions::balanced); the halo is its receptive radius rounded up to its alignment,
 // 112.
+// Whether --oidn finds weights for some model (--denoise's plan then runs it: mcdn/denoise.h).
+bool oidn_weights_found()
+{
+    std::string path, unused;
+    return oidn_weights(path, OidnOptions(), true, true, unused)
+           || oidn_weights(path, OidnOptions(), false, false, unused);
+}
+
 double oidn_held_bytes(const Settings& settings, int)
 {
     OidnOptions o;
@@ -330,7 +338,12 @@ StageInfo denoise_stage()
     s.cross_frame = true;
     s.keys = { "extras", "choose" };
     s.reads_light_split = true;
-    s.reads_halves = true;  // choose's NFOR, where the render has them
+    // choose's NFOR beside the CNN, and the neighbours' agreement (frames=N), where the
+    // render has them; with OIDN's weights (the CNN beside OIDN) neither runs.
+    s.reads_halves = [](const Settings& settings) {
+        const auto frames = settings.find("frames");
+        return !oidn_weights_found() || (frames != settings.end() && frames->second != "0");
+    };
     s.help = "The best chain the inputs allow: with a colour variance --cnn --sure --mix "
              "(KPCN, its SURE, the progressive mix by the network: never much worse than the "
              "better of render and CNN), with half buffers too --choose before --mix (NFOR "
@@ -368,11 +381,8 @@ std::vector<StageInfo> make_table()
         table[0].frame_buffers += stage.frame_buffers;
     }
     table[0].held_bytes = [](const Settings& settings, int threads) {
-        std::string path, unused;  // oidn takes the cnn's place where its weights are found
-        const bool oidn = oidn_weights(path, OidnOptions(), true, true, unused)
-                          || oidn_weights(path, OidnOptions(), false, false, unused);
         return std::max(cnn_held_bytes(settings, threads),
-                        oidn ? oidn_held_bytes(settings, threads) : 0.0);
+                        oidn_weights_found() ? oidn_held_bytes(settings, threads) : 0.0);
     };
     return table;
 }

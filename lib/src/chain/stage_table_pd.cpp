@@ -169,6 +169,8 @@ bool make_other(Denoiser& denoiser, ChooseSettings& c, const StageContext& conte
         if (!find_stage(c.with)->make(made, with_settings(c), quiet, error))
             return false;
         c.o.other_radius = chain_radius({ made.reach });
+        // SURE's only denoiser on choose's own copy of the render: it may run in that copy.
+        c.o.sure.denoiser_in_place = find_stage(c.with)->probes_in_place;
         denoiser = std::move(made.run);
         return true;
     }
@@ -221,10 +223,14 @@ StageInfo choose_stage()
     s.name = "choose";
     s.kind = StageKind::Mixer;
     s.keys = { "window", "blend", "probes", "extras", "weight-aov", "with", "noise" };
-    // What any of its denoisers reads (the table's flags are not per setting): NFOR the
-    // halves and constant features, the CNN the light split and depth range, OIDN the
-    // exposure.
-    s.reads_halves = true;
+    // What any of its denoisers reads (the table's flags are not per setting, but for the
+    // halves): NFOR the halves and constant features, the CNN the light split and depth
+    // range, OIDN the exposure.
+    s.reads_halves = [](const Settings& settings) {  // NFOR's
+        ChooseSettings c;
+        std::string error;
+        return !choose_settings(c, settings, error) || c.with == "nfor";
+    };
     s.reads_light_split = true;
     s.facts.color_sums = true;
     s.facts.constant_features = true;

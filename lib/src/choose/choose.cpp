@@ -303,7 +303,7 @@ bool choose(ImageBuf& dst, const ImageBuf& src, const Denoiser& other, const Cho
         dst.errorfmt("choose: {}", b.geterror());
         return false;
     }
-    render.reset();
+    render = ImageBuf();  // not reset(): b may be the render itself, moved (SureOptions)
     trace.mark("the other denoiser and its SURE");
     if (!progress.advance()) {
         dst.errorfmt("{}", progress.error());
