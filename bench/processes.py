@@ -5,14 +5,19 @@ import os
 import subprocess
 
 
-def measure(command, memory_gb, log, band_pixels=None):
+def measure(command, memory_gb, log, band_pixels=None, oidn_weights=None):
     """(wall s, user s, sys s, peak RSS MB, ok) of one child process under /usr/bin/time,
     capped at memory_gb of address space so that an unbounded run fails instead of taking
-    the machine; its output goes to `log`."""
+    the machine; its output goes to `log`. oidn_weights, when given, is its MCDN_OIDN_WEIGHTS
+    (--denoise then runs OIDN's plan; "": unset, our CNN's plan)."""
     env = dict(os.environ)
     env.pop("MCDN_BAND_PIXELS", None)
     if band_pixels is not None:
         env["MCDN_BAND_PIXELS"] = str(band_pixels)
+    if oidn_weights is not None:
+        env.pop("MCDN_OIDN_WEIGHTS", None)
+        if oidn_weights:
+            env["MCDN_OIDN_WEIGHTS"] = oidn_weights
     timing = log + ".time"
     full = ["prlimit", f"--as={int(memory_gb * 2**30)}", "/usr/bin/time", "-f", "%e %U %S %M",
             "-o", timing] + command
