@@ -153,9 +153,28 @@ TEST(Choose, SameBitsForAnyThreadsAndInPlace)
     ImageBuf one, two;
     ASSERT_TRUE(choose(one, a, box_denoiser(4), options, {}, 1)) << one.geterror();
     ASSERT_TRUE(choose(two, a, box_denoiser(4), options, {}, 2)) << two.geterror();
+    // In place with the other denoiser run in the rebuilt render itself (as a network's is:
+    // b is then that frame), and with a result of its own: the same bits, src untouched.
+    ImageBuf in_render;
+    in_render.copy(a);
+    ChooseOptions probed_in_place = options;
+    probed_in_place.sure.denoiser_in_place = true;
+    ASSERT_TRUE(choose(in_render, in_render, box_denoiser(4), probed_in_place, {}, 2))
+        << in_render.geterror();
+    ImageBuf separate;
+    ASSERT_TRUE(choose(separate, a, box_denoiser(4), probed_in_place, {}, 2))
+        << separate.geterror();
+    ImageBuf a_before;
+    a_before.copy(a);
     ASSERT_TRUE(choose(a, a, box_denoiser(4), options, {}, 2)) << a.geterror();
     EXPECT_EQ(OIIO::ImageBufAlgo::compare(one, two, 0, 0).nfail, 0u);
     EXPECT_EQ(OIIO::ImageBufAlgo::compare(one, a, 0, 0).nfail, 0u);
+    EXPECT_EQ(OIIO::ImageBufAlgo::compare(one, in_render, 0, 0).nfail, 0u);
+    EXPECT_EQ(OIIO::ImageBufAlgo::compare(one, separate, 0, 0).nfail, 0u);
+    EXPECT_EQ(one.spec().channelnames, in_render.spec().channelnames);
+    ImageBuf again;
+    ASSERT_TRUE(choose(again, a_before, box_denoiser(4), options, {}, 2));
+    EXPECT_EQ(OIIO::ImageBufAlgo::compare(one, again, 0, 0).nfail, 0u);  // a_before untouched
 }
 
 TEST(Choose, WithoutSureOrHalvesItSaysWhatIsMissing)

@@ -78,7 +78,9 @@ constexpr const char* kChooseShareAttribute = "mcdn:choose_share";
 /// dst = src with the colour, its RGB extras and sure.*, sure.divergence.*, sure.residual.*
 /// replaced by the choice above between src's denoised image (a) and other's (b), which
 /// choose runs with its SURE on the render src's noisy.* records. Needs what sure adds and
-/// the colour's variance. dst may be src.
+/// the colour's variance. dst may be src: a frame in memory is then where the render is
+/// rebuilt and b made (a's values kept apart, a third of the frame's channels on Blender's
+/// passes), not a copy of it.
 bool choose(ImageBuf& dst, const ImageBuf& src, const Denoiser& other,
             const ChooseOptions& options = {}, ROI roi = {}, int nthreads = 0);
 ImageBuf choose(const ImageBuf& src, const Denoiser& other, const ChooseOptions& options = {},

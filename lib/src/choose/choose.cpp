@@ -63,27 +63,45 @@ bool find_candidate(Candidate& c, const ImageSpec& spec, const AovSet& aovs, std
     return true;
 }
 
-// The render as sure recorded it: src with the colour and each RGB extra put back from
-// noisy.* (a denoiser before sure writes nothing else).
-bool rebuild_render(ImageBuf& render, const ImageBuf& src, const ChooseChannels& ch, int nthreads,
-                    std::string& error)
+// a's image and its SURE as the blend needs them (sanitized, as read_plane reads), kept
+// apart while the other denoiser runs in the frame they were in: the colour, its SURE,
+// divergence and residual, and each RGB extra's value (ch.recorded_extras' order).
+struct Kept {
+    Plane y[3], sure[3], divergence[3], residual[3];
+    std::vector<Plane> extras;
+};
+
+Kept keep_candidate(const ImageBuf& src, const ChooseChannels& ch, int nthreads)
 {
-    render = copy_with_channels(src, {}, {}, nthreads);
-    if (!render.localpixels()) {
-        error = format("out of memory for a copy of the {}x{} frame of {} channels",
-                       src.spec().width, src.spec().height, src.spec().nchannels);
-        return false;
-    }
+    Kept a;
+    std::vector<PlaneRead> reads;
+    for (int k = 0; k < 3; ++k)
+        for (const auto& [channel, plane] :
+             { std::pair { ch.a.y[k], &a.y[k] }, std::pair { ch.a.sure[k], &a.sure[k] },
+               std::pair { ch.a.divergence[k], &a.divergence[k] },
+               std::pair { ch.a.residual[k], &a.residual[k] } })
+            reads.push_back({ channel, plane });
+    a.extras.resize(ch.recorded_extras.size());
+    for (size_t e = 0; e < ch.recorded_extras.size(); ++e)
+        reads.push_back({ ch.recorded_extras[e].second, &a.extras[e] });
+    read_planes(src, reads, {}, nthreads);
+    return a;
+}
+
+// The render as sure recorded it, made in `frame` (a float frame in memory of src's
+// channels): the colour and each RGB extra put back from noisy.* (a denoiser before sure
+// writes nothing else).
+void rebuild_render(ImageBuf& frame, const ChooseChannels& ch)
+{
     std::vector<std::pair<int, int>> from_to = ch.recorded_extras;
     for (int k = 0; k < 3; ++k)
         from_to.emplace_back(ch.x[k], ch.a.y[k]);
-    const int n = render.nchannels();
-    float* px = static_cast<float*>(render.localpixels());
-    const size_t npixels = render.spec().image_pixels();
+    const int n = frame.nchannels();
+    float* px = static_cast<float*>(frame.localpixels());
+    const size_t npixels = frame.spec().image_pixels();
     for (size_t p = 0; p < npixels; ++p)
         for (const auto& [from, to] : from_to)
             px[p * n + to] = px[p * n + from];
-    return true;
 }
 
 // Where b may weigh (ChooseOptions::max_noise): 1 where the render's relative variance
@@ -140,25 +158,24 @@ ConvergedTiles skipped_tiles(const ImageBuf& render, const Plane& trusted, const
 }
 
 // w of mcdn/choose.h: each candidate's SURE relative to (ybar^2 + 0.01 + Var), summed over
-// the window; b's share of the inverse errors; smoothed.
-Plane choice_weight(const ImageBuf& src, const ImageBuf& other, const ChooseChannels& ch,
-                    const Plane& trusted, const ChooseOptions& options, int nthreads)
+// the window; b's share of the inverse errors; smoothed. Var from `frame` (the render's
+// variance, which no denoiser writes), b's from `other`.
+Plane choice_weight(const Kept& a, const ImageBuf& frame, const ImageBuf& other,
+                    const ChooseChannels& ch, const Plane& trusted, const ChooseOptions& options,
+                    int nthreads)
 {
-    Plane ea, eb;
+    Plane ea(trusted.width, trusted.height), eb(trusted.width, trusted.height);
     for (int k = 0; k < 3; ++k) {
-        Plane ya, yb, sa, sb, variance;
-        read_planes(
-            src, { { ch.a.y[k], &ya }, { ch.a.sure[k], &sa }, { ch.variance[k], &variance, true } },
-            {}, nthreads);
+        Plane yb, sb, variance;
+        read_planes(frame, { { ch.variance[k], &variance, true } }, {}, nthreads);
         read_planes(other, { { ch.b.y[k], &yb }, { ch.b.sure[k], &sb } }, {}, nthreads);
-        if (k == 0)
-            ea = eb = Plane(ya.width, ya.height);
+        const Plane &ya = a.y[k], &sa = a.sure[k];
         for (size_t i = 0; i < ea.size(); ++i) {
             const float mean = 0.5f * (ya.px[i] + yb.px[i]);
             const float scale = mean * mean + kRelativeOffset + variance.px[i];
-            const float a = sa.px[i] / scale, b = sb.px[i] / scale;
-            ea.px[i] += std::isfinite(a) ? a : 0.0f;
-            eb.px[i] += std::isfinite(b) ? b : 0.0f;
+            const float ra = sa.px[i] / scale, rb = sb.px[i] / scale;
+            ea.px[i] += std::isfinite(ra) ? ra : 0.0f;
+            eb.px[i] += std::isfinite(rb) ? rb : 0.0f;
         }
     }
     const std::vector<double> window(size_t(2 * options.window_radius + 1), 1.0);
@@ -167,54 +184,54 @@ Plane choice_weight(const ImageBuf& src, const ImageBuf& other, const ChooseChan
     for (size_t i = 0; i < ea.size(); ++i) {
         // SURE summed over a window can still come out at or below 0 (it is unbiased, not
         // positive): such a candidate is as good as the estimate can tell.
-        const double a = std::max(double(sum_a.px[i]), kLeastError),
-                     b = std::max(double(sum_b.px[i]), kLeastError);
-        ea.px[i] = trusted.px[i] * float(a / (a + b));
+        const double sa = std::max(double(sum_a.px[i]), kLeastError),
+                     sb = std::max(double(sum_b.px[i]), kLeastError);
+        ea.px[i] = trusted.px[i] * float(sa / (sa + sb));
     }
     return separable_window_sum(ea, std::vector<double>(size_t(2 * options.blend_radius + 1), 1.0),
                                 options.blend_radius, true);
 }
 
-// dst's colour, extras and SURE channels: a + w (b - a); the residual against x exactly;
-// SURE from the residual, the blended divergence and the variance (SURE_a's own terms).
-void blend(ImageBuf& dst, const ImageBuf& other, const ChooseChannels& ch, const Plane& w,
-           int nthreads)
+// dst's colour, extras and SURE channels: a + w (b - a), b read from `other` (which may be
+// dst itself: each plane is read before it is written); the residual against x (noisy.*
+// in dst) exactly; SURE from the residual, the blended divergence and the variance
+// (SURE_a's own terms).
+void blend(ImageBuf& dst, const ImageBuf& other, const Kept& a, const ChooseChannels& ch,
+           const Plane& w, int nthreads)
 {
     const ROI roi = dst.roi();
     for (int k = 0; k < 3; ++k) {
-        Plane ya, yb, da, db, ra, sa, x;
-        read_planes(dst,
-                    { { ch.a.y[k], &ya },
-                      { ch.a.divergence[k], &da },
-                      { ch.a.residual[k], &ra },
-                      { ch.a.sure[k], &sa },
-                      { ch.x[k], &x } },
-                    {}, nthreads);
+        Plane yb, db, x;
         read_planes(other, { { ch.b.y[k], &yb }, { ch.b.divergence[k], &db } }, {}, nthreads);
+        read_planes(dst, { { ch.x[k], &x } }, {}, nthreads);
+        Plane y(w.width, w.height), d(w.width, w.height), r(w.width, w.height),
+            sure(w.width, w.height);
         for (size_t i = 0; i < w.size(); ++i) {
             const float t = w.px[i];
             // SURE_a = r_a + 2 div_a - var: the variance as sure counted it.
-            const float variance = ra.px[i] + 2.0f * da.px[i] - sa.px[i];
-            ya.px[i] += t * (yb.px[i] - ya.px[i]);
-            da.px[i] += t * (db.px[i] - da.px[i]);
-            const float r = ya.px[i] - x.px[i];
-            ra.px[i] = r * r;
-            sa.px[i] = ra.px[i] + 2.0f * da.px[i] - variance;
+            const float variance =
+                a.residual[k].px[i] + 2.0f * a.divergence[k].px[i] - a.sure[k].px[i];
+            y.px[i] = a.y[k].px[i] + t * (yb.px[i] - a.y[k].px[i]);
+            d.px[i] = a.divergence[k].px[i] + t * (db.px[i] - a.divergence[k].px[i]);
+            const float residual = y.px[i] - x.px[i];
+            r.px[i] = residual * residual;
+            sure.px[i] = r.px[i] + 2.0f * d.px[i] - variance;
         }
         write_planes(dst,
-                     { { ch.a.y[k], &ya },
-                       { ch.a.divergence[k], &da },
-                       { ch.a.residual[k], &ra },
-                       { ch.a.sure[k], &sa } },
+                     { { ch.a.y[k], &y },
+                       { ch.a.divergence[k], &d },
+                       { ch.a.residual[k], &r },
+                       { ch.a.sure[k], &sure } },
                      roi);
     }
-    for (const auto& [in_dst, in_other] : ch.extras) {
-        Plane a, b;
-        read_planes(dst, { { in_dst, &a } }, {}, nthreads);
+    for (size_t e = 0; e < ch.extras.size(); ++e) {
+        const auto& [in_dst, in_other] = ch.extras[e];
+        Plane b;
         read_planes(other, { { in_other, &b } }, {}, nthreads);
+        Plane blended = a.extras[e];
         for (size_t i = 0; i < w.size(); ++i)
-            a.px[i] += w.px[i] * (b.px[i] - a.px[i]);
-        write_planes(dst, { { in_dst, &a } }, roi);
+            blended.px[i] += w.px[i] * (b.px[i] - blended.px[i]);
+        write_planes(dst, { { in_dst, &blended } }, roi);
     }
 }
 
@@ -282,11 +299,23 @@ bool choose(ImageBuf& dst, const ImageBuf& src, const Denoiser& other, const Cho
         }
         return true;
     }
-    ImageBuf render, b;
-    if (!rebuild_render(render, src, ch, nthreads, error)) {
-        dst.errorfmt("choose: {}", error);
-        return false;
+    // a's values kept apart; the render rebuilt in dst itself where choose runs in place on
+    // a frame in memory (as in a chain: no frame-sized copy), else in a copy of src. The other
+    // denoiser probed there by its SURE (in place too where it can: SureOptions) makes b.
+    const Kept a = keep_candidate(src, ch, nthreads);
+    const ImageSpec spec = src.spec();  // the result's: b's run leaves its own
+    const bool in_place = &dst == &src && float_frame_pixels(src);
+    ImageBuf copy;
+    if (!in_place) {
+        copy = copy_with_channels(src, {}, {}, nthreads);
+        if (!copy.localpixels()) {
+            dst.errorfmt("choose: out of memory for a copy of the {}x{} frame of {} channels",
+                         spec.width, spec.height, spec.nchannels);
+            return false;
+        }
     }
+    ImageBuf& render = in_place ? dst : copy;
+    rebuild_render(render, ch);
     if (options.max_noise > 0 && options.sure.skip.enabled)
         render.specmod().attribute(kConvergedAttribute,
                                    encode_converged_tiles(skipped_tiles(
@@ -298,29 +327,42 @@ bool choose(ImageBuf& dst, const ImageBuf& src, const Denoiser& other, const Cho
         sure_options.progress = [&](const std::string&, float fraction) {
             return options.progress("choose", 0.5f * fraction);
         };
-    // The rebuilt render is choose's own: sure probes it in place (no copy of the frame).
+    const void* render_pixels = render.localpixels();
+    ImageBuf b;
     if (!sure_probing_src(b, render, other, sure_options, roi, nthreads)) {
         dst.errorfmt("choose: {}", b.geterror());
         return false;
     }
-    render = ImageBuf();  // not reset(): b may be the render itself, moved (SureOptions)
+    // b is the render's own frame when the other denoiser ran in it (`render` is then a
+    // moved-from ImageBuf, whose methods must not be called), else a frame of its own and
+    // the render is as it was.
+    const bool b_in_render = b.localpixels() == render_pixels;
+    ImageBuf result = b_in_render ? std::move(b) : std::move(render);
+    if (in_place)
+        dst = ImageBuf();  // moved from: errors go on it below
     trace.mark("the other denoiser and its SURE");
     if (!progress.advance()) {
         dst.errorfmt("{}", progress.error());
         return false;
     }
+    const ImageBuf& b_frame = b_in_render ? result : b;
     AovSet b_aovs;  // b's channels by name: sure may order them otherwise
-    if (!resolve_aovs(b_aovs, options.aovs, b.spec(), error)
-        || !find_candidate(ch.b, b.spec(), b_aovs, error)) {
+    if (!resolve_aovs(b_aovs, options.aovs, b_frame.spec(), error)
+        || !find_candidate(ch.b, b_frame.spec(), b_aovs, error)) {
         dst.errorfmt("choose: {}", error);
         return false;
     }
-    for (const auto& [noisy, channel] : ch.recorded_extras)
-        ch.extras.emplace_back(channel, b.spec().channelindex(src.spec().channel_name(channel)));
-    const Plane w = choice_weight(src, b, ch, trusted, options, nthreads);
-    if (&dst != &src && !prepare_op(dst, src, options.aovs, aovs, "choose", nthreads))
+    if (result.spec().channelnames != spec.channelnames) {
+        dst.errorfmt("choose: the other denoiser changed the frame's channels");
         return false;
-    blend(dst, b, ch, w, nthreads);
+    }
+    result.specmod() = spec;
+    for (const auto& [noisy, channel] : ch.recorded_extras)
+        ch.extras.emplace_back(channel, b_frame.spec().channelindex(spec.channel_name(channel)));
+    const Plane w = choice_weight(a, result, b_frame, ch, trusted, options, nthreads);
+    blend(result, b_frame, a, ch, w, nthreads);
+    b = ImageBuf();
+    dst = std::move(result);
     double share = 0;
     for (float t : w.px)
         share += t;
