@@ -222,8 +222,10 @@ struct BandState {
     ConvergedTiles converged;
     /// The moved channels' exact bits, restored after each probe.
     std::vector<std::vector<float>> unprobed;
-    /// The extras' x, recorded for the mix.
-    std::vector<Plane> extras;
+    /// The extras' x, exactly: put back after the denoiser in place (for its probes) and
+    /// recorded, sanitized, for the mix (one copy for both: 72 bytes a pixel on Blender's
+    /// six light passes).
+    std::vector<std::vector<float>> extras_bits;
     /// The denoiser's own tile decisions, which hold for its probes (core/attributes.h).
     std::string denoiser_tiles;
     /// In place: noisy's spec as the denoiser left it, and the colour and extras it made
@@ -253,11 +255,7 @@ void read_band(BandState& st, ImageBuf& noisy, const SureOptions& options, const
         noisy.specmod().attribute(kConvergedAttribute, encode_converged_tiles(st.converged));
     if (frame.eps > 0 || frame.denoise_in_place)
         st.unprobed = exact_bits(noisy, frame.moved);
-    st.extras.resize(frame.extras.size());
-    std::vector<PlaneRead> reads;
-    for (size_t e = 0; e < frame.extras.size(); ++e)
-        reads.push_back({ frame.extras[e], &st.extras[e] });
-    read_planes(noisy, reads, {}, frame.nthreads);
+    st.extras_bits = exact_bits(noisy, frame.extras);
 }
 
 // y = F(x) made in noisy itself, which becomes dst once the probes are done; the probes
@@ -266,7 +264,7 @@ bool denoise_in_place(BandState& st, ImageBuf& noisy, const Denoiser& denoiser,
                       const SureFrame& frame, StageTrace& trace, std::string& error)
 {
     const ImageSpec unprobed_spec = noisy.spec();
-    const std::vector<std::vector<float>> extras_bits = exact_bits(noisy, frame.extras);
+    const std::vector<std::vector<float>>& extras_bits = st.extras_bits;
     if (!denoiser(noisy, noisy)) {
         error = format("sure: the denoiser failed: {}", noisy.geterror());
         return false;
@@ -446,8 +444,12 @@ void write_sure(BandState& st, ImageBuf& dst, const ImageSpec& in_spec, const Ba
     for (const Plane* group : { st.x, estimate, st.divergence, residual })
         for (int c = 0; c < 3; ++c)
             planes.push_back(&group[c]);
-    for (const Plane& e : st.extras)
-        planes.push_back(&e);
+    std::vector<Plane> extras(st.extras_bits.size(), Plane(w, h));  // as read_plane reads them
+    for (size_t e = 0; e < extras.size(); ++e) {
+        for (size_t i = 0; i < extras[e].size(); ++i)
+            extras[e].px[i] = sanitize(st.extras_bits[e][i]);
+        planes.push_back(&extras[e]);
+    }
     if (frame.fallback_channel)
         planes.push_back(&fell_back);
     if (fall_back) {
@@ -457,7 +459,7 @@ void write_sure(BandState& st, ImageBuf& dst, const ImageSpec& in_spec, const Ba
         }
         for (size_t e = 0; e < frame.extras.size(); ++e) {
             out.push_back(dst.spec().channelindex(in_spec.channel_name(frame.extras[e])));
-            planes.push_back(&st.extras[e]);
+            planes.push_back(&extras[e]);
         }
     }
     write_rows(dst, out, planes, band_y, where);
