@@ -197,15 +197,32 @@ ROI channel_roi(const ImageBuf& noisy, int channel)
     return r;
 }
 
-// The exact bits of `channels` (read_plane would sanitize them), one plane each.
+// The exact bits of `channels` (read_plane would sanitize them), one plane each: of a float
+// frame in memory in one pass over its pixels (a pass per channel would pull every cache
+// line of the frame once per channel; the extras are 18 of Blender's channels).
 std::vector<std::vector<float>> exact_bits(const ImageBuf& noisy, const std::vector<int>& channels)
 {
-    std::vector<std::vector<float>> bits(channels.size());
-    for (size_t m = 0; m < channels.size(); ++m) {
-        bits[m].resize(size_t(noisy.spec().width) * noisy.spec().height);
-        noisy.get_pixels(channel_roi(noisy, channels[m]), OIIO::TypeDesc::FLOAT, bits[m].data());
+    const size_t npixels = size_t(noisy.spec().width) * noisy.spec().height;
+    std::vector<std::vector<float>> bits(channels.size(), std::vector<float>(npixels));
+    if (const float* px = float_frame_pixels(noisy)) {
+        const size_t n = size_t(noisy.nchannels());
+        for (size_t i = 0; i < npixels; ++i)
+            for (size_t m = 0; m < channels.size(); ++m)
+                bits[m][i] = px[i * n + size_t(channels[m])];
+        return bits;
     }
+    for (size_t m = 0; m < channels.size(); ++m)
+        noisy.get_pixels(channel_roi(noisy, channels[m]), OIIO::TypeDesc::FLOAT, bits[m].data());
     return bits;
+}
+
+// Exact bits as read_plane would have read them (sanitized), a plane of w x h.
+Plane sanitized(const std::vector<float>& bits, int w, int h)
+{
+    Plane plane(w, h);
+    for (size_t i = 0; i < plane.size(); ++i)
+        plane.px[i] = sanitize(bits[i]);
+    return plane;
 }
 
 void put_back_bits(ImageBuf& noisy, const std::vector<int>& channels,
@@ -277,11 +294,8 @@ bool denoise_in_place(BandState& st, ImageBuf& noisy, const Denoiser& denoiser,
         || !check_finite_in_place(noisy.spec(), frame.extras, st.extras_y_bits, extras_bits, error))
         return false;
     put_back_bits(noisy, frame.extras, extras_bits);
-    for (int c = 0; c < 3; ++c) {  // as read_plane reads them
-        st.y[c] = Plane(st.x[c].width, st.x[c].height);
-        for (size_t i = 0; i < st.y[c].size(); ++i)
-            st.y[c].px[i] = sanitize(st.y_bits[size_t(c)][i]);
-    }
+    for (int c = 0; c < 3; ++c)
+        st.y[c] = sanitized(st.y_bits[size_t(c)], st.x[c].width, st.x[c].height);
     st.result_spec = noisy.spec();
     st.result_spec.erase_attribute(kOutputRoomAttribute);
     st.result_spec.erase_attribute(kConvergedAttribute);
@@ -444,12 +458,11 @@ void write_sure(BandState& st, ImageBuf& dst, const ImageSpec& in_spec, const Ba
     for (const Plane* group : { st.x, estimate, st.divergence, residual })
         for (int c = 0; c < 3; ++c)
             planes.push_back(&group[c]);
-    std::vector<Plane> extras(st.extras_bits.size(), Plane(w, h));  // as read_plane reads them
-    for (size_t e = 0; e < extras.size(); ++e) {
-        for (size_t i = 0; i < extras[e].size(); ++i)
-            extras[e].px[i] = sanitize(st.extras_bits[e][i]);
-        planes.push_back(&extras[e]);
-    }
+    std::vector<Plane> extras;
+    for (const std::vector<float>& bits : st.extras_bits)
+        extras.push_back(sanitized(bits, w, h));
+    for (const Plane& e : extras)
+        planes.push_back(&e);
     if (frame.fallback_channel)
         planes.push_back(&fell_back);
     if (fall_back) {
