@@ -70,7 +70,7 @@ mcdn::InputSelection input_selection(const std::vector<Command>& commands)
             selection.only_roles = false;
         const mcdn::StageInfo* reads = stage_of_command(c.name);
         selection.light_split |= (reads && reads->reads_light_split) || c.name == "--info";
-        halves |= reads && reads->reads_halves && reads->reads_halves(c.modifiers);
+        halves |= reads && reads->reads_halves(c.modifiers);
         variance |=
             c.name == "-i" && (c.modifier("as") == "variance" || c.modifier("as") == "seed");
         if (reads && c.has("features"))  // a stage's extra feature channels

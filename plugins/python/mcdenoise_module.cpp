@@ -329,8 +329,8 @@ void bind_chains(py::module_& m)
             o.progress = reporter.callback();
             bool halves = false;  // a stage that reads them (NFOR, its prefilter)
             for (const std::string& name : o.stages)
-                if (const mcdn::StageInfo* stage = mcdn::find_stage(name); stage->reads_halves)
-                    halves |= stage->reads_halves(mcdn::stage_settings(settings, name));
+                halves |=
+                    mcdn::find_stage(name)->reads_halves(mcdn::stage_settings(settings, name));
             return reporter.run_with([&] {
                 return run(src, o.aovs, halves ? Halves::Read : Halves::WithoutVariance,
                            [&](ImageBuf& d, const ImageBuf& s) {

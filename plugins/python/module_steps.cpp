@@ -129,7 +129,7 @@ mcdn::Denoiser named_denoiser(const std::string& chain, const mcdn::AovSpec& spe
             throw std::runtime_error("sure: " + name + ": " + error);
         denoisers.emplace_back(name, std::move(made.run));
         reach.push_back(made.reach);
-        reads_halves |= stage.reads_halves && stage.reads_halves(settings);
+        reads_halves |= stage.reads_halves(settings);
     }
     radius = mcdn::chain_radius(reach);
     return mcdn::compose(std::move(denoisers));

@@ -64,6 +64,17 @@ struct StageFacts {
     bool exposure = false;           ///< the colour's autoexposure (OIDN's networks)
 };
 
+/// StageInfo::reads_halves of a stage that reads no half files with any settings, and of one
+/// that reads them with any (NFOR, its prefilter).
+inline bool never_reads_halves(const Settings&)
+{
+    return false;
+}
+inline bool always_reads_halves(const Settings&)
+{
+    return true;
+}
+
 struct StageInfo {
     std::string name;                  ///< "nfor": chains, recipes, Python; mcdntool's --nfor
     std::vector<std::string> aliases;  ///< other names find_stage() accepts
@@ -80,9 +91,9 @@ struct StageInfo {
     /// probed input itself when it is SURE's only denoiser.
     bool probes_in_place = false;
     /// What it reads of variance and half files (mcdn::InputSelection): the halves of the
-    /// colour and features (else the variance serves) with these settings (null: never),
-    /// the light split's components.
-    bool (*reads_halves)(const Settings& settings) = nullptr;
+    /// colour and features (else the variance serves) with these settings, the light
+    /// split's components.
+    bool (*reads_halves)(const Settings& settings) = never_reads_halves;
     bool reads_light_split = false;
     StageFacts facts;
     /// Frame-sized float buffers of the merged input it adds at its peak.

@@ -48,11 +48,6 @@ inline bool has_features(const AovSet& aovs)
     return false;
 }
 
-// StageInfo::reads_halves of a stage that reads them with any settings (NFOR, its prefilter).
-inline bool always(const Settings&)
-{
-    return true;
-}
 
 inline bool has_halves(const AovSet& aovs)
 {

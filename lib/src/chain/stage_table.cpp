@@ -62,7 +62,7 @@ StageInfo prefilter_stage()
     s.name = "prefilter";
     s.keys = { "window", "patch", "k", "features", "features-out", "skip", "converged" };
     s.changes_features = true;
-    s.reads_halves = always;
+    s.reads_halves = always_reads_halves;
     s.facts.constant_features = true;
     s.frame_buffers = 0.5;  // the prefiltered features beside the frame
     s.help = "NFOR feature prefilter (§5.1): NL-means cross-filtering of albedo, normal, depth "
@@ -112,7 +112,7 @@ StageInfo nfor_stage()
                "features", "features-out", "halves", "extras",   "outliers",
                "fallback", "fallback-aov", "skip",   "converged" };
     s.cross_frame = true;
-    s.reads_halves = always;
+    s.reads_halves = always_reads_halves;
     s.facts.color_sums = true;
     s.facts.constant_features = true;
     s.frame_buffers = 2.0;  // the result and the per-buffer regression outputs
