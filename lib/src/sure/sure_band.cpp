@@ -225,9 +225,18 @@ Plane sanitized(const std::vector<float>& bits, int w, int h)
     return plane;
 }
 
+// exact_bits' inverse, in one pass over a float frame in memory as well.
 void put_back_bits(ImageBuf& noisy, const std::vector<int>& channels,
                    const std::vector<std::vector<float>>& bits)
 {
+    if (float* px = const_cast<float*>(float_frame_pixels(noisy))) {
+        const size_t npixels = size_t(noisy.spec().width) * noisy.spec().height;
+        const size_t n = size_t(noisy.nchannels());
+        for (size_t i = 0; i < npixels; ++i)
+            for (size_t m = 0; m < channels.size(); ++m)
+                px[i * n + size_t(channels[m])] = bits[m][i];
+        return;
+    }
     for (size_t m = 0; m < channels.size(); ++m)
         noisy.set_pixels(channel_roi(noisy, channels[m]), OIIO::TypeDesc::FLOAT, bits[m].data());
 }
