@@ -36,10 +36,24 @@ void set_chain_bands(mcdn::ChainOptions& chain)
         chain.band_halos = 0;  // exactly the bands asked for
 }
 
+namespace {
+
+// --threads, -v, --frames, ...: set once for the run wherever they stand (oiiotool's -v
+// likewise), so they neither end a streamed chain nor are a stage of it.
+bool is_global(const Command& c)
+{
+    const CommandInfo* info = find_command(c.name);
+    return info && info->global;
+}
+
+}  // namespace
+
 void set_chain_stages(mcdn::ChainOptions& chain, const std::vector<Command>& commands, size_t first)
 {
     chain.stages.clear();
     for (size_t i = first; i + 1 < commands.size(); ++i) {
+        if (is_global(commands[i]))
+            continue;
         const std::string stage = commands[i].name.substr(2);
         chain.stages.push_back(stage);
         for (const auto& [key, value] : commands[i].modifiers)
@@ -49,32 +63,31 @@ void set_chain_stages(mcdn::ChainOptions& chain, const std::vector<Command>& com
 
 size_t streamed_chain_start(const std::vector<Command>& commands)
 {
-    // -i and --aov commands (and those set once for the run: --threads), then stages only,
-    // then one -o, last.
+    // -i and --aov commands, then stages only, then one -o, last; the commands set once
+    // for the run (is_global) anywhere.
     auto setup = [](const Command& c) {
-        const CommandInfo* info = find_command(c.name);
-        return c.name == "-i" || c.name == "--aov" || (info && info->global);
+        return c.name == "-i" || c.name == "--aov" || is_global(c);
     };
     size_t first = 0;
     while (first < commands.size() && setup(commands[first]))
         ++first;
     if (first == commands.size() || !is_stage(commands[first].name) || commands.back().name != "-o")
         return 0;
-    for (size_t i = first; i + 1 < commands.size(); ++i)
-        if (!is_stage(commands[i].name))
-            return 0;
-    // A cross-frame stage aligns its neighbours to the whole frame.
-    for (size_t i = first; i + 1 < commands.size(); ++i)
-        if (commands[i].has("frames"))
-            return 0;
-    // A plan (--denoise) picks its stages itself: alone or not at all.
-    const size_t stages = commands.size() - 1 - first;
-    for (size_t i = first; i + 1 < commands.size(); ++i)
-        if (stage_of_command(commands[i].name)->kind == mcdn::StageKind::Plan && stages != 1)
-            return 0;
     std::vector<std::string> names, unused;
-    for (size_t i = first; i + 1 < commands.size(); ++i)
+    for (size_t i = first; i + 1 < commands.size(); ++i) {
+        if (is_global(commands[i]))
+            continue;
+        // A cross-frame stage aligns its neighbours to the whole frame.
+        if (!is_stage(commands[i].name) || commands[i].has("frames"))
+            return 0;
         names.push_back(commands[i].name.substr(2));
+    }
+    // A plan (--denoise) picks its stages itself: alone or not at all.
+    for (size_t i = first; i + 1 < commands.size(); ++i)
+        if (!is_global(commands[i])
+            && stage_of_command(commands[i].name)->kind == mcdn::StageKind::Plan
+            && names.size() != 1)
+            return 0;
     std::string error;
     return mcdn::parse_chain(unused, Strutil::join(names, ","), error) ? first : 0;
 }

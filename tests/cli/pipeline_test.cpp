@@ -304,7 +304,9 @@ TEST(Pipeline, StagesAndOneOutputStreamInBands)
     for (const char* chain : { "--denoise", "--cnn", "--nfor --sure --mix:model=analytic" }) {
         const std::string streamed = dir + "/s" + std::to_string(k) + ".exr";
         const std::string by_command = dir + "/c" + std::to_string(k++) + ".exr";
-        auto run = run_mcdntool("-v " + in + " " + chain + " -o " + quote(streamed),
+        // -v and --threads after the stages, as oiiotool takes them: set for the run, the
+        // chain still streams (they once made it run command by command, the frame whole).
+        auto run = run_mcdntool(in + " " + chain + " -v --threads 2 -o " + quote(streamed),
                                 "MCDN_BAND_PIXELS=1024");
         ASSERT_EQ(run.exit_code, 0) << run.output;
         EXPECT_NE(run.output.find("in 2 band(s) of rows"), std::string::npos) << run.output;
