@@ -339,6 +339,12 @@ bool run_frame(const std::vector<Command>& commands, const std::string& history,
         if (streamed)
             return true;
         next = first_stage;
+    } else if (verbose && std::any_of(commands.begin(), commands.end(), [](const Command& c) {
+                   return is_stage(c.name);
+               })) {
+        std::cerr << "mcdntool: the stages run command by command, the frame whole in memory "
+                     "(a command line of -i and --aov, stages, one -o last streams in bands "
+                     "of rows)\n";
     }
     if (!run_commands(session, commands, next, commands.size(), error))
         return false;

@@ -323,8 +323,10 @@ TEST(Pipeline, StagesAndOneOutputStreamInBands)
         };
         EXPECT_NE(converged_line(whole.output), "") << whole.output;
         EXPECT_EQ(converged_line(run.output), converged_line(whole.output)) << chain;
-        run = run_mcdntool(in + " --fixnan none " + chain + " -o " + quote(by_command));
+        run = run_mcdntool(in + " --fixnan none " + chain + " -v -o " + quote(by_command));
         ASSERT_EQ(run.exit_code, 0) << run.output;
+        EXPECT_NE(run.output.find("the stages run command by command"), std::string::npos)
+            << run.output;
         OIIO::ImageBuf a(streamed), b(by_command);
         ASSERT_EQ(a.spec().channelnames, b.spec().channelnames) << chain;
         EXPECT_EQ(a.spec().get_string_attribute("Software"),
