@@ -27,8 +27,9 @@ struct Band {
 };
 
 /// The bands run_in_bands cuts `whole` into: one band (the whole frame) when it has at most
-/// band_pixels pixels or band_pixels <= 0; else equal bands of at most band_pixels own
-/// pixels, starts and halos rounded to whole converged tiles (mcdn/skip.h).
+/// band_pixels pixels or band_pixels <= 0; else at least two bands of equal cuts (own rows
+/// and halos): at most band_pixels own pixels each, a halo's rows more for the first and the
+/// last, starts and halos rounded to whole converged tiles (mcdn/skip.h).
 std::vector<Band> plan_bands(const ROI& whole, int halo, int64_t band_pixels);
 /// How many bands run_in_bands (run_local_op) runs src in: 1 when it runs it whole.
 int band_count(const ROI& whole, int halo, int64_t band_pixels);
