@@ -248,6 +248,23 @@ std::vector<std::string> sure_room(const ImageSpec& frame, const ChainOptions& o
     return room;
 }
 
+// A zeroed frame of `frame`'s channels and `room` after them, rows [y0, y1): what a
+// RowReader reads into, leaving the room as it is.
+bool allocate_with_room(ImageBuf& dst, const ImageSpec& frame, const std::vector<std::string>& room,
+                        int y0, int y1, std::string& error)
+{
+    ImageSpec spec = frame;
+    spec.y = y0;
+    spec.height = y1 - y0;
+    for (const std::string& name : room)
+        spec.channelnames.push_back(name);
+    spec.nchannels = int(spec.channelnames.size());
+    if (allocate_frame(dst, spec, true))
+        return true;
+    error = "chain: " + dst.geterror();
+    return false;
+}
+
 // The bands of a frame through the chain, once the frame's facts are known: `rows` gives a
 // band's rows (its cut), every channel, in the working space; with `convert`, converted
 // there from `from` (each result goes back).
@@ -397,16 +414,9 @@ bool run_chain(const ImageSpec& frame, const RowReader& read, const ChainOptions
         // input has room for its channels (SureOptions::denoiser_in_place): read into a
         // frame that has them, zero, after the frame's own.
         const std::vector<std::string> room = sure_room(frame, o);
-        if (!room.empty()) {
-            ImageSpec spec = frame;
-            for (const std::string& name : room)
-                spec.channelnames.push_back(name);
-            spec.nchannels = int(spec.channelnames.size());
-            if (!allocate_frame(input, spec, true)) {
-                error = "chain: " + input.geterror();
-                return false;
-            }
-        }
+        if (!room.empty()
+            && !allocate_with_room(input, frame, room, whole.ybegin, whole.yend, error))
+            return false;
         return read(input, whole.ybegin, whole.yend, {}, error)
                && run_whole(input, &input, o, sink, error, nthreads);
     }
@@ -443,7 +453,13 @@ bool run_chain(const ImageSpec& frame, const RowReader& read, const ChainOptions
     light_rows.reset();
     const FrameFacts facts = light.facts();
     trace.mark("light pass (frame facts)");
+    // Each band read with sure's room, as the whole frame above: sure then probes the
+    // denoiser in the band itself, not in a copy of it (8K --denoise: 2.8 GB a band).
+    const std::vector<std::string> room = sure_room(frame, o);
     auto rows = [&](ImageBuf& band, const Band& cut, std::string& error) {
+        if (!room.empty()
+            && !allocate_with_room(band, frame, room, cut.cut.ybegin, cut.cut.yend, error))
+            return false;
         return read_working(band, cut.cut.ybegin, cut.cut.yend, {}, error);
     };
     return run_bands(bands, whole, facts, rows, from, convert, o, sink, error, nthreads);
