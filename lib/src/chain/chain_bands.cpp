@@ -224,6 +224,10 @@ int chain_reach(const ImageSpec& spec, const ChainOptions& given)
 
 namespace {
 
+// The rows the light pass reads at a time: whole converged tiles (mcdn/skip.h), as the
+// reader's counts of them expect (mcdntool counts the tiles of each read's rows).
+constexpr int kLightPassRows = 8 * kConvergedTileSize;
+
 // Sure's channels when the chain's sure probes the cnn alone (run_stages), else none.
 std::vector<std::string> sure_room(const ImageSpec& frame, const ChainOptions& o)
 {
@@ -438,15 +442,18 @@ bool run_chain(const ImageSpec& frame, const RowReader& read, const ChainOptions
     };
     StageTrace trace("chain");
     trace.mark("(before the chain)");
-    // The light pass reads the frame a band's own rows at a time, only the channels it
-    // looks at (the files of the others are not decoded).
+    // The light pass reads the frame kLightPassRows at a time, top to bottom, only the
+    // channels it looks at (the files of the others are not decoded). Its facts do not
+    // depend on where the reads cut the rows; its buffer holds every channel, so a band's
+    // rows at a time made it a third of the bands' peak at 8K, left in the heap's way.
     std::vector<std::string> stages;
     if (!resolved_stages(stages, frame, o, error))
         return false;
     LightPass light(frame, aovs, o, stages);
-    ImageBuf light_rows;  // read into again: one band's pages for the pass
-    for (const Band& band : bands) {
-        if (!read_working(light_rows, band.own_begin, band.own_end, light.channels(), error))
+    ImageBuf light_rows;  // read into again: one read's pages for the pass
+    for (int y0 = whole.ybegin; y0 < whole.yend; y0 += kLightPassRows) {
+        const int y1 = std::min(whole.yend, y0 + kLightPassRows);
+        if (!read_working(light_rows, y0, y1, light.channels(), error))
             return false;
         light.add(light_rows);
     }
