@@ -74,20 +74,19 @@ size_t streamed_chain_start(const std::vector<Command>& commands)
     if (first == commands.size() || !is_stage(commands[first].name) || commands.back().name != "-o")
         return 0;
     std::vector<std::string> names, unused;
+    bool plan = false;
     for (size_t i = first; i + 1 < commands.size(); ++i) {
         if (is_global(commands[i]))
             continue;
         // A cross-frame stage aligns its neighbours to the whole frame.
         if (!is_stage(commands[i].name) || commands[i].has("frames"))
             return 0;
+        plan |= stage_of_command(commands[i].name)->kind == mcdn::StageKind::Plan;
         names.push_back(commands[i].name.substr(2));
     }
     // A plan (--denoise) picks its stages itself: alone or not at all.
-    for (size_t i = first; i + 1 < commands.size(); ++i)
-        if (!is_global(commands[i])
-            && stage_of_command(commands[i].name)->kind == mcdn::StageKind::Plan
-            && names.size() != 1)
-            return 0;
+    if (plan && names.size() != 1)
+        return 0;
     std::string error;
     return mcdn::parse_chain(unused, Strutil::join(names, ","), error) ? first : 0;
 }
