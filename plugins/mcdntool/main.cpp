@@ -36,12 +36,6 @@ namespace Strutil = OIIO::Strutil;
 
 namespace {
 
-// What the command line's stages read of the variance and half-buffer files: the faces of
-// the roles, and the halves only where NFOR or its prefilter runs (StageInfo::reads_halves:
-// --denoise and --choose run it beside the CNN; or where no variance is given, from which the
-// stages then take the halves' difference), the light split's only for the CNN.
-// Everything when a command names channels. --info without a stage reads what any stage
-// could, so that it says what each can do with the files given.
 // Whether a stage of the command line denoises the extra AOVs (a denoiser or plan with the
 // `extras` key, not set to 0), for -v.
 bool denoises_extras(const std::vector<Command>& commands)
@@ -56,12 +50,19 @@ bool denoises_extras(const std::vector<Command>& commands)
     return false;
 }
 
+// What the command line's stages read of the variance and half-buffer files: the faces of
+// the roles, and the halves only where NFOR or its prefilter runs (StageInfo::reads_halves:
+// --denoise and --choose run it beside the CNN; or where no variance is given, from which the
+// stages then take the halves' difference), the light split's only for the CNN, and only
+// the colour's where every stage reads no other (StageInfo::reads_all_variances: --oidn).
+// Everything when a command names channels. --info without a stage reads what any stage
+// could, so that it says what each can do with the files given.
 mcdn::InputSelection input_selection(const std::vector<Command>& commands)
 {
     mcdn::InputSelection selection;
     selection.only_roles = true;
     selection.light_split = false;
-    bool halves = false, variance = false, info = false, stage = false;
+    bool halves = false, variance = false, info = false, stage = false, all_variances = false;
     for (const auto& c : commands) {
         info |= c.name == "--info";
         stage |= is_stage(c.name);
@@ -71,6 +72,7 @@ mcdn::InputSelection input_selection(const std::vector<Command>& commands)
         const mcdn::StageInfo* reads = stage_of_command(c.name);
         selection.light_split |= (reads && reads->reads_light_split) || c.name == "--info";
         halves |= reads && reads->reads_halves(c.modifiers);
+        all_variances |= reads && reads->reads_all_variances;
         variance |=
             c.name == "-i" && (c.modifier("as") == "variance" || c.modifier("as") == "seed");
         if (reads && c.has("features"))  // a stage's extra feature channels
@@ -78,6 +80,7 @@ mcdn::InputSelection input_selection(const std::vector<Command>& commands)
                 selection.extra_features.push_back(f);
     }
     selection.halves = halves || !variance || (info && !stage);
+    selection.all_variances = all_variances || info || !stage;
     return selection;
 }
 

@@ -415,6 +415,49 @@ TEST(Oidn, HalvesReadOnlyWhereNforRuns)
     std::remove((folder + "/rt_hdr_alb_nrm.tza").c_str());
 }
 
+// --oidn reads the variance of the colour alone (its outlier rule), none of the other roles'
+// faces (mcdntool's input selection): the 8K band held 70 channels of Blender's four files
+// where it needs 42. What -o writes is what reading every channel gives.
+TEST(Oidn, ReadsNoVarianceButTheColours)
+{
+    for (const StageInfo& stage : stage_table())
+        EXPECT_EQ(stage.reads_all_variances, stage.name != "oidn") << stage.name;
+    const std::string folder = mcdn_test::temp_dir("oidn_variances");
+    const std::string path = folder + "/rt_hdr_alb_nrm.tza";
+    write_tiny_tza(path, 9, 8, 17);
+    const std::string stem = mcdn_test::test_data("box16/box_0016spp");
+    const std::vector<InputFile> files = { { stem + ".exr", InputKind::Mean },
+                                           { stem + "_var.exr", InputKind::Variance },
+                                           { stem + "_A.exr", InputKind::HalfA },
+                                           { stem + "_B.exr", InputKind::HalfB } };
+    InputSelection selection;
+    selection.only_roles = true;
+    selection.light_split = false;
+    selection.halves = false;
+    selection.all_variances = false;
+    ImageBuf all, some;
+    ASSERT_TRUE(read_inputs(all, files)) << all.geterror();
+    ASSERT_TRUE(read_inputs(some, files, selection)) << some.geterror();
+    for (const char* name : { "variance.ViewLayer.Combined.R", "variance.ViewLayer.Combined.B",
+                              "ViewLayer.DiffDir.R", "ViewLayer.Denoising Albedo.G" })
+        EXPECT_GE(some.spec().channelindex(name), 0) << name;
+    for (const char* name : { "variance.ViewLayer.DiffDir.R", "variance.ViewLayer.Emit.G",
+                              "variance.ViewLayer.Denoising Albedo.R", "A.ViewLayer.Combined.R" }) {
+        EXPECT_GE(all.spec().channelindex(name), 0) << name;
+        EXPECT_LT(some.spec().channelindex(name), 0) << name;
+    }
+    ChainOptions o;
+    o.stages = { "oidn" };
+    o.settings = { { "oidn.weights", path } };
+    o.band_pixels = 0;
+    ImageBuf expected, result;
+    ASSERT_TRUE(run_chain(expected, all, o, {}, 2)) << expected.geterror();
+    o.output_channels_only = true;
+    ASSERT_TRUE(run_chain(result, some, o, {}, 2)) << result.geterror();
+    mcdn_test::expect_output_channels_equal(expected, result, all);
+    std::remove(path.c_str());
+}
+
 TEST(Oidn, ErrorsNameTheFileAndWhereWeightsComeFrom)
 {
     const ImageBuf src = render(32, 32, 6);

@@ -11,6 +11,7 @@
 
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imagebuf.h>
+#include <OpenImageIO/imagebufalgo.h>
 #include <OpenImageIO/strutil.h>
 
 namespace mcdn_test {
@@ -119,6 +120,24 @@ const std::string kWithoutRootsPowers = "setpriv --bounding-set=-all --inh-caps=
 inline std::string quote(const std::string& s)
 {
     return "'" + s + "'";
+}
+
+/// What -o writes of `expected` and `result` (the "mcdn:output_channels" of `input`, the
+/// frame read with every channel), channel by channel by name: identical.
+inline void expect_output_channels_equal(const OIIO::ImageBuf& expected,
+                                         const OIIO::ImageBuf& result, const OIIO::ImageBuf& input)
+{
+    const std::vector<std::string> output =
+        OIIO::Strutil::splits(input.spec().get_string_attribute("mcdn:output_channels"), "\n");
+    ASSERT_FALSE(output.empty());
+    for (const std::string& name : output) {
+        const int e = expected.spec().channelindex(name), r = result.spec().channelindex(name);
+        ASSERT_GE(e, 0) << name;
+        ASSERT_GE(r, 0) << name;
+        OIIO::ImageBuf a = OIIO::ImageBufAlgo::channels(expected, 1, { e });
+        OIIO::ImageBuf b = OIIO::ImageBufAlgo::channels(result, 1, { r });
+        EXPECT_EQ(OIIO::ImageBufAlgo::compare(a, b, 0, 0).maxerror, 0.0) << name;
+    }
 }
 
 }  // namespace mcdn_test

@@ -55,10 +55,14 @@ bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs);
 /// `light_split` false, no face of the light components that only the CNN splits the colour
 /// into (diffuse, specular and Blender's factors of them, emission, environment, the
 /// transmission passes): a chain without the CNN. Their means are read (they are written).
+/// With `all_variances` false, of the variance and half files only the colour's faces: a
+/// chain whose stages read no other role's variance (--oidn: its outlier rule reads the
+/// colour's).
 struct InputSelection {
     bool only_roles = false;
     bool halves = true;
     bool light_split = true;
+    bool all_variances = true;
     AovSpec aovs;
     std::vector<std::string> extra_features;
     /// Blender view layers whose faces are read too, each as `aovs` with its layer (a

@@ -95,6 +95,9 @@ struct StageInfo {
     /// split's components.
     bool (*reads_halves)(const Settings& settings) = never_reads_halves;
     bool reads_light_split = false;
+    /// Reads the variance (or halves) of other roles than the colour: of the features, the
+    /// light passes, the extras (InputSelection::all_variances).
+    bool reads_all_variances = true;
     StageFacts facts;
     /// Frame-sized float buffers of the merged input it adds at its peak.
     double frame_buffers = 0;

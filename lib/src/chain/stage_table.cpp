@@ -305,6 +305,7 @@ StageInfo oidn_stage()
         return oidn_settings(o, settings, error);
     };
     s.make = make_oidn;
+    s.reads_all_variances = false;  // the colour's, for its outlier rule
     s.reach = [](const Settings& settings, const std::string&) {
         OidnOptions o;
         std::string error;

@@ -1,5 +1,7 @@
 // Which faces of the variance and half-buffer files a run reads (mcdn/io.h InputSelection):
 // those of the roles its stages read, decided from the files' channel names alone.
+#include <algorithm>
+
 #include <OpenImageIO/strutil.h>
 
 #include "aov/transmission.h"
@@ -18,6 +20,16 @@ bool is_light_split(Role r)
            || r == Role::DiffuseDirect || r == Role::DiffuseIndirect || r == Role::GlossyColor
            || r == Role::GlossyDirect || r == Role::GlossyIndirect || r == Role::Emission
            || r == Role::Environment;
+}
+
+// A feature's variance or half (InputSelection::all_variances).
+bool is_feature_face(Role r)
+{
+    for (Role base : { Role::Albedo, Role::Normal, Role::Depth, Role::Visibility })
+        for (Face face : { Face::Variance, Face::HalfA, Face::HalfB })
+            if (r == face_of(base, face))
+                return true;
+    return false;
 }
 
 }  // namespace
@@ -51,7 +63,8 @@ std::set<std::string> selected_faces(const ImageSpec& spec, const InputSelection
             wanted.insert(spec.channelnames[c]);
     };
     for (int r = 0; r < kRoleCount; ++r)
-        if (selection.light_split || !is_light_split(Role(r)))
+        if ((selection.light_split || !is_light_split(Role(r)))
+            && (selection.all_variances || !is_feature_face(Role(r))))
             add(aovs.channels(Role(r)));
     for (const AovSet::Extra& e : aovs.extras()) {
         add(e.channels);
@@ -65,13 +78,17 @@ std::set<std::string> selected_faces(const ImageSpec& spec, const InputSelection
             if (selection.light_split && spec.channelindex(name) >= 0)
                 wanted.insert(name);
     // Every face of each of them: roles without faces of their own (Blender's DiffCol,
-    // GlossDir, ...) have their variance read by name too (the CNN's delta method).
+    // GlossDir, ...) have their variance read by name too (the CNN's delta method); without
+    // all_variances, the colour's alone (its variance, or the halves that make it).
     std::vector<std::string> means(selection.extra_features);
     for (const std::string& name : wanted)
         means.push_back(name);
+    const std::vector<std::string> color = aovs.names(Role::Color);
     for (const std::string& name : means)
         for (InputKind k : { InputKind::Variance, InputKind::HalfA, InputKind::HalfB })
-            wanted.insert(input_kind_prefix(k) + name);
+            if (selection.all_variances
+                || std::find(color.begin(), color.end(), name) != color.end())
+                wanted.insert(input_kind_prefix(k) + name);
     // Without halves none is read (the half files are not even decoded): that each half file
     // supplies the colour's half is checked here, from the headers, not by validate_inputs.
     if (!selection.halves) {
