@@ -54,7 +54,8 @@ bool denoises_extras(const std::vector<Command>& commands)
 // the roles, and the halves only where NFOR or its prefilter runs (StageInfo::reads_halves:
 // --denoise and --choose run it beside the CNN; or where no variance is given, from which the
 // stages then take the halves' difference), the light split's only for the CNN, and only
-// the colour's where every stage reads no other (StageInfo::reads_all_variances: --oidn).
+// the colour's where every stage reads no other (StageInfo::reads_all_variances: --oidn,
+// --sure, --mix).
 // Everything when a command names channels. --info without a stage reads what any stage
 // could, so that it says what each can do with the files given.
 mcdn::InputSelection input_selection(const std::vector<Command>& commands)

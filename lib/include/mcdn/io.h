@@ -56,8 +56,8 @@ bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs);
 /// into (diffuse, specular and Blender's factors of them, emission, environment, the
 /// transmission passes): a chain without the CNN. Their means are read (they are written).
 /// With `all_variances` false, of the variance and half files only the colour's faces: a
-/// chain whose stages read no other role's variance (--oidn: its outlier rule reads the
-/// colour's).
+/// chain whose stages read no other role's variance (--oidn, whose outlier rule reads the
+/// colour's; --sure; --mix).
 struct InputSelection {
     bool only_roles = false;
     bool halves = true;
