@@ -103,6 +103,42 @@ TEST(NnOps, AnUpsampleReadOnlyByAConcatIsFusedIntoIt)
     EXPECT_EQ(onednn_vs_reference(shared, { input }), 0.0);
 }
 
+TEST(NnOps, AConvOfAnUpsampledConcatRunsOnTheHalfResolutionInput)
+{
+    // A UNet decoder's conv: conv3x3(concat(upsample2(deep), skip)). The oneDNN plan makes
+    // neither the upsample nor the concat (an upconv: the four output phases as one 2×2 conv
+    // of `deep`, then the skip's conv summed in) and gives the reference's values, at the
+    // image's border too (zero padding at both resolutions).
+    for (Activation activation : { Activation::relu, Activation::none }) {
+        Net net("decoder");
+        Value x = net.input("x", 5);
+        Value deep = net.conv(net.max_pool2(x), "deep", 7, 3);
+        Value joined = net.concat({ net.upsample2(deep), x });
+        net.output("out", net.conv(joined, "dec", 6, 3, activation));
+        const Tensor input = random_tensor(10, 14, 5, 9);
+        EXPECT_LT(onednn_vs_reference(net, { input }), tolerance);
+        const std::vector<Step> fused =
+            plan_steps(net.nodes(), { int(net.nodes().size()) - 1 }, true);
+        EXPECT_EQ(std::count_if(fused.begin(), fused.end(),
+                                [](const Step& step) { return step.kind == Step::Kind::upconv; }),
+                  1);
+        EXPECT_TRUE(std::none_of(fused.begin(), fused.end(), [](const Step& step) {
+            return step.kind == Step::Kind::concat || step.kind == Step::Kind::upsample2;
+        }));
+    }
+    // The concat read by another node too: made, and the conv runs as written.
+    Net shared("shared");
+    Value y = shared.input("y", 4);
+    Value joined = shared.concat({ shared.upsample2(shared.max_pool2(y)), y });
+    shared.output("out", shared.conv(joined, "dec", 3, 3));
+    shared.output("joined", joined);
+    EXPECT_LT(onednn_vs_reference(shared, { random_tensor(8, 6, 4, 3) }), tolerance);
+    const int conv = int(shared.nodes().size()) - 1;
+    const std::vector<Step> steps = plan_steps(shared.nodes(), { conv, conv - 1 }, true);
+    EXPECT_TRUE(std::none_of(steps.begin(), steps.end(),
+                             [](const Step& step) { return step.kind == Step::Kind::upconv; }));
+}
+
 TEST(NnOps, ApplyKernelMatchesReference)
 {
     for (int kernel : { 1, 3, 5, 21 }) {

@@ -45,6 +45,11 @@ struct Schedule {
     /// An upsample2 read only by a concat (a UNet's decoder) is never run: the concat reads
     /// its input at half resolution. upsample_into[upsample] = the concat, else -1.
     std::vector<int> upsample_into;
+    /// A 3×3 conv (with no add fused) whose input is such a concat of two, read by it alone,
+    /// is an upconv (UpConvLayer): it reads the upsample's input and the skip, and the concat
+    /// is never made. upconv[conv] = 1, concat_into[concat] = the conv, else -1.
+    std::vector<char> upconv;
+    std::vector<int> concat_into;
 };
 
 Schedule make_schedule(const std::vector<Net::Node>& nodes, const std::vector<int>& outputs,
@@ -61,6 +66,8 @@ Schedule make_schedule(const std::vector<Net::Node>& nodes, const std::vector<in
     schedule.view_of.assign(count, -1);
     schedule.fused_head.assign(count, 0);
     schedule.upsample_into.assign(count, -1);
+    schedule.upconv.assign(count, 0);
+    schedule.concat_into.assign(count, -1);
     std::vector<int> readers(count, 0), kernel_readers(count, 0);
     for (int id = 0; id < count; ++id)
         for (size_t k = 0; k < nodes[id].inputs.size(); ++k) {
@@ -117,6 +124,21 @@ Schedule make_schedule(const std::vector<Net::Node>& nodes, const std::vector<in
                 std::max(schedule.last_reader[features], schedule.last_reader[id]);
         }
     }
+    for (int id = 0; fuse && id < count; ++id) {
+        const Net::Node& node = nodes[id];
+        if (node.op != Net::Op::conv || node.kernel != 3 || schedule.fused_add[id] >= 0
+            || schedule.fused_head[id])
+            continue;
+        const int joined = node.inputs[0];
+        if (nodes[joined].op != Net::Op::concat || readers[joined] != 1
+            || nodes[joined].inputs.size() != 2
+            || schedule.upsample_into[nodes[joined].inputs[0]] != joined)
+            continue;
+        schedule.upconv[id] = 1;
+        schedule.concat_into[joined] = id;
+        for (int read : { nodes[nodes[joined].inputs[0]].inputs[0], nodes[joined].inputs[1] })
+            schedule.last_reader[read] = std::max(schedule.last_reader[read], id);
+    }
     for (int conv = 0; conv < count; ++conv) {
         const int add = schedule.fused_add[conv], residual = schedule.residual_of[conv];
         if (add >= 0)
@@ -126,7 +148,8 @@ Schedule make_schedule(const std::vector<Net::Node>& nodes, const std::vector<in
     }
     for (int id = 0; id < count; ++id)
         if (schedule.last_reader[id] >= 0 && schedule.last_reader[id] < count
-            && !schedule.fused_head[id] && schedule.upsample_into[id] < 0)
+            && !schedule.fused_head[id] && schedule.upsample_into[id] < 0
+            && schedule.concat_into[id] < 0)
             schedule.free_after[schedule.last_reader[id]].push_back(id);
     return schedule;
 }
@@ -148,7 +171,9 @@ std::vector<Step> plan_steps(const std::vector<Net::Node>& nodes, const std::vec
         case Net::Op::conv:
             if (schedule.fused_head[id])
                 break;  // computed inside the apply_kernels that read it
-            if (schedule.fused_add[id] >= 0) {
+            if (schedule.upconv[id])
+                step.kind = Step::Kind::upconv;
+            else if (schedule.fused_add[id] >= 0) {
                 step.kind = Step::Kind::conv_sum;
                 step.other = schedule.residual_of[id];
                 step.in_place = schedule.accumulate_in_place[id];
@@ -173,6 +198,8 @@ std::vector<Step> plan_steps(const std::vector<Net::Node>& nodes, const std::vec
             steps.push_back(step);
             break;
         case Net::Op::concat:
+            if (schedule.concat_into[id] >= 0)
+                break;  // read by its upconv as its two parts
             step.kind = Step::Kind::concat;
             for (int in : node.inputs)
                 step.upsampled.push_back(schedule.upsample_into[in] == id);
@@ -229,6 +256,29 @@ StoragePlan plan_storage(std::vector<Step>& steps, const std::vector<Net::Node>&
             busy[size_t(home[size_t(id)])] = 0;
         home[size_t(id)] = -1;
     };
+    // The smallest free slot that holds `floats` a pixel, else the largest free one (grown
+    // to it), else a new one; busy from now on.
+    auto take_slot = [&](double floats) {
+        int fits = -1, largest = -1;
+        for (int k = 0; k < int(busy.size()); ++k) {
+            if (busy[size_t(k)])
+                continue;
+            const double size = plan.slot_floats[size_t(k)];
+            if (size >= floats && (fits < 0 || size < plan.slot_floats[size_t(fits)]))
+                fits = k;
+            if (largest < 0 || size > plan.slot_floats[size_t(largest)])
+                largest = k;
+        }
+        int slot = fits >= 0 ? fits : largest;
+        if (slot < 0) {
+            slot = int(busy.size());
+            busy.push_back(0);
+            plan.slot_floats.push_back(0);
+        }
+        plan.slot_floats[size_t(slot)] = std::max(plan.slot_floats[size_t(slot)], floats);
+        busy[size_t(slot)] = 1;
+        return slot;
+    };
     for (Step& step : steps) {
         if (step.kind == Step::Kind::take || (step.kind == Step::Kind::conv_sum && step.in_place)) {
             home[size_t(step.id)] = home[size_t(step.other)];  // handed on with its storage
@@ -236,26 +286,14 @@ StoragePlan plan_storage(std::vector<Step>& steps, const std::vector<Net::Node>&
         } else if (computes_into_storage(step)) {
             const Net::Node& node = nodes[size_t(step.id)];
             const double floats = double(node.channels) / (double(node.scale) * node.scale);
-            int fits = -1, largest = -1;
-            for (int k = 0; k < int(busy.size()); ++k) {
-                if (busy[size_t(k)])
-                    continue;
-                const double size = plan.slot_floats[size_t(k)];
-                if (size >= floats && (fits < 0 || size < plan.slot_floats[size_t(fits)]))
-                    fits = k;
-                if (largest < 0 || size > plan.slot_floats[size_t(largest)])
-                    largest = k;
-            }
-            int slot = fits >= 0 ? fits : largest;
-            if (slot < 0) {
-                slot = int(busy.size());
-                busy.push_back(0);
-                plan.slot_floats.push_back(0);
-            }
-            plan.slot_floats[size_t(slot)] = std::max(plan.slot_floats[size_t(slot)], floats);
-            busy[size_t(slot)] = 1;
-            home[size_t(step.id)] = slot;
-            step.slot = slot;
+            // An upconv's phase: its channels at half the output's resolution; busy while
+            // the output's slot is chosen, free again after the step.
+            if (step.kind == Step::Kind::upconv)
+                step.scratch_slot = take_slot(floats / 4);
+            step.slot = take_slot(floats);
+            home[size_t(step.id)] = step.slot;
+            if (step.scratch_slot >= 0)
+                busy[size_t(step.scratch_slot)] = 0;
         }
         for (int k : step.free_after)
             release(k);

@@ -26,6 +26,8 @@ struct Step {
         view,               ///< channels read where they are (by apply_kernel)
         apply_kernel,       ///< kernels from logits (a value, or a view of one)
         apply_kernel_head,  ///< kernels whose logits the fused 1×1 conv `head` makes per tap
+        upconv,  ///< a 3×3 conv of concat(upsample2(x), skip), neither made (UpConvLayer),
+                 ///< through scratch storage (scratch_slot)
     };
     Kind kind = Kind::conv;
     int id = -1;            ///< the node it computes
@@ -36,6 +38,7 @@ struct Step {
     int first_channel = 0;        ///< apply_kernel(_head): the logits' first channel in `other`
     std::vector<int> free_after;  ///< values whose storage is free once this step has run
     int slot = -1;                ///< the storage slot its value is computed into (StoragePlan)
+    int scratch_slot = -1;        ///< upconv: the slot of its phase scratch, free after it
     /// concat: the inputs read through an upsample2 that has no step of its own (fused:
     /// the concat reads the upsample's input at half resolution), one flag per input.
     std::vector<char> upsampled;
@@ -54,14 +57,14 @@ struct StoragePlan {
 
 /// The steps of `nodes` with `outputs` kept to the end; `fuse` (the oneDNN backend) folds
 /// residual adds into their convolutions, reads kernel logits in place, fuses 1×1 kernel
-/// heads and upsamplings into the concat that reads them; the reference backend runs every
-/// node as written.
+/// heads and upsamplings into the concat that reads them, and a 3×3 conv of such a concat
+/// into the conv (upconv); the reference backend runs every node as written.
 std::vector<Step> plan_steps(const std::vector<Net::Node>& nodes, const std::vector<int>& outputs,
                              bool fuse);
 
-/// The slots of `steps` (setting each Step::slot), by following their births, hand-overs
-/// and frees in order: a value takes the smallest free slot that holds it, else the largest
-/// free slot (grown to it), else a new one. Peak memory then stays near the widest moment
+/// The slots of `steps` (setting each Step::slot and scratch_slot), by following their births,
+/// hand-overs and frees in order: a value takes the smallest free slot that holds it, else the
+/// largest free slot (grown to it), else a new one. Peak memory then stays near the widest moment
 /// of the network instead of every size it ever freed.
 StoragePlan plan_storage(std::vector<Step>& steps, const std::vector<Net::Node>& nodes,
                          const std::vector<int>& outputs);

@@ -66,6 +66,34 @@ struct Values {
         return owned[size_t(step.id)];
     }
 
+    /// The scratch tensor of an upconv step: its slot's storage (or a spare), reserved for
+    /// the largest the slot holds, like a value's (fresh).
+    Tensor scratch(const Step& step, const Net::Node& node)
+    {
+        const size_t pixels = size_t(height) * width;
+        std::vector<float>& slot = slots[size_t(step.scratch_slot)];
+        std::vector<float> storage =
+            slot.capacity() > 0 ? std::move(slot)
+                                : take_storage(spare, pixels * node.channels
+                                                          / (size_t(4) * node.scale * node.scale));
+        const size_t planned =
+            size_t(std::ceil(plan.slot_floats[size_t(step.scratch_slot)] * pixels));
+        if (storage.capacity() < planned) {
+            storage = std::vector<float>();
+            storage.reserve(planned);
+            advise_huge_pages(storage.data(), planned * sizeof(float));
+        }
+        Tensor t;
+        t.data = std::move(storage);
+        return t;
+    }
+
+    /// An upconv's scratch back to its slot.
+    void release_scratch(const Step& step, Tensor& t)
+    {
+        slots[size_t(step.scratch_slot)] = std::move(t.data);
+    }
+
     /// id's storage back to its slot (or, where that has storage, to the spares).
     void release(int id)
     {
@@ -147,6 +175,16 @@ void run_step(const Step& step, const std::vector<Net::Node>& nodes, NetState& s
         fast ? ops::slice(in(0), node.first_channel, node.channels, out)
              : reference::slice(in(0), node.first_channel, node.channels, out);
         break;
+    case Step::Kind::upconv: {
+        const Net::Node& joined = nodes[size_t(node.inputs[0])];  // concat(upsample2(x), skip)
+        const Tensor& x = *v.value[size_t(nodes[size_t(joined.inputs[0])].inputs[0])];
+        const Tensor& skip = *v.value[size_t(joined.inputs[1])];
+        Tensor phase = v.scratch(step, node);
+        v.fresh(step, node);
+        state.upconvs.at(step.id).run(state.engine, state.stream, x, skip, phase, out);
+        v.release_scratch(step, phase);
+        break;
+    }
     case Step::Kind::view: v.value[size_t(step.id)] = v.value[size_t(step.other)]; return;
     case Step::Kind::apply_kernel:
         v.fresh(step, node);
@@ -186,6 +224,17 @@ void Net::make_state()
         state_->storage[b] = plan_storage(state_->plan[b], nodes_, output_ids_);
         state_->slots[b].resize(state_->storage[b].slot_floats.size());
     }
+    for (const Step& step : state_->plan[0])
+        if (step.kind == Step::Kind::upconv) {
+            const Node& conv = nodes_[size_t(step.id)];
+            const Node& joined = nodes_[size_t(conv.inputs[0])];
+            state_->upconvs.emplace(std::piecewise_construct, std::forward_as_tuple(step.id),
+                                    std::forward_as_tuple(nodes_[size_t(joined.inputs[0])].channels,
+                                                          nodes_[size_t(joined.inputs[1])].channels,
+                                                          conv.channels, conv.activation,
+                                                          weights_[size_t(step.id)],
+                                                          biases_[size_t(step.id)]));
+        }
 }
 
 void Net::give_buffers(Net& other)

@@ -105,6 +105,17 @@ void slice(const Tensor& x, int first, int count, Tensor& out)
     });
 }
 
+void scatter_phase(const Tensor& phase, int py, int px, Tensor& out)
+{
+    // reshape() keeps the storage (and the phases already scattered) at the same shape.
+    reshape(out, 2 * phase.height, 2 * phase.width, phase.channels);
+    const size_t pixel_bytes = size_t(phase.channels) * sizeof(float);
+    parallel_rows(phase.height, [&](int i) {
+        for (int j = 0; j < phase.width; ++j)
+            std::memcpy(out.pixel(2 * i + py, 2 * j + px), phase.pixel(i, j), pixel_bytes);
+    });
+}
+
 }  // namespace ops
 }  // namespace nn
 }  // namespace mcdn

@@ -29,6 +29,9 @@ void concat(const std::vector<const Tensor*>& parts, Tensor& out);
 void concat(const std::vector<const Tensor*>& parts, const std::vector<char>& upsampled,
             Tensor& out);
 void slice(const Tensor& x, int first, int count, Tensor& out);
+/// One output phase of UpConvLayer into its pixels: out (reshaped to twice phase's height and
+/// width, its other pixels kept) gets pixel (2i + py, 2j + px) from phase's pixel (i, j).
+void scatter_phase(const Tensor& phase, int py, int px, Tensor& out);
 void apply_kernel(const Tensor& logits, const Tensor& image, int kernel, Tensor& out);
 /// The same with the k×k logits at channels [first_channel, first_channel + k²) of `logits`
 /// (a slice that need not be copied out first).
