@@ -4,7 +4,9 @@
 // on a frame of that size; and each of the networks' convolutions run alone as a plain
 // oneDNN conv on the whole frame at its own shape (channels, kernel, scale), summed: what
 // the convs cost without tiling, halos or anything between them. Both timed in this run;
-// bench/production divides whole-process times by them.
+// bench/production divides whole-process times by them. For OIDN's UNet also the convs as
+// the engine runs them (`layers_oidn_as_run_s`): a decoder conv of concat(upsample2(x), skip)
+// as its four 2×2 phase convs at x's size and the skip's 3×3 conv (onednn_conv.h).
 //
 //   bench_floor WIDTH HEIGHT [OIDN.tza]   prints one JSON object; with OIDN's weights also
 //                                         OIDN's UNet's floor (--oidn; --oidn --sure --mix)
@@ -17,6 +19,7 @@
 #include "mcdn/cnn.h"
 #include "mcdn/mix.h"
 #include "mix/mix_steps.h"
+#include "nn/net_plan.h"
 #include "oidn/oidn_steps.h"
 
 #include "net_flops.h"
@@ -37,6 +40,36 @@ double plain_layers_seconds(const nn::Net& net, int height, int width)
             const int h = std::max(1, height / node.scale), w = std::max(1, width / node.scale);
             total += mcdn_bench::plain_onednn_conv(h, w, in, node.channels, node.kernel, 2).wall;
         }
+    return total;
+}
+
+/// The same for the convs the oneDNN backend runs (nn/net_plan.h): an upconv as its four
+/// 2×2 phase convs on the upsampled input's channels at that input's size, and its skip's
+/// 3×3 conv.
+double plain_run_layers_seconds(const nn::Net& net, int height, int width)
+{
+    const auto& nodes = net.nodes();
+    std::vector<char> upconv(nodes.size(), 0);
+    for (const nn::Step& step : nn::plan_steps(nodes, net.output_ids(), true))
+        upconv[size_t(step.id)] = step.kind == nn::Step::Kind::upconv;
+    double total = 0;
+    for (size_t id = 0; id < nodes.size(); ++id) {
+        const auto& node = nodes[id];
+        if (node.op != nn::Net::Op::conv)
+            continue;
+        const int h = std::max(1, height / node.scale), w = std::max(1, width / node.scale);
+        const int in = nodes[size_t(node.inputs[0])].channels;
+        if (!upconv[id]) {
+            total += mcdn_bench::plain_onednn_conv(h, w, in, node.channels, node.kernel, 2).wall;
+            continue;
+        }
+        const auto& joined = nodes[size_t(node.inputs[0])];
+        const int up = nodes[size_t(joined.inputs[0])].channels;
+        total += 4 * mcdn_bench::plain_onednn_conv(std::max(1, h / 2), std::max(1, w / 2), up,
+                                                   node.channels, 2, 2)
+                         .wall
+                 + mcdn_bench::plain_onednn_conv(h, w, in - up, node.channels, 3, 2).wall;
+    }
     return total;
 }
 
@@ -77,12 +110,14 @@ int main(int argc, char** argv)
         }
         const double oidn = flops_per_pixel(unet) * pixels;
         const double layers_oidn = plain_layers_seconds(unet, h, w);
-        char text[256];
+        const double layers_oidn_as_run = plain_run_layers_seconds(unet, h, w);
+        char text[320];
         std::snprintf(text, sizeof text,
                       ", \"oidn_gflop\": %.1f, \"floor_oidn_s\": %.3f, \"floor_oidn_best_s\": "
-                      "%.3f, \"layers_oidn_s\": %.3f, \"layers_oidn_best_s\": %.3f",
+                      "%.3f, \"layers_oidn_s\": %.3f, \"layers_oidn_best_s\": %.3f, "
+                      "\"layers_oidn_as_run_s\": %.3f",
                       oidn / 1e9, oidn / rate, (2 * oidn + mixing) / rate, layers_oidn,
-                      2 * layers_oidn + plain_layers_seconds(mix, h, w));
+                      2 * layers_oidn + plain_layers_seconds(mix, h, w), layers_oidn_as_run);
         oidn_fields = text;
     }
     std::printf("{\"width\": %d, \"height\": %d, \"cnn_gflop\": %.1f, \"mix_gflop\": %.1f, "

@@ -58,14 +58,16 @@ inline Timing plain_onednn_conv(int height, int width, int in_c, int out_c, int 
     using dt = dnnl::memory::data_type;
     dnnl::engine engine(dnnl::engine::kind::cpu, 0);
     dnnl::stream stream(engine);
-    const dnnl::memory::dim pad = k / 2;
+    // The output the input's size: an even kernel (UpConvLayer's 2×2 phases) pads one less
+    // after than before.
+    const dnnl::memory::dim pad = k / 2, pad_after = (k - 1) / 2;
     dnnl::memory::desc src_md({ 1, in_c, height, width }, dt::f32, tag::nhwc);
     dnnl::memory::desc dst_md({ 1, out_c, height, width }, dt::f32, tag::nhwc);
     dnnl::memory::desc w_md({ out_c, in_c, k, k }, dt::f32, tag::any);
     dnnl::memory::desc b_md({ out_c }, dt::f32, tag::x);
     dnnl::convolution_forward::desc desc(dnnl::prop_kind::forward_inference,
                                          dnnl::algorithm::convolution_direct, src_md, w_md, b_md,
-                                         dst_md, { 1, 1 }, { pad, pad }, { pad, pad });
+                                         dst_md, { 1, 1 }, { pad, pad }, { pad_after, pad_after });
     dnnl::post_ops post_ops;
     post_ops.append_eltwise(1.0f, dnnl::algorithm::eltwise_relu, 0.0f, 0.0f);
     dnnl::primitive_attr attr;

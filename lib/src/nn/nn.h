@@ -163,6 +163,8 @@ public:
 
     const std::string& name() const { return name_; }
     const std::vector<Node>& nodes() const { return nodes_; }
+    /// The nodes marked output(), in declaration order.
+    const std::vector<int>& output_ids() const { return output_ids_; }
     int channels(Value x) const;
     /// Input sizes must be multiples of this (2^number of nested poolings).
     int alignment() const;
