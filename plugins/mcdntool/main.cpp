@@ -55,7 +55,7 @@ bool denoises_extras(const std::vector<Command>& commands)
 // --denoise and --choose run it beside the CNN; or where no variance is given, from which the
 // stages then take the halves' difference), the light split's only for the CNN, and only
 // the colour's where every stage reads no other (StageInfo::reads_all_variances: --oidn,
-// --sure, --mix).
+// --sure, --mix, --denoise:choose=0 with OIDN's weights).
 // Everything when a command names channels. --info without a stage reads what any stage
 // could, so that it says what each can do with the files given.
 mcdn::InputSelection input_selection(const std::vector<Command>& commands)
@@ -73,7 +73,7 @@ mcdn::InputSelection input_selection(const std::vector<Command>& commands)
         const mcdn::StageInfo* reads = stage_of_command(c.name);
         selection.light_split |= (reads && reads->reads_light_split) || c.name == "--info";
         halves |= reads && reads->reads_halves(c.modifiers);
-        all_variances |= reads && reads->reads_all_variances;
+        all_variances |= reads && reads->reads_all_variances(c.modifiers);
         variance |=
             c.name == "-i" && (c.modifier("as") == "variance" || c.modifier("as") == "seed");
         if (reads && c.has("features"))  // a stage's extra feature channels

@@ -411,6 +411,12 @@ TEST(Oidn, HalvesReadOnlyWhereNforRuns)
     EXPECT_FALSE(denoise.reads_halves({}));
     EXPECT_FALSE(denoise.reads_halves({ { "choose", "0" } }));
     EXPECT_TRUE(denoise.reads_halves({ { "frames", "2" } }));  // the neighbours' agreement
+    // And every role's variance only where our CNN runs: not for oidn, sure, mix (choose=0).
+    EXPECT_TRUE(denoise.reads_all_variances({}));
+    EXPECT_FALSE(denoise.reads_all_variances({ { "choose", "0" } }));
+    EXPECT_TRUE(denoise.reads_all_variances({ { "choose", "0" }, { "frames", "2" } }));
+    setenv("MCDN_OIDN_WEIGHTS", "/nonexistent", 1);
+    EXPECT_TRUE(denoise.reads_all_variances({ { "choose", "0" } }));
     unsetenv("MCDN_OIDN_WEIGHTS");
     std::remove((folder + "/rt_hdr_alb_nrm.tza").c_str());
 }
@@ -422,7 +428,7 @@ TEST(Oidn, HalvesReadOnlyWhereNforRuns)
 TEST(Oidn, ReadsNoVarianceButTheColours)
 {
     for (const StageInfo& stage : stage_table())
-        EXPECT_EQ(stage.reads_all_variances,
+        EXPECT_EQ(stage.reads_all_variances({}),
                   stage.name != "oidn" && stage.name != "sure" && stage.name != "mix")
             << stage.name;
     const std::string folder = mcdn_test::temp_dir("oidn_variances");

@@ -64,13 +64,14 @@ struct StageFacts {
     bool exposure = false;           ///< the colour's autoexposure (OIDN's networks)
 };
 
-/// StageInfo::reads_halves of a stage that reads no half files with any settings, and of one
-/// that reads them with any (NFOR, its prefilter).
-inline bool never_reads_halves(const Settings&)
+/// StageInfo's predicates of the settings for a stage that does the thing with none of them,
+/// and with any: reads_halves (NFOR and its prefilter read the halves with any settings),
+/// reads_all_variances (OIDN, sure and the mix with none).
+inline bool with_no_settings(const Settings&)
 {
     return false;
 }
-inline bool always_reads_halves(const Settings&)
+inline bool with_any_settings(const Settings&)
 {
     return true;
 }
@@ -93,11 +94,11 @@ struct StageInfo {
     /// What it reads of variance and half files (mcdn::InputSelection): the halves of the
     /// colour and features (else the variance serves) with these settings, the light
     /// split's components.
-    bool (*reads_halves)(const Settings& settings) = never_reads_halves;
+    bool (*reads_halves)(const Settings& settings) = with_no_settings;
     bool reads_light_split = false;
-    /// Reads the variance (or halves) of other roles than the colour: of the features, the
-    /// light passes, the extras (InputSelection::all_variances).
-    bool reads_all_variances = true;
+    /// Reads the variance (or halves) of other roles than the colour with these settings: of
+    /// the features, the light passes, the extras (InputSelection::all_variances).
+    bool (*reads_all_variances)(const Settings& settings) = with_any_settings;
     StageFacts facts;
     /// Frame-sized float buffers of the merged input it adds at its peak.
     double frame_buffers = 0;

@@ -62,7 +62,7 @@ StageInfo prefilter_stage()
     s.name = "prefilter";
     s.keys = { "window", "patch", "k", "features", "features-out", "skip", "converged" };
     s.changes_features = true;
-    s.reads_halves = always_reads_halves;
+    s.reads_halves = with_any_settings;
     s.facts.constant_features = true;
     s.frame_buffers = 0.5;  // the prefiltered features beside the frame
     s.help = "NFOR feature prefilter (§5.1): NL-means cross-filtering of albedo, normal, depth "
@@ -112,7 +112,7 @@ StageInfo nfor_stage()
                "features", "features-out", "halves", "extras",   "outliers",
                "fallback", "fallback-aov", "skip",   "converged" };
     s.cross_frame = true;
-    s.reads_halves = always_reads_halves;
+    s.reads_halves = with_any_settings;
     s.facts.color_sums = true;
     s.facts.constant_features = true;
     s.frame_buffers = 2.0;  // the result and the per-buffer regression outputs
@@ -305,7 +305,7 @@ StageInfo oidn_stage()
         return oidn_settings(o, settings, error);
     };
     s.make = make_oidn;
-    s.reads_all_variances = false;  // the colour's, for its outlier rule
+    s.reads_all_variances = with_no_settings;  // the colour's, for its outlier rule
     s.reach = [](const Settings& settings, const std::string&) {
         OidnOptions o;
         std::string error;
@@ -344,6 +344,13 @@ StageInfo denoise_stage()
     s.reads_halves = [](const Settings& settings) {
         const auto frames = settings.find("frames");
         return !oidn_weights_found() || (frames != settings.end() && frames->second != "0");
+    };
+    // With OIDN's weights and choose=0: oidn, sure, mix, which read the colour's variance
+    // alone; the CNN (beside OIDN, or in its place) reads the features' too.
+    s.reads_all_variances = [](const Settings& settings) {
+        const auto choose = settings.find("choose"), frames = settings.find("frames");
+        return !oidn_weights_found() || choose == settings.end() || choose->second != "0"
+               || (frames != settings.end() && frames->second != "0");
     };
     s.help = "The best chain the inputs allow: with a colour variance --cnn --sure --mix "
              "(KPCN, its SURE, the progressive mix by the network: never much worse than the "

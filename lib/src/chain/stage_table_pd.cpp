@@ -60,7 +60,7 @@ StageInfo sure_stage()
               "--prefilter --nfor), which it runs probes+1 times.";
     s.check = check_settings<SureOptions>;
     s.make = make_sure;
-    s.reads_all_variances = false;  // the colour's
+    s.reads_all_variances = with_no_settings;  // the colour's
     s.can_run = sure_can_run;
     return s;
 }
@@ -116,7 +116,7 @@ StageInfo mix_stage()
     s.needs = "what --sure adds (sure.*, noisy.*): give --sure first; the colour's variance.";
     s.check = check_settings<MixOptions>;
     s.make = make_mix;
-    s.reads_all_variances = false;  // the colour's
+    s.reads_all_variances = with_no_settings;  // the colour's
     s.reach = mix_reach;
     s.can_run = mix_can_run;
     return s;
