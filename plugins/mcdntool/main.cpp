@@ -60,28 +60,23 @@ bool denoises_extras(const std::vector<Command>& commands)
 // could, so that it says what each can do with the files given.
 mcdn::InputSelection input_selection(const std::vector<Command>& commands)
 {
-    mcdn::InputSelection selection;
-    selection.only_roles = true;
-    selection.light_split = false;
-    bool halves = false, variance = false, info = false, stage = false, all_variances = false;
+    std::vector<std::pair<std::string, mcdn::Settings>> stages;
+    bool variance = false, info = false, stage = false, every_channel = false;
     for (const auto& c : commands) {
         info |= c.name == "--info";
         stage |= is_stage(c.name);
-        if (c.name == "--ch" || (c.name == "--info" && c.has("verbose"))
-            || (c.name == "--metrics" && c.has("channels")))
-            selection.only_roles = false;
-        const mcdn::StageInfo* reads = stage_of_command(c.name);
-        selection.light_split |= (reads && reads->reads_light_split) || c.name == "--info";
-        halves |= reads && reads->reads_halves(c.modifiers);
-        all_variances |= reads && reads->reads_all_variances(c.modifiers);
+        every_channel |= c.name == "--ch" || (c.name == "--info" && c.has("verbose"))
+                         || (c.name == "--metrics" && c.has("channels"));
+        if (const mcdn::StageInfo* reads = stage_of_command(c.name))
+            stages.emplace_back(reads->name, c.modifiers);
         variance |=
             c.name == "-i" && (c.modifier("as") == "variance" || c.modifier("as") == "seed");
-        if (reads && c.has("features"))  // a stage's extra feature channels
-            for (const std::string& f : Strutil::splits(c.modifier("features"), ","))
-                selection.extra_features.push_back(f);
     }
-    selection.halves = halves || !variance || (info && !stage);
-    selection.all_variances = all_variances || info || !stage;
+    mcdn::InputSelection selection = mcdn::chain_input_selection(stages, variance);
+    selection.only_roles &= !every_channel;
+    selection.light_split |= info;
+    selection.halves |= info && !stage;
+    selection.all_variances |= info || !stage;
     return selection;
 }
 

@@ -34,7 +34,9 @@ void bind_files(py::module_& m)
 {
     m.def(
         "read_inputs",
-        [](const std::vector<std::pair<std::string, std::string>>& files) {
+        [](const std::vector<std::pair<std::string, std::string>>& files, const std::string& chain,
+           const std::string& preset, const std::map<std::string, std::string>& aovs,
+           const std::map<std::string, std::string>& settings) {
             std::vector<mcdn::InputFile> inputs;
             for (const auto& [path, kind] : files) {
                 // 'seed' files one after another: one render's seeds (mcdn::combine_seeds).
@@ -50,22 +52,41 @@ void bind_files(py::module_& m)
                 if (kind == "seed")
                     inputs.back().seeds = { path };
             }
+            // With a chain, of the variance and half files only what its stages read (as
+            // mcdntool and the OIIO plugin read them); else every channel.
+            mcdn::InputSelection selection;
+            if (!chain.empty()) {
+                std::vector<std::string> names;
+                std::string error;
+                if (!mcdn::parse_chain(names, chain, error))
+                    throw std::runtime_error(error);
+                std::vector<std::pair<std::string, mcdn::Settings>> stages;
+                for (const std::string& name : names)
+                    stages.emplace_back(name, mcdn::stage_settings(settings, name));
+                selection = mcdn::chain_input_selection(stages, mcdn::gives_variance(inputs));
+                selection.aovs = aov_spec(preset, aovs, "");
+            }
             ImageBuf merged;
             bool ok;
             {
                 py::gil_scoped_release release;
-                ok = mcdn::read_inputs(merged, inputs);
+                ok = mcdn::read_inputs(merged, inputs, selection);
             }
             if (!ok)
                 throw std::runtime_error(merged.geterror());
             return merged;
         },
-        py::arg("files"),
+        py::arg("files"), py::arg("chain") = "", py::arg("preset") = "",
+        py::arg("aovs") = std::map<std::string, std::string>(),
+        py::arg("settings") = std::map<std::string, std::string>(),
         "Read [(path, 'mean'|'variance'|'halfA'|'halfB'|'seed'), ...] into one ImageBuf "
         "(variance channels prefixed 'variance.', halves 'A.' and 'B.'). 'seed' files one "
         "after another are K renders of the frame with different seeds: read as their mean "
         "with its variance and, for an even K, halves. A directory path reads a Tungsten "
-        "buffer set.");
+        "buffer set. chain: the stages that will run ('oidn,sure,mix', 'denoise', as "
+        "run_chain takes them; with preset, aovs and settings as they will get them): of the "
+        "variance and half files only the channels those stages read (a Blender frame's four "
+        "files: 42 channels for 'oidn,sure,mix' rather than 70). Default: every channel.");
 
     m.def(
         "write",

@@ -9,6 +9,7 @@
 
 #include "mcdn/chain.h"
 #include "mcdn/io.h"
+#include "mcdn/stages.h"
 
 #include "fixtures.h"
 
@@ -220,4 +221,30 @@ TEST(Streamed, ChainWithoutTheCnnReadsNoFaceOfTheLightSplit)
     o.output_channels_only = true;
     ASSERT_TRUE(run_chain(result, some, o)) << result.geterror();
     mcdn_test::expect_output_channels_equal(expected, result, all);
+}
+
+// What a chain reads of the variance and half files, by its stages (every front end's
+// selection: mcdntool, the OIIO plugin's recipes, Python's read_inputs(chain=...)).
+TEST(Streamed, EachChainReadsWhatItsStagesRead)
+{
+    using Stages = std::vector<std::pair<std::string, Settings>>;
+    const InputSelection oidn =
+        chain_input_selection({ { "oidn", {} }, { "sure", {} }, { "mix", {} } }, true);
+    EXPECT_TRUE(oidn.only_roles);
+    EXPECT_FALSE(oidn.halves || oidn.light_split || oidn.all_variances);
+    const InputSelection nfor =
+        chain_input_selection({ { "prefilter", {} }, { "nfor", {} } }, true);
+    EXPECT_TRUE(nfor.halves && nfor.all_variances);
+    EXPECT_FALSE(nfor.light_split);
+    const InputSelection cnn =
+        chain_input_selection({ { "cnn", { { "features", "a,b" } } } }, true);
+    EXPECT_TRUE(cnn.light_split && cnn.all_variances);
+    EXPECT_FALSE(cnn.halves);
+    EXPECT_EQ(cnn.extra_features, (std::vector<std::string> { "a", "b" }));
+    // Without a variance the stages take the halves' difference.
+    EXPECT_TRUE(chain_input_selection({ { "cnn", {} } }, false).halves);
+    const InputSelection none = chain_input_selection(Stages(), true);
+    EXPECT_TRUE(none.only_roles);
+    EXPECT_FALSE(none.halves || none.light_split || none.all_variances);
+    EXPECT_FALSE(chain_input_selection({ { "nosuch", {} } }, true).only_roles);  // everything
 }

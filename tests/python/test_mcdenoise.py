@@ -17,13 +17,16 @@ OIDN_WEIGHTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", ".
 os.environ.pop("MCDN_OIDN_WEIGHTS", None)
 
 
+BOX_FILES = [
+    (os.path.join(BOX, "box_0016spp.exr"), "mean"),
+    (os.path.join(BOX, "box_0016spp_var.exr"), "variance"),
+    (os.path.join(BOX, "box_0016spp_A.exr"), "halfA"),
+    (os.path.join(BOX, "box_0016spp_B.exr"), "halfB"),
+]
+
+
 def box_inputs():
-    return mcdenoise.read_inputs([
-        (os.path.join(BOX, "box_0016spp.exr"), "mean"),
-        (os.path.join(BOX, "box_0016spp_var.exr"), "variance"),
-        (os.path.join(BOX, "box_0016spp_A.exr"), "halfA"),
-        (os.path.join(BOX, "box_0016spp_B.exr"), "halfB"),
-    ])
+    return mcdenoise.read_inputs(BOX_FILES)
 
 
 class OpsTakeAndReturnImageBufs(unittest.TestCase):
@@ -151,6 +154,24 @@ class OpsTakeAndReturnImageBufs(unittest.TestCase):
         self.assertLess(after["relmse"], 0.5 * noisy["relmse"])
         with self.assertRaises(RuntimeError):
             mcdenoise.denoise(self.render, settings={"cnn.tiles": "256"})  # misspelt key
+
+    def test_read_inputs_for_a_chain_reads_what_its_stages_read(self):
+        # Of the variance and half files only the faces the chain's stages read, as mcdntool
+        # reads them; its output the same as from every channel.
+        written = list(oiio.ImageBuf(BOX_FILES[0][0]).spec().channelnames)
+        for chain, halves in (("cnn", False), ("prefilter,nfor", True)):
+            chosen = mcdenoise.read_inputs(BOX_FILES, chain=chain)
+            names = chosen.spec().channelnames
+            self.assertLess(len(names), len(self.render.spec().channelnames), chain)
+            self.assertEqual(any(n.startswith("A.") for n in names), halves, chain)
+            outputs = [oiio.ImageBufAlgo.channels(mcdenoise.run_chain(image, chain),
+                                                  tuple(written))
+                       for image in (chosen, self.render)]
+            self.assertEqual(outputs[0].get_pixels(oiio.FLOAT).tobytes(),
+                             outputs[1].get_pixels(oiio.FLOAT).tobytes(), chain)
+        with self.assertRaises(RuntimeError) as caught:
+            mcdenoise.read_inputs(BOX_FILES, chain="nfor,nosuch")
+        self.assertIn("nosuch", str(caught.exception))
 
     def test_run_chain_runs_the_stage_tables_stages_by_name(self):
         by_name = mcdenoise.run_chain(self.render, "cnn")

@@ -71,6 +71,8 @@ struct InputSelection {
 };
 bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs,
                  const InputSelection& selection);
+/// Whether `inputs` give the colour a variance: a variance file, or seeds.
+bool gives_variance(const std::vector<InputFile>& inputs);
 
 /// The merged frame read_inputs makes, a band of rows at a time: open() reads and checks
 /// every header (names, windows, the selection), read() the pixels of some rows, so that a

@@ -14,6 +14,7 @@
 #include <OpenImageIO/imagebuf.h>
 
 #include "mcdn/aov.h"
+#include "mcdn/io.h"
 #include "mcdn/progress.h"
 #include "mcdn/settings.h"
 
@@ -127,5 +128,17 @@ const std::vector<StageInfo>& stage_table();
 const StageInfo* find_stage(const std::string& name);
 /// The names of the entries of the given kinds (all kinds by default), in table order.
 std::vector<std::string> stage_names(std::initializer_list<StageKind> kinds = {});
+
+/// What a chain of these stages (each by name, with its own settings) reads of the variance
+/// and half-buffer files (read_inputs): the faces of the roles alone; the halves where a
+/// stage reads them (StageInfo::reads_halves) or no variance is given (`variance_given`
+/// false: the stages take the halves' difference); the light split's faces where a stage
+/// splits the colour (reads_light_split); other roles' variances than the colour's where a
+/// stage reads them (reads_all_variances); the channels of a stage's `features` setting.
+/// With no stage, the roles' faces and the colour's variance; with a name not in the table,
+/// everything. Every front end reads through it: mcdntool, the OIIO plugin's recipes,
+/// Python's read_inputs(chain=...). The AOV set (InputSelection::aovs) is the caller's.
+InputSelection chain_input_selection(const std::vector<std::pair<std::string, Settings>>& stages,
+                                     bool variance_given);
 
 }  // namespace mcdn

@@ -403,6 +403,28 @@ const std::vector<StageInfo>& stage_table()
     return table;
 }
 
+InputSelection chain_input_selection(const std::vector<std::pair<std::string, Settings>>& stages,
+                                     bool variance_given)
+{
+    InputSelection selection;
+    selection.only_roles = true;
+    selection.light_split = false;
+    selection.halves = !variance_given;
+    selection.all_variances = false;
+    for (const auto& [name, settings] : stages) {
+        const StageInfo* stage = find_stage(name);
+        if (!stage)
+            return InputSelection();
+        selection.light_split |= stage->reads_light_split;
+        selection.halves |= stage->reads_halves(settings);
+        selection.all_variances |= stage->reads_all_variances(settings);
+        if (const auto features = settings.find("features"); features != settings.end())
+            for (const std::string& f : OIIO::Strutil::splits(features->second, ","))
+                selection.extra_features.push_back(f);
+    }
+    return selection;
+}
+
 const StageInfo* find_stage(const std::string& name)
 {
     for (const StageInfo& stage : stage_table())

@@ -472,6 +472,13 @@ bool InputRows::read(ImageBuf& dst, int ybegin, int yend, std::string& error,
     return true;
 }
 
+bool gives_variance(const std::vector<InputFile>& inputs)
+{
+    return std::any_of(inputs.begin(), inputs.end(), [](const InputFile& f) {
+        return f.kind == InputKind::Variance || !f.seeds.empty();
+    });
+}
+
 bool read_inputs(ImageBuf& dst, const std::vector<InputFile>& inputs,
                  const InputSelection& selection)
 {
