@@ -21,7 +21,6 @@
 #include <OpenImageIO/imageio.h>
 #include <OpenImageIO/strutil.h>
 
-#include "mcdn/settings.h"
 #include "mcdn/stages.h"
 #include "mcdn/version.h"
 
@@ -42,12 +41,10 @@ bool denoise(const Recipe& recipe, ImageBuf& result, std::string& error)
     // Of the variance and half files, what the chain's stages read (a Blender frame's four
     // files of 39 channels each: 42 merged channels for oidn,sure,mix rather than 70); every
     // channel where the recipe asks for channels by name.
-    std::vector<std::pair<std::string, mcdn::Settings>> stages;
-    for (const std::string& name : job.chain.stages)
-        stages.emplace_back(name, mcdn::stage_settings(job.chain.settings, name));
     mcdn::InputSelection selection;
     if (job.channels.empty()) {
-        selection = mcdn::chain_input_selection(stages, mcdn::gives_variance(job.inputs));
+        selection = mcdn::chain_input_selection(job.chain.stages, job.chain.settings,
+                                                mcdn::gives_variance(job.inputs));
         selection.aovs = job.chain.aovs;
     }
     ImageBuf merged;

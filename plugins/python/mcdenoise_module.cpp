@@ -60,10 +60,8 @@ void bind_files(py::module_& m)
                 std::string error;
                 if (!mcdn::parse_chain(names, chain, error))
                     throw std::runtime_error(error);
-                std::vector<std::pair<std::string, mcdn::Settings>> stages;
-                for (const std::string& name : names)
-                    stages.emplace_back(name, mcdn::stage_settings(settings, name));
-                selection = mcdn::chain_input_selection(stages, mcdn::gives_variance(inputs));
+                selection =
+                    mcdn::chain_input_selection(names, settings, mcdn::gives_variance(inputs));
                 selection.aovs = aov_spec(preset, aovs, "");
             }
             ImageBuf merged;

@@ -241,6 +241,11 @@ TEST(Streamed, EachChainReadsWhatItsStagesRead)
     EXPECT_TRUE(cnn.light_split && cnn.all_variances);
     EXPECT_FALSE(cnn.halves);
     EXPECT_EQ(cnn.extra_features, (std::vector<std::string> { "a", "b" }));
+    // A chain as run_chain takes it: each stage gets its own "stage.key" settings.
+    EXPECT_EQ(chain_input_selection(std::vector<std::string> { "nfor", "cnn" },
+                                    { { "cnn.features", "a,b" }, { "nfor.features", "c" } }, true)
+                  .extra_features,
+              (std::vector<std::string> { "c", "a", "b" }));
     // Without a variance the stages take the halves' difference.
     EXPECT_TRUE(chain_input_selection({ { "cnn", {} } }, false).halves);
     const InputSelection none = chain_input_selection(Stages(), true);

@@ -140,5 +140,9 @@ std::vector<std::string> stage_names(std::initializer_list<StageKind> kinds = {}
 /// Python's read_inputs(chain=...). The AOV set (InputSelection::aovs) is the caller's.
 InputSelection chain_input_selection(const std::vector<std::pair<std::string, Settings>>& stages,
                                      bool variance_given);
+/// The same for a chain as run_chain takes it: stage names and the chain's "stage.key"
+/// settings (ChainOptions::settings, a recipe's, Python's).
+InputSelection chain_input_selection(const std::vector<std::string>& stages,
+                                     const Settings& chain_settings, bool variance_given);
 
 }  // namespace mcdn

@@ -425,6 +425,15 @@ InputSelection chain_input_selection(const std::vector<std::pair<std::string, Se
     return selection;
 }
 
+InputSelection chain_input_selection(const std::vector<std::string>& stages,
+                                     const Settings& chain_settings, bool variance_given)
+{
+    std::vector<std::pair<std::string, Settings>> each;
+    for (const std::string& name : stages)
+        each.emplace_back(name, stage_settings(chain_settings, name));
+    return chain_input_selection(each, variance_given);
+}
+
 const StageInfo* find_stage(const std::string& name)
 {
     for (const StageInfo& stage : stage_table())

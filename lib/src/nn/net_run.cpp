@@ -42,49 +42,43 @@ struct Values {
     std::vector<std::vector<float>>& spare;
     int height, width;
 
-    /// owned[id] with its slot's storage, reserved for the largest value the slot holds
-    /// (tiles run largest first: later tiles allocate nothing), reshaped by the op.
-    Tensor& fresh(const Step& step, const Net::Node& node)
+    /// Storage for `floats` a pixel in `slot`: the slot's own, else a spare, reserved for the
+    /// largest value the slot holds (tiles run largest first: later tiles allocate nothing);
+    /// without a slot (-1), a spare or nothing (the op allocates).
+    std::vector<float> storage(int slot, double floats)
     {
         const size_t pixels = size_t(height) * width;
         std::vector<float> storage;
-        if (step.slot >= 0 && slots[size_t(step.slot)].capacity() > 0)
-            storage = std::move(slots[size_t(step.slot)]);
+        if (slot >= 0 && slots[size_t(slot)].capacity() > 0)
+            storage = std::move(slots[size_t(slot)]);
         else
-            storage =
-                take_storage(spare, pixels * node.channels / (size_t(node.scale) * node.scale));
-        if (step.slot >= 0) {
-            const size_t planned = size_t(std::ceil(plan.slot_floats[size_t(step.slot)] * pixels));
+            storage = take_storage(spare, size_t(std::ceil(floats * pixels)));
+        if (slot >= 0) {
+            const size_t planned = size_t(std::ceil(plan.slot_floats[size_t(slot)] * pixels));
             if (storage.capacity() < planned) {
                 storage = std::vector<float>();  // grown without copying values nobody reads
                 storage.reserve(planned);
                 advise_huge_pages(storage.data(), planned * sizeof(float));
             }
         }
-        owned[size_t(step.id)].data = std::move(storage);
+        return storage;
+    }
+
+    /// owned[id] with its slot's storage (storage()), reshaped by the op.
+    Tensor& fresh(const Step& step, const Net::Node& node)
+    {
+        owned[size_t(step.id)].data =
+            storage(step.slot, double(node.channels) / (double(node.scale) * node.scale));
         home[size_t(step.id)] = step.slot;
         return owned[size_t(step.id)];
     }
 
-    /// The scratch tensor of an upconv step: its slot's storage (or a spare), reserved for
-    /// the largest the slot holds, like a value's (fresh).
+    /// The phase scratch of an upconv step (a quarter of its output), in its own slot.
     Tensor scratch(const Step& step, const Net::Node& node)
     {
-        const size_t pixels = size_t(height) * width;
-        std::vector<float>& slot = slots[size_t(step.scratch_slot)];
-        std::vector<float> storage =
-            slot.capacity() > 0 ? std::move(slot)
-                                : take_storage(spare, pixels * node.channels
-                                                          / (size_t(4) * node.scale * node.scale));
-        const size_t planned =
-            size_t(std::ceil(plan.slot_floats[size_t(step.scratch_slot)] * pixels));
-        if (storage.capacity() < planned) {
-            storage = std::vector<float>();
-            storage.reserve(planned);
-            advise_huge_pages(storage.data(), planned * sizeof(float));
-        }
         Tensor t;
-        t.data = std::move(storage);
+        t.data =
+            storage(step.scratch_slot, double(node.channels) / (4.0 * node.scale * node.scale));
         return t;
     }
 
