@@ -169,7 +169,7 @@ bool check_memory(const std::vector<Command>& commands, int threads, int paralle
     double band = 0;
     if (const size_t first_stage = streamed_chain_start(commands)) {
         mcdn::ChainOptions chain;
-        set_chain_bands(chain);
+        mcdn::set_bands_from_environment(chain);
         set_chain_stages(chain, commands, first_stage);
         const mcdn::StageInfo* stage = mcdn::find_stage(chain.stages[0]);
         const bool plan = stage && stage->kind == mcdn::StageKind::Plan;

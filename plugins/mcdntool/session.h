@@ -172,12 +172,6 @@ bool write_options_of(const Command& c, mcdn::WriteOptions& options, std::string
 /// A command line of inputs (-i, --aov), stages and one -o, last, streams: the index of its
 /// first stage, else 0 (streamed.cpp).
 size_t streamed_chain_start(const std::vector<Command>& commands);
-/// Pixels of a streamed chain's band: $MCDN_BAND_PIXELS when set (0: the whole frame at
-/// once), else mcdn::ChainOptions' default.
-int64_t band_pixels();
-/// A streamed chain's bands: band_pixels(), exactly that when $MCDN_BAND_PIXELS is set
-/// (ChainOptions::band_halos 0), else ChainOptions' defaults.
-void set_chain_bands(mcdn::ChainOptions& chain);
 /// A streamed chain's stages and their settings: the commands from `first` to the -o.
 void set_chain_stages(mcdn::ChainOptions& chain, const std::vector<Command>& commands,
                       size_t first);

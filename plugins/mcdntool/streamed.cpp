@@ -2,7 +2,6 @@
 // chain in bands of rows (mcdn/chain.h), each band's rows written as soon as they are made
 // (mcdn::RowWriter), so that besides the input only one band is in memory. Any other
 // command line runs command by command (session.cpp).
-#include <cstdlib>
 #include <iostream>
 
 #include <OpenImageIO/strutil.h>
@@ -19,22 +18,6 @@ namespace mcdntool {
 using OIIO::ImageBuf;
 using OIIO::Strutil::fmt::format;
 namespace Strutil = OIIO::Strutil;
-
-int64_t band_pixels()
-{
-    const char* text = std::getenv("MCDN_BAND_PIXELS");
-    const int64_t pixels = text && *text ? std::atoll(text) : -1;
-    return pixels >= 0 ? pixels : mcdn::ChainOptions().band_pixels;
-}
-
-// The chain's bands (session.h).
-void set_chain_bands(mcdn::ChainOptions& chain)
-{
-    chain.band_pixels = band_pixels();
-    const char* text = std::getenv("MCDN_BAND_PIXELS");
-    if (text && *text)
-        chain.band_halos = 0;  // exactly the bands asked for
-}
 
 namespace {
 
@@ -125,7 +108,7 @@ bool run_streamed_chain(Session& s, const std::vector<Command>& commands, size_t
     mcdn::ChainOptions chain;
     chain.aovs = s.aov_spec;
     chain.progress = s.progress();
-    set_chain_bands(chain);
+    mcdn::set_bands_from_environment(chain);
     set_chain_stages(chain, commands, first);
     chain.output_channels_only = write.channels.empty();  // the writer's default
     if (s.verbose && stage_of_command(commands[first].name)->kind == mcdn::StageKind::Plan) {

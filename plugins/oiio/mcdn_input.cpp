@@ -21,6 +21,8 @@
 #include <OpenImageIO/imageio.h>
 #include <OpenImageIO/strutil.h>
 
+#include "mcdn/chain.h"
+#include "mcdn/io.h"
 #include "mcdn/stages.h"
 #include "mcdn/version.h"
 
@@ -47,38 +49,73 @@ bool denoise(const Recipe& recipe, ImageBuf& result, std::string& error)
                                                 mcdn::gives_variance(job.inputs));
         selection.aovs = job.chain.aovs;
     }
-    ImageBuf merged;
-    if (!mcdn::read_inputs(merged, job.inputs, selection)) {
-        error = merged.geterror();
+    // The inputs a band of rows at a time, as mcdntool streams them (mcdn/chain.h): the
+    // result and one band of the inputs are in memory, never the inputs' whole frame.
+    mcdn::InputRows rows;
+    if (!rows.open(job.inputs, selection, error))
         return false;
-    }
+    const ImageSpec& input = rows.spec();
     mcdn::AovSet aovs;
+    if (!mcdn::resolve_aovs(aovs, job.chain.aovs, input, error)
+        || !aovs.require({ mcdn::Role::Color }, input, error))
+        return false;
     int repaired = 0;  // no -v in oiiotool: said on the result (mcdn:halves_repaired)
-    if (!mcdn::resolve_aovs(aovs, job.chain.aovs, merged.spec(), error)
-        || !aovs.require({ mcdn::Role::Color }, merged.spec(), error)
-        || !mcdn::validate_inputs(merged, aovs, error)
-        || !mcdn::check_halves(merged, aovs, repaired, error))
-        return false;
-    ImageBuf chained;
-    if (!mcdn::run_chain(chained, merged, job.chain, {}, job.threads)) {
-        error = chained.geterror();
-        return false;
-    }
-    // The render's own channels (results in place), or the ones asked for.
-    std::vector<std::string> names = job.channels;
-    if (names.empty())
-        names = Strutil::splits(chained.spec().get_string_attribute("mcdn:output_channels"), "\n");
-    std::vector<int> order;
-    for (const auto& n : names) {
-        int c = chained.spec().channelindex(n);
-        if (c < 0) {
-            error = Strutil::fmt::format("channel '{}' is not in the result; channels there: {}", n,
-                                         mcdn::channel_list(chained.spec()));
+    auto read = [&](ImageBuf& band, int y0, int y1, const std::vector<bool>& channels,
+                    std::string& read_error) {
+        int band_repaired = 0;
+        if (!rows.read(band, y0, y1, read_error, channels)
+            || !mcdn::validate_inputs(band, aovs, read_error)
+            || !mcdn::check_halves(band, aovs, band_repaired, read_error))
             return false;
+        repaired += band_repaired;
+        return true;
+    };
+    // Each band's own rows of the render's own channels (results in place), or of the ones
+    // asked for, into the result.
+    std::vector<int> order;
+    job.chain.output_channels_only = job.channels.empty();
+    mcdn::set_bands_from_environment(job.chain);
+    auto sink = [&](const ImageBuf& band, const ROI& own, std::string& sink_error) {
+        if (order.empty()) {
+            std::vector<std::string> names = job.channels;
+            if (names.empty())
+                names =
+                    Strutil::splits(band.spec().get_string_attribute("mcdn:output_channels"), "\n");
+            for (const auto& n : names) {
+                const int c = band.spec().channelindex(n);
+                if (c < 0) {
+                    sink_error = Strutil::fmt::format(
+                        "channel '{}' is not in the result; channels there: {}", n,
+                        mcdn::channel_list(band.spec()));
+                    return false;
+                }
+                order.push_back(c);
+            }
+            ImageSpec spec = band.spec();
+            spec.y = input.y;
+            spec.height = input.height;
+            spec.nchannels = int(order.size());
+            spec.channelnames = names;
+            spec.channelformats.clear();
+            spec.alpha_channel = spec.channelindex("A");
+            spec.z_channel = spec.channelindex("Z");
+            result.reset(spec, InitializePixels::No);
         }
-        order.push_back(c);
-    }
-    result = ImageBufAlgo::channels(chained, int(order.size()), order);
+        for (size_t i = 0; i < order.size(); ++i) {
+            ROI from = own;
+            from.chbegin = order[i];
+            from.chend = order[i] + 1;
+            auto* to = static_cast<float*>(result.pixeladdr(own.xbegin, own.ybegin)) + i;
+            if (!band.get_pixels(from, TypeDesc::FLOAT, to, result.pixel_stride(),
+                                 result.scanline_stride())) {
+                sink_error = band.geterror();
+                return false;
+            }
+        }
+        return true;
+    };
+    if (!mcdn::run_chain(input, read, job.chain, sink, error, job.threads))
+        return false;
     ImageSpec& spec = result.specmod();
     for (const char* bookkeeping : { mcdn::kInputsAttribute, "mcdn:output_channels" })
         spec.erase_attribute(bookkeeping);

@@ -62,6 +62,30 @@ TEST(OiioPlugin, QueryRunsTheChainInsideOiiotool)
     EXPECT_LT(relmse_of(out), 0.5 * relmse_of(noisy));
 }
 
+// The plugin streams its inputs in bands as mcdntool does (a frame's inputs are never in
+// memory whole): the same image as mcdntool's chain on the whole frame.
+TEST(OiioPlugin, BandsOfRowsGiveTheWholeFramesResult)
+{
+    if (system("command -v oiiotool > /dev/null") != 0)
+        GTEST_SKIP() << "oiiotool not installed";
+    const std::string dir = mcdn_test::temp_dir("plugin_bands");
+    const std::string d = mcdn_test::test_data("box16/box_0016spp");
+    auto banded = mcdn_test::run_oiiotool(
+        quote(box_query("prefilter,nfor")) + " -o " + quote(dir + "/banded.exr"),
+        "MCDN_BAND_PIXELS=1024");  // 16 rows of 64 a band, 4 bands and their halos
+    ASSERT_EQ(banded.exit_code, 0) << banded.output;
+    auto whole = mcdn_test::run_mcdntool(
+        "-i:as=mean " + quote(d + ".exr") + " -i:as=variance " + quote(d + "_var.exr")
+            + " -i:as=halfA " + quote(d + "_A.exr") + " -i:as=halfB " + quote(d + "_B.exr")
+            + " --aov:preset=cycles" + " --prefilter --nfor -o " + quote(dir + "/whole.exr"),
+        "MCDN_BAND_PIXELS=0");
+    ASSERT_EQ(whole.exit_code, 0) << whole.output;
+    auto diff = mcdn_test::run_command("oiiotool " + quote(dir + "/banded.exr") + " "
+                                       + quote(dir + "/whole.exr") + " --diff --fail 0 --warn 0");
+    EXPECT_EQ(diff.exit_code, 0) << diff.output;
+    EXPECT_NE(diff.output.find("PASS"), std::string::npos) << diff.output;
+}
+
 TEST(OiioPlugin, RecipeFileWithRelativePaths)
 {
     if (system("command -v oiiotool > /dev/null") != 0)

@@ -99,11 +99,12 @@ inline Run run_mcdntool(const std::string& args, const std::string& env = "",
     return run_command(env + (env.empty() ? "" : " ") + prefix + "'" + MCDNTOOL + "' " + args);
 }
 
-/// Runs Debian's oiiotool with the built plugin, under a time limit (exit 124 if it hangs).
-inline Run run_oiiotool(const std::string& args)
+/// Runs Debian's oiiotool with the built plugin, under a time limit (exit 124 if it hangs);
+/// `env`: more NAME=value settings for it.
+inline Run run_oiiotool(const std::string& args, const std::string& env = "")
 {
-    return run_command("OIIO_LIBRARY_PATH='" + std::string(MCDN_PLUGIN_DIR)
-                       + "' timeout 300 oiiotool " + args);
+    return run_command(env + (env.empty() ? "" : " ") + "OIIO_LIBRARY_PATH='"
+                       + std::string(MCDN_PLUGIN_DIR) + "' timeout 300 oiiotool " + args);
 }
 
 /// True when oiiotool is on PATH (tests that need it skip otherwise).

@@ -46,6 +46,11 @@ struct ChainOptions {
     bool output_channels_only = false;
 };
 
+/// $MCDN_BAND_PIXELS, when set, as `options`' bands, exactly (band_halos 0; 0: the whole
+/// frame at once): every front end's knob of memory against speed (docs/performance.md).
+/// Unset or not a number: left as they are.
+void set_bands_from_environment(ChainOptions& options);
+
 /// The rows [own.ybegin, own.yend) of a chain's result, every channel, in `band` (which may
 /// hold more rows: its halo); false with `error` to stop the chain.
 using BandSink = std::function<bool(const ImageBuf& band, const ROI& own, std::string& error)>;

@@ -5,6 +5,7 @@
 // are drawn by the pixel's index in the frame, and bands start on the converged-tile grid.
 #include "mcdn/chain.h"
 
+#include <cstdlib>
 #include <algorithm>
 #include <memory>
 
@@ -313,6 +314,19 @@ bool run_bands(const std::vector<Band>& bands, const ROI& whole, const FrameFact
 }
 
 }  // namespace
+
+void set_bands_from_environment(ChainOptions& options)
+{
+    const char* text = std::getenv("MCDN_BAND_PIXELS");
+    if (!text || !*text)
+        return;
+    char* end = nullptr;
+    const long long pixels = std::strtoll(text, &end, 10);
+    if (*end || pixels < 0)
+        return;
+    options.band_pixels = pixels;
+    options.band_halos = 0;  // exactly the bands asked for
+}
 
 ChainBand chain_band(int width, const ChainOptions& o, int reach)
 {
