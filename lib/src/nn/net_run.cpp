@@ -206,21 +206,23 @@ void run_step(const Step& step, const std::vector<Net::Node>& nodes, NetState& s
 void Net::make_state()
 {
     state_ = std::make_unique<NetState>();
-    for (size_t id = 0; id < nodes_.size(); ++id)
-        if (nodes_[id].op == Op::conv)
-            state_->convs.emplace(std::piecewise_construct, std::forward_as_tuple(int(id)),
-                                  std::forward_as_tuple(nodes_[nodes_[id].inputs[0]].channels,
-                                                        nodes_[id].channels, nodes_[id].kernel,
-                                                        nodes_[id].activation, weights_[id],
-                                                        biases_[id]));
     for (int b = 0; b < 2; ++b) {
         state_->plan[b] = plan_steps(nodes_, output_ids_, b == 0);
         state_->storage[b] = plan_storage(state_->plan[b], nodes_, output_ids_);
         state_->slots[b].resize(state_->storage[b].slot_floats.size());
     }
-    for (const Step& step : state_->plan[0])
-        if (step.kind == Step::Kind::upconv) {
-            const Node& conv = nodes_[size_t(step.id)];
+    // oneDNN layers for the convs the fast plan runs as convs; a conv it fuses into a kernel
+    // head or runs as an upconv reads its weights there instead (the reference plan reads
+    // the weights as they are).
+    for (const Step& step : state_->plan[0]) {
+        const Node& conv = nodes_[size_t(step.id)];
+        if (step.kind == Step::Kind::conv || step.kind == Step::Kind::conv_sum)
+            state_->convs.emplace(std::piecewise_construct, std::forward_as_tuple(step.id),
+                                  std::forward_as_tuple(nodes_[size_t(conv.inputs[0])].channels,
+                                                        conv.channels, conv.kernel, conv.activation,
+                                                        weights_[size_t(step.id)],
+                                                        biases_[size_t(step.id)]));
+        else if (step.kind == Step::Kind::upconv) {
             const Node& joined = nodes_[size_t(conv.inputs[0])];
             state_->upconvs.emplace(std::piecewise_construct, std::forward_as_tuple(step.id),
                                     std::forward_as_tuple(nodes_[size_t(joined.inputs[0])].channels,
@@ -229,6 +231,7 @@ void Net::make_state()
                                                           weights_[size_t(step.id)],
                                                           biases_[size_t(step.id)]));
         }
+    }
 }
 
 void Net::give_buffers(Net& other)

@@ -93,12 +93,12 @@ private:
     ConvLayer skip_;
 };
 
-/// What Net keeps between runs: the engine, a stream, a ConvLayer per conv node, and the
-/// storage of freed values (reused by the next values and the next tiles).
+/// What Net keeps between runs: the engine, a stream, a layer per conv the fast plan runs,
+/// and the storage of freed values (reused by the next values and the next tiles).
 struct NetState {
     dnnl::engine engine { dnnl::engine::kind::cpu, 0 };
     dnnl::stream stream { engine };
-    std::map<int, ConvLayer> convs;      // by node id
+    std::map<int, ConvLayer> convs;      // by node id: Step::Kind::conv and conv_sum
     std::map<int, UpConvLayer> upconvs;  // by node id: the convs planned as Step::Kind::upconv
     /// How the network runs (net_plan.h): [0] the oneDNN backend's, [1] the reference's;
     /// where its values live, and the storage of each slot while no value holds it.
