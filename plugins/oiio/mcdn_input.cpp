@@ -5,11 +5,14 @@
 //   OIIO_LIBRARY_PATH=build/lib/mcdenoise oiiotool
 //     "shot.mcdn?in=beauty.exr&variance=beauty_var.exr" --colorconvert linear sRGB -o out.png
 //
+// The image has the render's channel types (mcdn::written_types), its pixels held in float.
 // Keys: in (the render, required), variance, halfA, halfB, preset (default: detected), layer,
 // colorspace, chain (default denoise: the best chain the inputs allow; or stages such as
 // prefilter,nfor,sure,mix), channels (output channels, default the render's own),
 // threads, and per-stage settings like nfor.window=19, sure.probes=4, mix.model=net.
 // Relative paths in a recipe file are relative to the recipe's folder.
+#include <algorithm>
+#include <cmath>
 #include <condition_variable>
 #include <map>
 #include <memory>
@@ -34,8 +37,10 @@ namespace {
 
 using mcdn_plugin::Recipe;
 
-// Reads the inputs and runs the chain the recipe describes.
-bool denoise(const Recipe& recipe, ImageBuf& result, std::string& error)
+// Reads the inputs and runs the chain the recipe describes: `result` in float, `types` the
+// type of each of its channels in the image handed on (mcdn::written_types: the render's).
+bool denoise(const Recipe& recipe, ImageBuf& result, std::vector<TypeDesc>& types,
+             std::string& error)
 {
     mcdn_plugin::Job job;
     if (!mcdn_plugin::job_from_recipe(recipe, job, error))
@@ -73,6 +78,7 @@ bool denoise(const Recipe& recipe, ImageBuf& result, std::string& error)
     // Each band's own rows of the render's own channels (results in place), or of the ones
     // asked for, into the result.
     std::vector<int> order;
+    int64_t clamped = 0;
     job.chain.output_channels_only = job.channels.empty();
     mcdn::set_bands_from_environment(job.chain);
     auto sink = [&](const ImageBuf& band, const ROI& own, std::string& sink_error) {
@@ -100,6 +106,7 @@ bool denoise(const Recipe& recipe, ImageBuf& result, std::string& error)
             spec.alpha_channel = spec.channelindex("A");
             spec.z_channel = spec.channelindex("Z");
             result.reset(spec, InitializePixels::No);
+            types = mcdn::written_types(band.spec(), names);
         }
         for (size_t i = 0; i < order.size(); ++i) {
             ROI from = own;
@@ -111,6 +118,20 @@ bool denoise(const Recipe& recipe, ImageBuf& result, std::string& error)
                 sink_error = band.geterror();
                 return false;
             }
+        }
+        // A half channel's values beyond half's range become +-65504, not Inf, as mcdntool
+        // writes them; counted on the result (mcdn:clamped_to_half).
+        for (int y = own.ybegin; y < own.yend; ++y) {
+            auto* row = static_cast<float*>(result.pixeladdr(own.xbegin, y));
+            for (int x = 0; x < own.width(); ++x)
+                for (size_t c = 0; c < types.size(); ++c) {
+                    float& v = row[size_t(x) * types.size() + c];
+                    if (types[c] == TypeDesc::HALF && std::isfinite(v)
+                        && std::fabs(v) > mcdn::kHalfMax) {
+                        v = std::copysign(mcdn::kHalfMax, v);
+                        ++clamped;
+                    }
+                }
         }
         return true;
     };
@@ -124,6 +145,8 @@ bool denoise(const Recipe& recipe, ImageBuf& result, std::string& error)
     spec.attribute("mcdn:Version", mcdn::version());
     if (repaired > 0)
         spec.attribute("mcdn:halves_repaired", repaired);
+    if (clamped > 0)
+        spec.attribute("mcdn:clamped_to_half", int(std::min<int64_t>(clamped, INT32_MAX)));
     std::string software = spec.get_string_attribute("Software");
     spec.attribute("Software", (software.empty() ? "" : software + "; ") + mcdn::software_name());
     return true;
@@ -151,9 +174,18 @@ public:
             return false;
         }
         m_entry = computed(name, m_error);
-        if (m_error.empty())
+        if (m_error.empty()) {
+            // Each channel as the render had it (a half render gives a half image, as
+            // oiiotool keeps it); the pixels are held in float and converted as read.
             m_spec = m_entry->result.spec();
-        else {
+            const std::vector<TypeDesc>& types = m_entry->types;
+            const bool one_type = std::all_of(types.begin(), types.end(),
+                                              [&](TypeDesc t) { return t == types.front(); });
+            m_spec.set_format(types.empty() || !one_type ? TypeDesc::FLOAT : types.front());
+            m_spec.channelformats.clear();
+            if (!one_type)
+                m_spec.channelformats = types;
+        } else {
             // The placeholder says what went wrong wherever its spec is shown (--info -v,
             // iinfo -v): the error is also the first read's.
             m_spec = ImageSpec(1, 1, 1, TypeDesc::FLOAT);
@@ -180,7 +212,19 @@ public:
         if (subimage != 0 || miplevel != 0 || !m_entry)
             return false;
         ROI row(m_spec.x, m_spec.x + m_spec.width, y, y + 1, z, z + 1, 0, m_spec.nchannels);
-        return m_entry->result.get_pixels(row, TypeDesc::FLOAT, data);
+        if (m_spec.channelformats.empty())
+            return m_entry->result.get_pixels(row, m_spec.format, data);
+        // Mixed types: each pixel's channels packed, each in its own type.
+        m_row.resize(size_t(m_spec.width) * m_spec.nchannels);
+        if (!m_entry->result.get_pixels(row, TypeDesc::FLOAT, m_row.data()))
+            return false;
+        auto* out = static_cast<char*>(data);
+        for (size_t i = 0; i < m_row.size(); ++i) {
+            const TypeDesc type = m_spec.channelformats[i % size_t(m_spec.nchannels)];
+            convert_pixel_values(TypeDesc::FLOAT, &m_row[i], type, out, 1);
+            out += type.size();
+        }
+        return true;
     }
 
 private:
@@ -192,7 +236,8 @@ private:
 
     struct Computed {
         bool done = false;
-        ImageBuf result;
+        ImageBuf result;              // float
+        std::vector<TypeDesc> types;  // each channel's type in the image handed on
         std::string error;
     };
     // Results no open input holds that stay for the next open (oiiotool opens an input
@@ -232,11 +277,12 @@ private:
             order.push_back(key);
         }
         ImageBuf result;
+        std::vector<TypeDesc> types;
         std::string why;
         try {
             Recipe recipe;
             if (mcdn_plugin::parse_recipe(typed, recipe, why))
-                denoise(recipe, result, why);
+                denoise(recipe, result, types, why);
         } catch (const std::exception& e) {
             why = e.what();
         }
@@ -245,6 +291,7 @@ private:
             std::lock_guard<std::mutex> lock(mutex);
             entry->done = true;
             entry->result = std::move(result);
+            entry->types = std::move(types);
             entry->error = why;
             // Newest first: results nobody holds (the map's is the only reference) beyond
             // kKeptResults are freed.
@@ -265,6 +312,7 @@ private:
 
     std::shared_ptr<Computed> m_entry;
     std::string m_error;
+    std::vector<float> m_row;  // a row in float, for a read of mixed types
 };
 
 }  // namespace

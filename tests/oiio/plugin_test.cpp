@@ -86,6 +86,34 @@ TEST(OiioPlugin, BandsOfRowsGiveTheWholeFramesResult)
     EXPECT_NE(diff.output.find("PASS"), std::string::npos) << diff.output;
 }
 
+// A half render gives a half image, as oiiotool keeps a half file half and mcdntool writes
+// it: the same file as mcdntool's.
+TEST(OiioPlugin, AHalfRenderGivesAHalfImage)
+{
+    if (system("command -v oiiotool > /dev/null") != 0)
+        GTEST_SKIP() << "oiiotool not installed";
+    const std::string dir = mcdn_test::temp_dir("plugin_half");
+    const std::string half = dir + "/half.exr";
+    auto convert =
+        mcdn_test::run_command("oiiotool " + quote(mcdn_test::test_data("box16/box_0016spp.exr"))
+                               + " -d half -o " + quote(half));
+    ASSERT_EQ(convert.exit_code, 0) << convert.output;
+    const std::string variance = mcdn_test::test_data("box16/box_0016spp_var.exr");
+    auto plugin = oiiotool(quote("shot.mcdn?in=" + half + "&variance=" + variance
+                                 + "&preset=cycles&chain=prefilter,nfor")
+                           + " -o " + quote(dir + "/plugin.exr"));
+    ASSERT_EQ(plugin.exit_code, 0) << plugin.output;
+    auto tool = mcdn_test::run_mcdntool(
+        "-i:as=mean " + quote(half) + " -i:as=variance " + quote(variance)
+        + " --aov:preset=cycles --prefilter --nfor -o " + quote(dir + "/tool.exr"));
+    ASSERT_EQ(tool.exit_code, 0) << tool.output;
+    auto info = mcdn_test::run_command("oiiotool --info " + quote(dir + "/plugin.exr"));
+    EXPECT_NE(info.output.find("39 channel, half openexr"), std::string::npos) << info.output;
+    auto diff = mcdn_test::run_command("oiiotool " + quote(dir + "/plugin.exr") + " "
+                                       + quote(dir + "/tool.exr") + " --diff --fail 0 --warn 0");
+    EXPECT_NE(diff.output.find("PASS"), std::string::npos) << diff.output;
+}
+
 TEST(OiioPlugin, RecipeFileWithRelativePaths)
 {
     if (system("command -v oiiotool > /dev/null") != 0)

@@ -124,6 +124,18 @@ bool validate_inputs(const ImageBuf& merged, const AovSet& aovs, std::string& er
 /// the caller to say (a fallback is never silent). True without halves.
 bool check_halves(ImageBuf& merged, const AovSet& aovs, int& repaired_tiles, std::string& error);
 
+/// The type each of `channels` of `image` (read_inputs's frame, or a chain's result) is
+/// written as: `datatype`, or where that is UNKNOWN as the render's file had it (half, uint:
+/// a half beauty stays half, as oiiotool keeps it), float for the channels the stages added
+/// and for types OpenEXR has not (an 8-bit PNG's). write_image's rule, and the OIIO
+/// plugin's for the image it hands oiiotool.
+std::vector<OIIO::TypeDesc> written_types(const ImageSpec& image,
+                                          const std::vector<std::string>& channels,
+                                          OIIO::TypeDesc datatype = OIIO::TypeDesc::UNKNOWN);
+/// Finite values beyond half's range are written as +-kHalfMax in a half channel (half would
+/// make them Inf), and said (write_image's warnings).
+constexpr float kHalfMax = 65504.0f;
+
 struct WriteOptions {
     /// half or float for every channel; UNKNOWN (the default): each channel as the render's
     /// file had it (a half beauty and float depth stay so, as oiiotool keeps them), float for

@@ -153,6 +153,28 @@ bool check_compression(const std::string& compression, std::string& error)
     return ok;
 }
 
+std::vector<TypeDesc> written_types(const ImageSpec& image,
+                                    const std::vector<std::string>& channels, TypeDesc datatype)
+{
+    std::map<std::string, TypeDesc> input_types;
+    for (const auto& line : Strutil::splits(image.get_string_attribute(kInputTypesAttribute), "\n"))
+        if (const auto fields = Strutil::splits(line, "\t"); fields.size() == 2)
+            input_types[fields[0]] = TypeDesc(fields[1]);
+    std::vector<TypeDesc> types;
+    for (const auto& name : channels) {
+        TypeDesc type = datatype;
+        if (type == TypeDesc::UNKNOWN) {
+            const auto found = input_types.find(name);
+            type = found != input_types.end()
+                           && (found->second == TypeDesc::HALF || found->second == TypeDesc::UINT)
+                       ? found->second
+                       : TypeDesc::FLOAT;
+        }
+        types.push_back(type);
+    }
+    return types;
+}
+
 namespace {
 
 // What write_image and RowWriter tell about the values they write, channel by channel: NaN
@@ -169,7 +191,6 @@ struct ValueCounts {
         nan.resize(nch, 0);
         inf.resize(nch, 0);
         clamped.resize(nch, 0);
-        constexpr float kHalfMax = 65504.0f;
         for (size_t p = 0; p < pixels; ++p)
             for (int c = 0; c < nch; ++c) {
                 float& v = values[p * nch + c];
@@ -268,26 +289,9 @@ bool output_layout(OutputLayout& layout, const ImageSpec& in_spec, const std::st
     for (const auto& name : { kInputsAttribute, kOutputChannelsAttribute, kPartsAttribute,
                               kHalvesUnread, kDenoiserTilesAttribute, kInputTypesAttribute })
         spec.erase_attribute(name);
-    // Each channel's type: as asked, or as the render's file had it (float for the channels
-    // the stages added, and for types OpenEXR has not: an 8-bit PNG's).
-    std::map<std::string, TypeDesc> input_types;
-    for (const auto& line :
-         Strutil::splits(in_spec.get_string_attribute(kInputTypesAttribute), "\n"))
-        if (const auto fields = Strutil::splits(line, "\t"); fields.size() == 2)
-            input_types[fields[0]] = TypeDesc(fields[1]);
-    std::vector<TypeDesc> types;
-    for (const auto& name : wanted) {
-        TypeDesc type = options.datatype;
-        if (type == TypeDesc::UNKNOWN) {
-            const auto found = input_types.find(name);
-            type = found != input_types.end()
-                           && (found->second == TypeDesc::HALF || found->second == TypeDesc::UINT)
-                       ? found->second
-                       : TypeDesc::FLOAT;
-        }
-        types.push_back(type);
+    const std::vector<TypeDesc> types = written_types(in_spec, wanted, options.datatype);
+    for (TypeDesc type : types)
         layout.half.push_back(type == TypeDesc::HALF);
-    }
     const bool one_type =
         std::all_of(types.begin(), types.end(), [&](TypeDesc t) { return t == types.front(); });
     spec.set_format(types.empty() || !one_type ? TypeDesc::FLOAT : types.front());
