@@ -166,32 +166,6 @@ bool Session::take_denoiser_chain(mcdn::Denoiser& chain, int& chain_radius, Imag
     return true;
 }
 
-namespace {
-
-// The safety nets' tile counts on a stage's result (mcdn/nfor.h, mcdn/sure.h).
-constexpr const char* kFallbackCounts[] = { mcdn::kNforFallbackCountAttribute,
-                                            mcdn::kSureFallbackCountAttribute,
-                                            mcdn::kSureWorseCountAttribute };
-
-// choose's share summed over the bands' pixels (halos too: what -v says is a mean).
-constexpr const char* kChooseShareSum = "mcdntool:choose_share_sum";
-constexpr const char* kChoosePixels = "mcdntool:choose_pixels";
-
-}  // namespace
-
-void add_fallback_counts(OIIO::ImageSpec& sum, const OIIO::ImageSpec& band)
-{
-    for (const char* count : kFallbackCounts)
-        sum.attribute(count, sum.get_int_attribute(count, 0) + band.get_int_attribute(count, 0));
-    if (band.find_attribute(mcdn::kChooseShareAttribute)) {
-        const float pixels = float(band.image_pixels());
-        sum.attribute(kChooseShareSum,
-                      sum.get_float_attribute(kChooseShareSum, 0)
-                          + band.get_float_attribute(mcdn::kChooseShareAttribute) * pixels);
-        sum.attribute(kChoosePixels, sum.get_float_attribute(kChoosePixels, 0) + pixels);
-    }
-}
-
 void report_repaired_halves(int tiles)
 {
     if (tiles > 0)
@@ -212,16 +186,11 @@ void report_fallback(const OIIO::ImageSpec& result, const std::string& stage)
                                 "turns it off, fallback-aov=1 shows where)\n",
                                 stage, tiles, mcdn::kConvergedTileSize, mcdn::kConvergedTileSize,
                                 estimate, stage);
-    // A later stage keeps choose's attribute: said once, by choose (or by the bands' sum).
-    const float pixels = result.get_float_attribute(kChoosePixels, 0);
-    if ((stage.empty() || stage == "choose")
-        && (result.find_attribute(mcdn::kChooseShareAttribute) || pixels > 0))
+    // A later stage keeps choose's attribute: said once, by choose (or for the bands).
+    if ((stage.empty() || stage == "choose") && result.find_attribute(mcdn::kChooseShareAttribute))
         std::cerr << format("mcdntool: choose: the second denoiser's weight (with=) averages "
                             "{:.0f}% over the frame (the rest is the one's before --sure)\n",
-                            100.0f
-                                * (pixels > 0
-                                       ? result.get_float_attribute(kChooseShareSum) / pixels
-                                       : result.get_float_attribute(mcdn::kChooseShareAttribute)));
+                            100.0f * result.get_float_attribute(mcdn::kChooseShareAttribute));
     if (const int tiles = result.get_int_attribute(mcdn::kSureWorseCountAttribute, 0); tiles > 0)
         std::cerr << format("mcdntool: sure: SURE says the denoiser made {} tile(s) of {}x{} "
                             "pixels worse than the render (kept; --sure:fallback=1 makes them "

@@ -158,13 +158,10 @@ bool check_fixnan(const Command&, std::string& error);
 
 /// The -v lines of the safety nets (nfor's, sure's): how many tiles each sent back to the
 /// render, from the counts on `result` (none: no line), and choose's share of NFOR, when
-/// `stage` is choose or empty (a streamed chain's sum) (session.cpp).
+/// `stage` is choose or empty (a streamed chain's, mcdn::BandCounts) (session.cpp).
 void report_fallback(const OIIO::ImageSpec& result, const std::string& stage = "");
 /// The -v line of mcdn::check_halves's repaired tiles (none: no line) (session.cpp).
 void report_repaired_halves(int tiles);
-/// Adds a band's safety-net counts and choose's share to `sum`, which report_fallback then
-/// reads (session.cpp).
-void add_fallback_counts(OIIO::ImageSpec& sum, const OIIO::ImageSpec& band);
 
 /// -o's modifiers as WriteOptions (session.cpp).
 bool write_options_of(const Command& c, mcdn::WriteOptions& options, std::string& error);

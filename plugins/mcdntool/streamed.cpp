@@ -149,9 +149,9 @@ bool run_streamed_chain(Session& s, const std::vector<Command>& commands, size_t
     OIIO::Timer timer;
     mcdn::RowWriter writer;
     int bands = 0;
-    OIIO::ImageSpec fell_back;  // the safety nets' counts, summed over the bands
+    mcdn::BandCounts fell_back;  // the safety nets' counts over the bands
     auto sink = [&](const ImageBuf& band, const OIIO::ROI& own, std::string& sink_error) {
-        add_fallback_counts(fell_back, band.spec());
+        fell_back.add(band.spec());
         if (bands++ == 0) {
             OIIO::ImageSpec frame = band.spec();
             frame.y = input.y;
@@ -178,8 +178,11 @@ bool run_streamed_chain(Session& s, const std::vector<Command>& commands, size_t
         std::cerr << format("mcdntool: {} {}x{} in {} band(s) of rows, written to {}: {:.2f} s\n",
                             Strutil::join(chain.stages, " "), input.width, input.height, bands,
                             output.args[0], timer());
-    if (s.verbose)
-        report_fallback(fell_back);
+    if (s.verbose) {
+        OIIO::ImageSpec frame;
+        fell_back.set(frame);
+        report_fallback(frame);
+    }
     return true;
 }
 

@@ -81,7 +81,9 @@ bool denoise(const Recipe& recipe, ImageBuf& result, std::vector<TypeDesc>& type
     int64_t clamped = 0;
     job.chain.output_channels_only = job.channels.empty();
     mcdn::set_bands_from_environment(job.chain);
+    mcdn::BandCounts counts;  // the safety nets' over the bands, said on the result
     auto sink = [&](const ImageBuf& band, const ROI& own, std::string& sink_error) {
+        counts.add(band.spec());
         if (order.empty()) {
             std::vector<std::string> names = job.channels;
             if (names.empty())
@@ -137,6 +139,7 @@ bool denoise(const Recipe& recipe, ImageBuf& result, std::vector<TypeDesc>& type
     };
     if (!mcdn::run_chain(input, read, job.chain, sink, error, job.threads))
         return false;
+    counts.set(result.specmod());
     ImageSpec& spec = result.specmod();
     for (const char* bookkeeping : { mcdn::kInputsAttribute, "mcdn:output_channels" })
         spec.erase_attribute(bookkeeping);

@@ -54,6 +54,11 @@ void expect_bands_match(const Case& k)
     EXPECT_EQ(whole.spec().get_string_attribute("mcdn:denoise_plan"),
               banded.spec().get_string_attribute("mcdn:denoise_plan"));
     EXPECT_FALSE(banded.spec().find_attribute("mcdn:frame")) << name;
+    // choose's share is the frame's mean over the bands' pixels (their halos too).
+    if (whole.spec().find_attribute("mcdn:choose_share"))
+        EXPECT_NEAR(banded.spec().get_float_attribute("mcdn:choose_share", -1),
+                    whole.spec().get_float_attribute("mcdn:choose_share"), 0.02)
+            << name;
     const auto cmp = OIIO::ImageBufAlgo::compare(whole, banded, 0, 0);
     EXPECT_LE(cmp.maxerror, k.tolerance)
         << name << " at " << cmp.maxx << "," << cmp.maxy << " channel " << cmp.maxc;
@@ -74,6 +79,33 @@ TEST(Bands, NforChainsAreTheWholeFrame)
     expect_bands_match({ { "nfor" }, { { "nfor.halves", "0" } }, 0.0 });
     expect_bands_match(
         { { "prefilter", "nfor", "sure", "mix" }, { { "mix.model", "analytic" } }, 0.0 });
+}
+
+// A frame made in bands says what its bands' safety nets did: their tile counts summed,
+// choose's share the mean over their pixels, each erased where no band had it.
+TEST(Bands, TheSafetyNetsCountsAreTheBandsSums)
+{
+    auto band = [](int height, int nfor, int sure, float share) {
+        OIIO::ImageSpec spec(8, height, 3, OIIO::TypeDesc::FLOAT);
+        if (nfor >= 0)
+            spec.attribute("mcdn:nfor_fallback_count", nfor);
+        if (sure >= 0)
+            spec.attribute("mcdn:sure_worse_count", sure);
+        if (share >= 0)
+            spec.attribute("mcdn:choose_share", share);
+        return spec;
+    };
+    BandCounts counts;
+    counts.add(band(10, 2, -1, 0.5f));
+    counts.add(band(30, 3, 4, 0.1f));
+    counts.add(band(20, -1, -1, -1));
+    OIIO::ImageSpec frame = band(60, 2, -1, 0.5f);  // the first band's, as gathered
+    frame.attribute("mcdn:sure_fallback_count", 7);
+    counts.set(frame);
+    EXPECT_EQ(frame.get_int_attribute("mcdn:nfor_fallback_count"), 5);
+    EXPECT_EQ(frame.get_int_attribute("mcdn:sure_worse_count"), 4);
+    EXPECT_FALSE(frame.find_attribute("mcdn:sure_fallback_count"));
+    EXPECT_NEAR(frame.get_float_attribute("mcdn:choose_share"), (10 * 0.5 + 30 * 0.1) / 40, 1e-6);
 }
 
 TEST(Bands, ReachIsTheSumOfTheStages)

@@ -3,6 +3,7 @@
 // before "sure" form the denoiser SURE estimates the error of; "mix" needs "sure" first.
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <map>
 #include <string>
@@ -44,6 +45,22 @@ struct ChainOptions {
     /// output channels are then put back (and kept apart for it), the others (their
     /// variances and halves) are left as the prefilter made them.
     bool output_channels_only = false;
+};
+
+/// What a chain's result says on its spec of the safety nets (the tiles each left as the
+/// render: mcdn/nfor.h, mcdn/sure.h) and of choose's share (mcdn/choose.h), over a frame
+/// made in bands: add() each band's result spec, set() the frame's. Counts are summed (a
+/// tile of two bands' halos counts twice), the share is the mean over the bands' pixels.
+/// run_chain's gathered result carries them so; a front end with a BandSink keeps its own.
+class BandCounts {
+public:
+    void add(const ImageSpec& band);
+    /// Replaces the counts and the share on `frame` (those absent from every band: erased).
+    void set(ImageSpec& frame) const;
+
+private:
+    int64_t tiles_[3] = {};  // nfor's fallback, sure's fallback, sure's worse tiles
+    double share_sum_ = 0, share_pixels_ = 0;
 };
 
 /// $MCDN_BAND_PIXELS, when set, as `options`' bands, exactly (band_halos 0; 0: the whole

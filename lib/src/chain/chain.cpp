@@ -188,8 +188,10 @@ bool run_chain_impl(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const Cha
 bool run_chain_into(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, int nthreads)
 {
     ImageBuf out;
+    BandCounts counts;
     auto gather = [&](const ImageBuf& band, const ROI& own, std::string& error) {
         const ImageSpec& spec = band.spec();
+        counts.add(spec);
         if (!out.initialized()) {
             ImageSpec frame = spec;
             frame.y = src.spec().y;
@@ -218,6 +220,7 @@ bool run_chain_into(ImageBuf& dst, const ImageBuf& src, const ChainOptions& o, i
         dst.errorfmt("{}", error);
         return false;
     }
+    counts.set(out.specmod());
     dst = std::move(out);
     return true;
 }

@@ -5,8 +5,8 @@
 // are drawn by the pixel's index in the frame, and bands start on the converged-tile grid.
 #include "mcdn/chain.h"
 
-#include <cstdlib>
 #include <algorithm>
+#include <cstdlib>
 #include <memory>
 
 #include <OpenImageIO/strutil.h>
@@ -19,6 +19,7 @@
 #include "core/op_prepare.h"
 #include "core/planar.h"
 #include "core/trace.h"
+#include "mcdn/choose.h"
 #include "mcdn/cnn.h"
 #include "mcdn/color.h"
 #include "mcdn/denoise.h"
@@ -314,6 +315,38 @@ bool run_bands(const std::vector<Band>& bands, const ROI& whole, const FrameFact
 }
 
 }  // namespace
+
+namespace {
+
+// BandCounts' tile counts, in the order of its tiles_.
+constexpr const char* kCounted[] = { kNforFallbackCountAttribute, kSureFallbackCountAttribute,
+                                     kSureWorseCountAttribute };
+
+}  // namespace
+
+void BandCounts::add(const ImageSpec& band)
+{
+    static_assert(sizeof(tiles_) / sizeof(tiles_[0]) == std::size(kCounted));
+    for (size_t i = 0; i < std::size(kCounted); ++i)
+        tiles_[i] += band.get_int_attribute(kCounted[i], 0);
+    if (band.find_attribute(kChooseShareAttribute)) {
+        const double pixels = double(band.image_pixels());
+        share_sum_ += band.get_float_attribute(kChooseShareAttribute) * pixels;
+        share_pixels_ += pixels;
+    }
+}
+
+void BandCounts::set(ImageSpec& frame) const
+{
+    for (size_t i = 0; i < std::size(kCounted); ++i) {
+        frame.erase_attribute(kCounted[i]);
+        if (tiles_[i] > 0)
+            frame.attribute(kCounted[i], int(std::min<int64_t>(tiles_[i], INT32_MAX)));
+    }
+    frame.erase_attribute(kChooseShareAttribute);
+    if (share_pixels_ > 0)
+        frame.attribute(kChooseShareAttribute, float(share_sum_ / share_pixels_));
+}
 
 void set_bands_from_environment(ChainOptions& options)
 {
