@@ -5,7 +5,8 @@
 //   OIIO_LIBRARY_PATH=build/lib/mcdenoise oiiotool
 //     "shot.mcdn?in=beauty.exr&variance=beauty_var.exr" --colorconvert linear sRGB -o out.png
 //
-// The image has the render's channel types (mcdn::written_types), its pixels held in float.
+// The image has the render's channel types (mcdn::written_types), its pixels held in half
+// when all are half, else in float.
 // Keys: in (the render, required), variance, halfA, halfB, preset (default: detected), layer,
 // colorspace, chain (default denoise: the best chain the inputs allow; or stages such as
 // prefilter,nfor,sure,mix), channels (output channels, default the render's own),
@@ -37,8 +38,9 @@ namespace {
 
 using mcdn_plugin::Recipe;
 
-// Reads the inputs and runs the chain the recipe describes: `result` in float, `types` the
-// type of each of its channels in the image handed on (mcdn::written_types: the render's).
+// Reads the inputs and runs the chain the recipe describes: `result` in half when every
+// channel is, else in float; `types` the type of each of its channels in the image handed
+// on (mcdn::written_types: the render's).
 bool denoise(const Recipe& recipe, ImageBuf& result, std::vector<TypeDesc>& types,
              std::string& error)
 {
@@ -78,6 +80,7 @@ bool denoise(const Recipe& recipe, ImageBuf& result, std::vector<TypeDesc>& type
     // Each band's own rows of the render's own channels (results in place), or of the ones
     // asked for, into the result.
     std::vector<int> order;
+    std::vector<float> own_rows;  // a band's own rows of them, in float
     int64_t clamped = 0;
     job.chain.output_channels_only = job.channels.empty();
     mcdn::set_bands_from_environment(job.chain);
@@ -99,6 +102,7 @@ bool denoise(const Recipe& recipe, ImageBuf& result, std::vector<TypeDesc>& type
                 }
                 order.push_back(c);
             }
+            types = mcdn::written_types(band.spec(), names);
             ImageSpec spec = band.spec();
             spec.y = input.y;
             spec.height = input.height;
@@ -107,33 +111,40 @@ bool denoise(const Recipe& recipe, ImageBuf& result, std::vector<TypeDesc>& type
             spec.channelformats.clear();
             spec.alpha_channel = spec.channelindex("A");
             spec.z_channel = spec.channelindex("Z");
+            // Held in half when every channel is (half the memory), else in float.
+            const bool all_half = std::all_of(types.begin(), types.end(),
+                                              [](TypeDesc t) { return t == TypeDesc::HALF; });
+            spec.set_format(all_half ? TypeDesc::HALF : TypeDesc::FLOAT);
             result.reset(spec, InitializePixels::No);
-            types = mcdn::written_types(band.spec(), names);
         }
-        for (size_t i = 0; i < order.size(); ++i) {
+        // The band's own rows of the output channels, in float.
+        const size_t nch = order.size();
+        own_rows.resize(size_t(own.npixels()) * nch);
+        for (size_t i = 0; i < nch; ++i) {
             ROI from = own;
             from.chbegin = order[i];
             from.chend = order[i] + 1;
-            auto* to = static_cast<float*>(result.pixeladdr(own.xbegin, own.ybegin)) + i;
-            if (!band.get_pixels(from, TypeDesc::FLOAT, to, result.pixel_stride(),
-                                 result.scanline_stride())) {
+            if (!band.get_pixels(from, TypeDesc::FLOAT, own_rows.data() + i, nch * sizeof(float))) {
                 sink_error = band.geterror();
                 return false;
             }
         }
         // A half channel's values beyond half's range become +-65504, not Inf, as mcdntool
         // writes them; counted on the result (mcdn:clamped_to_half).
-        for (int y = own.ybegin; y < own.yend; ++y) {
-            auto* row = static_cast<float*>(result.pixeladdr(own.xbegin, y));
-            for (int x = 0; x < own.width(); ++x)
-                for (size_t c = 0; c < types.size(); ++c) {
-                    float& v = row[size_t(x) * types.size() + c];
-                    if (types[c] == TypeDesc::HALF && std::isfinite(v)
-                        && std::fabs(v) > mcdn::kHalfMax) {
-                        v = std::copysign(mcdn::kHalfMax, v);
-                        ++clamped;
-                    }
-                }
+        for (size_t k = 0; k < own_rows.size(); ++k) {
+            float& v = own_rows[k];
+            if (types[k % nch] == TypeDesc::HALF && std::isfinite(v)
+                && std::fabs(v) > mcdn::kHalfMax) {
+                v = std::copysign(mcdn::kHalfMax, v);
+                ++clamped;
+            }
+        }
+        ROI to = own;
+        to.chbegin = 0;
+        to.chend = int(nch);
+        if (!result.set_pixels(to, TypeDesc::FLOAT, own_rows.data())) {
+            sink_error = result.geterror();
+            return false;
         }
         return true;
     };
@@ -179,7 +190,7 @@ public:
         m_entry = computed(name, m_error);
         if (m_error.empty()) {
             // Each channel as the render had it (a half render gives a half image, as
-            // oiiotool keeps it); the pixels are held in float and converted as read.
+            // oiiotool keeps it); mixed types are held in float and converted as read.
             m_spec = m_entry->result.spec();
             const std::vector<TypeDesc>& types = m_entry->types;
             const bool one_type = std::all_of(types.begin(), types.end(),
