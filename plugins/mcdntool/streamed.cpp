@@ -156,6 +156,11 @@ bool run_streamed_chain(Session& s, const std::vector<Command>& commands, size_t
             OIIO::ImageSpec frame = band.spec();
             frame.y = input.y;
             frame.height = input.height;
+            // The header goes out before the other bands exist: the first band's safety-net
+            // counts do not stand for the frame's there (-v says the frame's; a frame of one
+            // band keeps them).
+            if (own.ybegin != input.y || own.yend != input.y + input.height)
+                mcdn::BandCounts().set(frame);
             if (!writer.open(frame, output.args[0], write, sink_error))
                 return false;
         }

@@ -345,6 +345,36 @@ TEST(Pipeline, StagesAndOneOutputStreamInBands)
         EXPECT_EQ(f.find("f.exr"), std::string::npos) << f;
 }
 
+// The safety nets' counts of a streamed chain: -v says the bands' sum; the file's header,
+// written before the other bands exist, carries none (one band's would stand for the
+// frame's), where a frame of one band carries its own. The variance made a 100th of the
+// render's: NFOR's own MSE estimate sends every tile back to the render.
+TEST(Pipeline, AStreamedFileCarriesNoOneBandsCounts)
+{
+    const std::string dir = mcdn_test::temp_dir("pipeline_streamed_counts");
+    const std::string variance = dir + "/var.exr";
+    auto scale = mcdn_test::run_command("oiiotool " + box("box_0016spp_var.exr") + " --divc 100 -o "
+                                        + quote(variance));
+    ASSERT_EQ(scale.exit_code, 0) << scale.output;
+    const std::string in = "-i " + box("box_0016spp.exr") + " -i:as=variance " + quote(variance)
+                           + " -i:as=halfA " + box("box_0016spp_A.exr") + " -i:as=halfB "
+                           + box("box_0016spp_B.exr");
+    for (const char* bands : { "1024", "0" }) {
+        const std::string out = dir + "/out" + bands + ".exr";
+        // skip=0: so clean a render's tiles would be converged, and passed through.
+        auto run = run_mcdntool(in + " --nfor:skip=0:outliers=off -v -o " + quote(out),
+                                std::string("MCDN_BAND_PIXELS=") + bands);
+        ASSERT_EQ(run.exit_code, 0) << run.output;
+        EXPECT_NE(run.output.find("nfor: "), std::string::npos) << run.output;
+        EXPECT_NE(run.output.find(" are the render: NFOR's own MSE estimate"), std::string::npos)
+            << run.output;
+        const OIIO::ImageBuf written(out);
+        EXPECT_EQ(written.spec().get_int_attribute("mcdn:nfor_fallback_count", -1),
+                  std::string(bands) == "0" ? 4 : -1)
+            << bands;
+    }
+}
+
 // A streamed chain reads its inputs a band at a time and checks each band's values as it
 // reads them: a bad value in a later band still stops the run with the one-line error (file,
 // channel, pixel), and neither the output nor a temporary is left.
