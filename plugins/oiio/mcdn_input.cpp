@@ -87,7 +87,7 @@ bool denoise(const Recipe& recipe, ImageBuf& result, std::vector<TypeDesc>& type
     mcdn::BandCounts counts;  // the safety nets' over the bands, said on the result
     auto sink = [&](const ImageBuf& band, const ROI& own, std::string& sink_error) {
         counts.add(band.spec());
-        if (order.empty()) {
+        if (!result.initialized()) {
             std::vector<std::string> names = job.channels;
             if (names.empty())
                 names =
