@@ -192,13 +192,7 @@ public:
             // Each channel as the render had it (a half render gives a half image, as
             // oiiotool keeps it); mixed types are held in float and converted as read.
             m_spec = m_entry->result.spec();
-            const std::vector<TypeDesc>& types = m_entry->types;
-            const bool one_type = std::all_of(types.begin(), types.end(),
-                                              [&](TypeDesc t) { return t == types.front(); });
-            m_spec.set_format(types.empty() || !one_type ? TypeDesc::FLOAT : types.front());
-            m_spec.channelformats.clear();
-            if (!one_type)
-                m_spec.channelformats = types;
+            mcdn::set_channel_types(m_spec, m_entry->types);
         } else {
             // The placeholder says what went wrong wherever its spec is shown (--info -v,
             // iinfo -v): the error is also the first read's.
@@ -250,7 +244,7 @@ private:
 
     struct Computed {
         bool done = false;
-        ImageBuf result;              // float
+        ImageBuf result;              // half where every channel is, else float
         std::vector<TypeDesc> types;  // each channel's type in the image handed on
         std::string error;
     };

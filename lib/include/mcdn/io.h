@@ -132,6 +132,9 @@ bool check_halves(ImageBuf& merged, const AovSet& aovs, int& repaired_tiles, std
 std::vector<OIIO::TypeDesc> written_types(const ImageSpec& image,
                                           const std::vector<std::string>& channels,
                                           OIIO::TypeDesc datatype = OIIO::TypeDesc::UNKNOWN);
+/// Puts `types` (one per channel) on `spec` as OIIO says them: one type, as its format;
+/// mixed, format float and channelformats the types (none: float).
+void set_channel_types(ImageSpec& spec, const std::vector<OIIO::TypeDesc>& types);
 /// Finite values beyond half's range are written as +-kHalfMax in a half channel (half would
 /// make them Inf), and said (write_image's warnings).
 constexpr float kHalfMax = 65504.0f;

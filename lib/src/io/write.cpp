@@ -175,6 +175,16 @@ std::vector<TypeDesc> written_types(const ImageSpec& image,
     return types;
 }
 
+void set_channel_types(ImageSpec& spec, const std::vector<TypeDesc>& types)
+{
+    const bool one_type =
+        std::all_of(types.begin(), types.end(), [&](TypeDesc t) { return t == types.front(); });
+    spec.set_format(types.empty() || !one_type ? TypeDesc::FLOAT : types.front());
+    spec.channelformats.clear();
+    if (!one_type)
+        spec.channelformats = types;
+}
+
 namespace {
 
 // What write_image and RowWriter tell about the values they write, channel by channel: NaN
@@ -292,12 +302,7 @@ bool output_layout(OutputLayout& layout, const ImageSpec& in_spec, const std::st
     const std::vector<TypeDesc> types = written_types(in_spec, wanted, options.datatype);
     for (TypeDesc type : types)
         layout.half.push_back(type == TypeDesc::HALF);
-    const bool one_type =
-        std::all_of(types.begin(), types.end(), [&](TypeDesc t) { return t == types.front(); });
-    spec.set_format(types.empty() || !one_type ? TypeDesc::FLOAT : types.front());
-    spec.channelformats.clear();
-    if (!one_type)
-        spec.channelformats = types;
+    set_channel_types(spec, types);
     // Written in scanlines, as the stages make rows: a tiled or MIP-mapped input (Arnold's
     // and RenderMan's usual EXRs) gives a plain image of its level 0, as oiiotool's -o
     // without --tile does.
