@@ -248,15 +248,15 @@ bool Session::read_neighbours(int radius, std::vector<std::shared_ptr<ImageBuf>>
                 error = frame->geterror();
                 return false;
             }
-            int repaired = 0, fixed = 0;
+            int fixed = 0;
+            mcdn::InputChecks checks;
             if ((input_fix
                  && !fix_non_finite(*frame, *input_fix, input_fix_name, nthreads, fixed, error))
                 || !mcdn::resolve_aovs(aovs, aov_spec, frame->spec(), error)
-                || !mcdn::validate_inputs(*frame, aovs, error)
-                || !mcdn::check_halves(*frame, aovs, repaired, error))
+                || !checks.check(*frame, aovs, error))
                 return false;
             if (verbose) {
-                report_repaired_halves(repaired);
+                report_repaired_halves(checks.repaired_tiles());
                 if (!mcdn::frames_have_measured_variance(aovs))
                     say_once("mcdntool: cross-frame: no colour variance or halves: the frames "
                              "are weighed by how well they agree with each other\n");
@@ -276,15 +276,14 @@ bool Session::load_inputs(std::string& error)
     if (!open_rows(rows, error)
         || !rows.read(merged, rows.spec().y, rows.spec().y + rows.spec().height, error))
         return false;
-    int repaired = 0;
+    mcdn::InputChecks checks;
     input_fixed = 0;
     if ((input_fix
          && !fix_non_finite(merged, *input_fix, input_fix_name, nthreads, input_fixed, error))
-        || !mcdn::validate_inputs(merged, m_aovs, error)
-        || !mcdn::check_halves(merged, m_aovs, repaired, error))
+        || !checks.check(merged, m_aovs, error))
         return false;
     if (verbose)
-        report_repaired_halves(repaired);
+        report_repaired_halves(checks.repaired_tiles());
     m_image = std::move(merged);
     m_loaded = true;
     return true;

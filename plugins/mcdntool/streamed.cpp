@@ -123,7 +123,7 @@ bool run_streamed_chain(Session& s, const std::vector<Command>& commands, size_t
     mcdn::ConvergedCount converged;
     const bool count = s.verbose && aovs.has(mcdn::Role::ColorVariance);
     int counted_until = input.y;
-    int repaired_halves = 0;  // mcdn::check_halves, over the bands
+    mcdn::InputChecks checks;  // over the bands: a halo's repaired tile counts once
     auto read = [&](ImageBuf& band, int y0, int y1, const std::vector<bool>& channels,
                     std::string& read_error) {
         const bool counting = count && y0 == counted_until;
@@ -132,12 +132,8 @@ bool run_streamed_chain(Session& s, const std::vector<Command>& commands, size_t
             for (mcdn::Role r : { mcdn::Role::Color, mcdn::Role::ColorVariance })
                 for (int c : aovs.channels(r))
                     wanted[size_t(c)] = true;
-        int repaired = 0;
-        if (!rows.read(band, y0, y1, read_error, wanted)
-            || !mcdn::validate_inputs(band, aovs, read_error)
-            || !mcdn::check_halves(band, aovs, repaired, read_error))
+        if (!rows.read(band, y0, y1, read_error, wanted) || !checks.check(band, aovs, read_error))
             return false;
-        repaired_halves += repaired;
         if (counting) {
             const mcdn::ConvergedCount c = mcdn::count_converged_tiles(band, aovs);
             converged.converged += c.converged;
@@ -169,7 +165,7 @@ bool run_streamed_chain(Session& s, const std::vector<Command>& commands, size_t
     if (!mcdn::run_chain(input, read, chain, sink, error, s.nthreads))
         return false;
     if (s.verbose)
-        report_repaired_halves(repaired_halves);
+        report_repaired_halves(checks.repaired_tiles());
     if (count)
         std::cerr << format("mcdntool: {} of {} tiles converged (docs/skipping.md), passed "
                             "through unless a stage has :skip=0\n",

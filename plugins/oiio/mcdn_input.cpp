@@ -66,16 +66,12 @@ bool denoise(const Recipe& recipe, ImageBuf& result, std::vector<TypeDesc>& type
     if (!mcdn::resolve_aovs(aovs, job.chain.aovs, input, error)
         || !aovs.require({ mcdn::Role::Color }, input, error))
         return false;
-    int repaired = 0;  // no -v in oiiotool: said on the result (mcdn:halves_repaired)
+    // No -v in oiiotool: the repaired tiles are said on the result (mcdn:halves_repaired).
+    mcdn::InputChecks checks;
     auto read = [&](ImageBuf& band, int y0, int y1, const std::vector<bool>& channels,
                     std::string& read_error) {
-        int band_repaired = 0;
-        if (!rows.read(band, y0, y1, read_error, channels)
-            || !mcdn::validate_inputs(band, aovs, read_error)
-            || !mcdn::check_halves(band, aovs, band_repaired, read_error))
-            return false;
-        repaired += band_repaired;
-        return true;
+        return rows.read(band, y0, y1, read_error, channels)
+               && checks.check(band, aovs, read_error);
     };
     // Each band's own rows of the render's own channels (results in place), or of the ones
     // asked for, into the result.
@@ -157,8 +153,8 @@ bool denoise(const Recipe& recipe, ImageBuf& result, std::vector<TypeDesc>& type
     // What made the image, as oiiotool's own output records it: the version in the
     // plugin's attribute, and appended to the render's Software.
     spec.attribute("mcdn:Version", mcdn::version());
-    if (repaired > 0)
-        spec.attribute("mcdn:halves_repaired", repaired);
+    if (checks.repaired_tiles() > 0)
+        spec.attribute("mcdn:halves_repaired", checks.repaired_tiles());
     if (clamped > 0)
         spec.attribute("mcdn:clamped_to_half", int(std::min<int64_t>(clamped, INT32_MAX)));
     std::string software = spec.get_string_attribute("Software");

@@ -60,22 +60,21 @@ const ImageBuf& checked(const ImageBuf& src, const mcdn::AovSpec& spec, ImageBuf
         set.has(mcdn::Role::ColorA) && set.has(mcdn::Role::ColorB)
         && (halves == Halves::Read
             || (halves == Halves::WithoutVariance && !set.has(mcdn::Role::ColorVariance)));
-    int tiles = 0;
+    std::vector<std::pair<int, int>> tiles;
     {
         py::gil_scoped_release release;
         if (mcdn::validate_inputs(values, set, error) && reads_halves) {
             if (local)
                 copy.copy(src);
-            if (!mcdn::check_halves(copy, set, tiles, error))
-                tiles = -1;
+            mcdn::check_halves(copy, set, tiles, error);
         }
     }
     if (!error.empty())
         throw std::runtime_error(error);
-    if (tiles <= 0)
+    if (tiles.empty())
         return src;
     py::module_::import("warnings")
-        .attr("warn")(std::to_string(tiles)
+        .attr("warn")(std::to_string(tiles.size())
                           + " tile(s) of 32x32 pixels: the half buffers disagree with the "
                             "render there (a corrupt block?); their halves are the render's colour",
                       py::module_::import("builtins").attr("RuntimeWarning"));

@@ -289,30 +289,49 @@ TEST(RealFiles, HalvesThatAreNotTheRendersAreCaught)
         run_mcdntool("-i " + quote(kBox) + " -i:as=halfA " + quote(kRef) + " -i:as=halfB "
                      + quote(kRef) + " --prefilter --nfor -o " + out);
     EXPECT_EQ(run.exit_code, 1) << run.output;
-    // A 3x3 block of 1e6 in halfA alone: those tiles' halves are the render, said with -v;
-    // no value of that size reaches the output.
+    // A 3x3 block of 1e6 in halfA alone, in two of the four 32x32 tiles: those tiles' halves
+    // are the render, said with -v, each tile once also where bands of rows read it twice
+    // (a band's halo is the next band's rows); no value of that size reaches the output.
     OIIO::ImageBuf a = read_float(kHalfA);
     const int r = a.spec().channelindex("ViewLayer.Combined.R");
-    for (int y = 8; y < 11; ++y)  // inside one 32x32 tile of the four
-        for (int x = 8; x < 11; ++x)
-            for (int c = r; c < r + 3; ++c)
-                static_cast<float*>(
-                    a.localpixels())[(size_t(y) * a.spec().width + x) * a.nchannels() + c] = 1e6f;
+    for (int y0 : { 8, 40 })
+        for (int y = y0; y < y0 + 3; ++y)
+            for (int x = 8; x < 11; ++x)
+                for (int c = r; c < r + 3; ++c)
+                    static_cast<float*>(
+                        a.localpixels())[(size_t(y) * a.spec().width + x) * a.nchannels() + c] =
+                        1e6f;
     ASSERT_TRUE(a.write(dir + "/block_A.exr"));
-    for (const std::string chain : { "--prefilter --nfor", "--prefilter --nfor --sure --mix" }) {
-        run = run_mcdntool("-v " + box_inputs(kBox, dir + "/block_A.exr") + " " + chain + " -o "
-                           + out);
-        ASSERT_EQ(run.exit_code, 0) << run.output;
-        EXPECT_NE(run.output.find("the half buffers disagree with the render"), std::string::npos)
-            << run.output;
-        OIIO::ImageBuf result = read_float(dir + "/out.exr");
-        const OIIO::ImageSpec& s = result.spec();
-        const int red = s.channelindex("ViewLayer.Combined.R");
-        const IBA::PixelStats stats = IBA::computePixelStats(
-            result, OIIO::ROI(s.x, s.x + s.width, s.y, s.y + s.height, 0, 1, red, red + 3));
-        for (float v : stats.max)
-            EXPECT_LT(v, 100.0f) << chain;
-    }
+    const std::string two_tiles = "mcdntool: 2 tile(s) of 32x32 pixels: the half buffers disagree";
+    for (const std::string env : { "", "MCDN_BAND_PIXELS=2048" })
+        for (const std::string chain :
+             { "--prefilter --nfor", "--prefilter --nfor --sure --mix" }) {
+            run = run_mcdntool(
+                "-v " + box_inputs(kBox, dir + "/block_A.exr") + " " + chain + " -o " + out, env);
+            ASSERT_EQ(run.exit_code, 0) << run.output;
+            EXPECT_NE(run.output.find(two_tiles), std::string::npos) << env << run.output;
+            EXPECT_NE(run.output.find(env.empty() ? "in 1 band(s)" : "in 2 band(s)"),
+                      std::string::npos)
+                << run.output;
+            OIIO::ImageBuf result = read_float(dir + "/out.exr");
+            const OIIO::ImageSpec& s = result.spec();
+            const int red = s.channelindex("ViewLayer.Combined.R");
+            const IBA::PixelStats stats = IBA::computePixelStats(
+                result, OIIO::ROI(s.x, s.x + s.width, s.y, s.y + s.height, 0, 1, red, red + 3));
+            for (float v : stats.max)
+                EXPECT_LT(v, 100.0f) << chain;
+        }
+    // The OIIO plugin says them on its image, in bands too.
+    if (has_oiiotool())
+        for (const std::string env : { "", "MCDN_BAND_PIXELS=2048" }) {
+            run = run_oiiotool(quote("s.mcdn?in=" + kBox + "&variance=" + kVar + "&halfA=" + dir
+                                     + "/block_A.exr&halfB=" + kHalfB + "&chain=prefilter,nfor")
+                                   + " --printinfo:verbose=1",
+                               env);
+            ASSERT_EQ(run.exit_code, 0) << run.output;
+            EXPECT_NE(run.output.find("mcdn:halves_repaired: 2\n"), std::string::npos)
+                << env << run.output;
+        }
 }
 
 // 9. Values no stage can take are refused, in every channel a stage reads; pass-through

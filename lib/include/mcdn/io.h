@@ -4,6 +4,7 @@
 #pragma once
 
 #include <memory>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -120,9 +121,25 @@ bool validate_inputs(const ImageBuf& merged, const AovSet& aovs, std::string& er
 /// Over the whole buffer (a band's rows, streamed) a mismatch is an error naming the half
 /// files (halves of another frame, mirrored, another render): NFOR would output the halves'
 /// image. A 32x32 tile (kConvergedTileSize) with a pixel far off (a corrupt block in one
-/// half) has its colour halves set to the render there: `repaired_tiles` counts them, for
-/// the caller to say (a fallback is never silent). True without halves.
-bool check_halves(ImageBuf& merged, const AovSet& aovs, int& repaired_tiles, std::string& error);
+/// half) has its colour halves set to the render there: `repaired_tiles` gets each such
+/// tile's first pixel (x, y) in the frame's coordinates, for the caller to say (a fallback
+/// is never silent). True without halves.
+bool check_halves(ImageBuf& merged, const AovSet& aovs,
+                  std::vector<std::pair<int, int>>& repaired_tiles, std::string& error);
+
+/// What every read of a render is checked for before any stage runs (mcdntool's frame,
+/// its bands and its cross-frame neighbours, the OIIO plugin's bands): validate_inputs,
+/// then check_halves. Reads of rows that overlap (a chain's bands and their halos,
+/// mcdn/chain.h: on the tile grid) count a repaired tile once.
+class InputChecks {
+public:
+    bool check(ImageBuf& rows, const AovSet& aovs, std::string& error);
+    /// The tiles whose halves check_halves repaired, over every check() so far, each once.
+    int repaired_tiles() const { return int(m_repaired.size()); }
+
+private:
+    std::set<std::pair<int, int>> m_repaired;
+};
 
 /// The type each of `channels` of `image` (read_inputs's frame, or a chain's result) is
 /// written as: `datatype`, or where that is UNKNOWN as the render's file had it (half, uint:

@@ -33,9 +33,10 @@ constexpr float kPixelRatio = 0.25f;
 
 }  // namespace
 
-bool check_halves(ImageBuf& merged, const AovSet& aovs, int& repaired_tiles, std::string& error)
+bool check_halves(ImageBuf& merged, const AovSet& aovs,
+                  std::vector<std::pair<int, int>>& repaired_tiles, std::string& error)
 {
-    repaired_tiles = 0;
+    repaired_tiles.clear();
     const std::vector<int>& mean = aovs.channels(Role::Color);
     const std::vector<int>& a = aovs.channels(Role::ColorA);
     const std::vector<int>& b = aovs.channels(Role::ColorB);
@@ -105,7 +106,7 @@ bool check_halves(ImageBuf& merged, const AovSet& aovs, int& repaired_tiles, std
         for (int tx = 0; tx < tiles_x; ++tx) {
             if (!bad[size_t(ty) * tiles_x + tx])
                 continue;
-            ++repaired_tiles;
+            repaired_tiles.emplace_back(spec.x + tx * tile, spec.y + ty * tile);
             for (int y = ty * tile; y < std::min(height, (ty + 1) * tile); ++y)
                 for (int x = tx * tile; x < std::min(width, (tx + 1) * tile); ++x) {
                     float* p = pixels + (size_t(y) * width + x) * nch;
@@ -113,6 +114,15 @@ bool check_halves(ImageBuf& merged, const AovSet& aovs, int& repaired_tiles, std
                         p[a[c]] = p[b[c]] = p[mean[c]];
                 }
         }
+    return true;
+}
+
+bool InputChecks::check(ImageBuf& rows, const AovSet& aovs, std::string& error)
+{
+    std::vector<std::pair<int, int>> repaired;
+    if (!validate_inputs(rows, aovs, error) || !check_halves(rows, aovs, repaired, error))
+        return false;
+    m_repaired.insert(repaired.begin(), repaired.end());
     return true;
 }
 
