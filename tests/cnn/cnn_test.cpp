@@ -3,6 +3,7 @@
 // and 2 threads, chainable under sure) and its error messages.
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imagebufalgo.h>
@@ -312,6 +313,82 @@ TEST(Cnn, DefaultWeightsPathHonoursEnvironment)
     EXPECT_EQ(default_cnn_weights(), "/some/dir/kpcn.mcdnw");
     unsetenv("MCDN_MODELS");
     EXPECT_NE(default_cnn_weights().find("kpcn.mcdnw"), std::string::npos);
+}
+
+/// The AOV set of `image` with only the channels of `roles` (the others dropped).
+AovSet aovs_of(const ImageBuf& image, const std::vector<Role>& roles)
+{
+    AovSet aovs;
+    std::string error;
+    EXPECT_TRUE(resolve_aovs(aovs, AovSpec {}, image.spec(), error)) << error;
+    std::vector<int> order;
+    for (Role r : roles)
+        for (int c : aovs.channels(r))
+            order.push_back(c);
+    const ImageBuf cut = OIIO::ImageBufAlgo::channels(image, int(order.size()), order);
+    EXPECT_TRUE(resolve_aovs(aovs, AovSpec {}, cut.spec(), error)) << error;
+    return aovs;
+}
+
+TEST(Cnn, ColourAlbedoNormalAloneGetTheirOwnModel)
+{
+    // The colour + albedo + normal model where the frame has neither the colour's variance
+    // nor the light split and the models directory holds it; kpcn.mcdnw otherwise.
+    const std::string dir = mcdn_test::temp_dir("cnn_default_weights");
+    std::ofstream(dir + "/kpcn.mcdnw") << "";
+    const ImageBuf src = read_render();
+    const AovSet can = aovs_of(src, { Role::Color, Role::Albedo, Role::Normal, Role::Depth });
+    const AovSet variance = aovs_of(src, { Role::Color, Role::ColorVariance, Role::Albedo });
+    AovSet all;
+    std::string error;
+    ASSERT_TRUE(resolve_aovs(all, AovSpec {}, src.spec(), error)) << error;
+    ASSERT_TRUE(can.has(Role::Depth) && !can.has(Role::ColorVariance));
+    setenv("MCDN_MODELS", dir.c_str(), 1);
+    EXPECT_EQ(default_cnn_weights(&can), dir + "/kpcn.mcdnw");  // not installed
+    std::ofstream(dir + "/kpcn_can.mcdnw") << "";
+    EXPECT_EQ(default_cnn_weights(&can), dir + "/kpcn_can.mcdnw");
+    EXPECT_EQ(default_cnn_weights(&variance), dir + "/kpcn.mcdnw");
+    EXPECT_EQ(default_cnn_weights(&all), dir + "/kpcn.mcdnw");
+    EXPECT_EQ(default_cnn_weights(), dir + "/kpcn.mcdnw");
+    unsetenv("MCDN_MODELS");
+}
+
+TEST(Cnn, AModelTrainedWithoutDepthReadsNone)
+{
+    // Weights whose metadata says "reads_depth": false (export.py, a run that always dropped
+    // depth) give the same result whatever the depth pass holds; others do not.
+    nn::Weights weights;
+    std::string error;
+    ASSERT_TRUE(nn::read_weights(tiny_weights(), weights, error)) << error;
+    ASSERT_EQ(weights.metadata.back(), '}');
+    weights.metadata.insert(weights.metadata.size() - 1, ", \"reads_depth\": false");
+    const std::string without = mcdn_test::temp_dir("cnn_no_depth") + "/no_depth.mcdnw";
+    ASSERT_TRUE(nn::write_weights(without, weights, error)) << error;
+    const ImageBuf src = read_render();
+    ImageBuf moved;
+    moved.copy(src);
+    AovSet aovs;
+    ASSERT_TRUE(resolve_aovs(aovs, AovSpec {}, src.spec(), error)) << error;
+    ASSERT_TRUE(aovs.has(Role::Depth));
+    const int depth = aovs.channels(Role::Depth)[0];
+    // The depth squared (the op scales depth to the frame's range: an affine change is none).
+    ASSERT_TRUE(
+        OIIO::ImageBufAlgo::pow(moved, moved, 2.0f,
+                                OIIO::ROI(src.roi().xbegin, src.roi().xend, src.roi().ybegin,
+                                          src.roi().yend, 0, 1, depth, depth + 1)))
+        << moved.geterror();
+    for (const std::string& path : { without, tiny_weights() }) {
+        CnnOptions options;
+        options.weights = path;
+        ImageBuf a, b;
+        ASSERT_TRUE(cnn(a, src, options)) << a.geterror();
+        ASSERT_TRUE(cnn(b, moved, options)) << b.geterror();
+        const float difference = relative_error(color_tensor(a), color_tensor(b));
+        if (path == without)
+            EXPECT_EQ(difference, 0.0f);
+        else
+            EXPECT_GT(difference, 1e-4f);
+    }
 }
 
 }  // namespace

@@ -111,8 +111,18 @@ def main():
                      "batch": state["args"]["batch"], "patch": state["args"]["patch"],
                      "loss": state["args"].get("loss") or "n2n", "data": args.data,
                      "last_validation": curve[-1] if curve else None}})
+    # What the run always trained without (train.py's drop_inputs at 1): a model trained with
+    # its depth always zero is given zero depth by the op (cnn_steps.h Model::reads_depth).
+    without = [name for name in ("split", "variance", "depth")
+               if state["args"].get("no_" + name, 0) >= 1]
+    if without:
+        meta["training"]["always_without"] = without
+    if "depth" in without:
+        meta["reads_depth"] = False
     write_weights(args.out, net.state_dict(), meta)
-    shutil.copyfile(os.path.join(run, "loss.csv"), os.path.join(os.path.dirname(args.out), "kpcn_loss.csv"))
+    # The curve beside the weights: kpcn.mcdnw's as kpcn_loss.csv.
+    curve_path = os.path.splitext(args.out)[0] + "_loss.csv"
+    shutil.copyfile(os.path.join(run, "loss.csv"), curve_path)
     print("wrote %s (widths %s, step %s of %d, %.1f min)" % (
         args.out, widths, meta["training"]["weights_at_step"], state["step"], state["elapsed"] / 60))
 

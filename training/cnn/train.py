@@ -264,8 +264,10 @@ def relmse(image, reference, reference_var=None):
     return float((err / (reference ** 2 + 0.01)).mean())
 
 
-def validate(net, files, device):
-    """Mean relMSE of the denoised colour and of the noisy input over whole validation crops."""
+def validate(net, files, device, without=(0.0, 0.0, 0.0)):
+    """Mean relMSE of the denoised colour and of the noisy input over whole validation crops,
+    shown without the inputs that `without` (drop_inputs' no_split, no_variance, no_depth,
+    each 0 or 1) takes away: a run that always trains without them is measured so."""
     if not files:
         return float("nan"), float("nan")
     net.eval()
@@ -276,6 +278,9 @@ def validate(net, files, device):
             h, w = raw["color"].shape[1:]
             h4, w4 = h // 4 * 4, w // 4 * 4
             batch = {k: v[None, :, :h4, :w4].to(device) for k, v in raw.items()}
+            if any(without):
+                refs = [r[None, :, :h4, :w4].to(device) for r in ref]
+                batch, _ = drop_inputs(batch, refs, *without)
             _, _, colour = net(batch)
             target, target_var = ref[0][:, :h4, :w4], ref_var[:, :h4, :w4]
             errors.append(relmse(colour[0].cpu(), target, target_var))
@@ -415,8 +420,14 @@ def main():
     patch_set = PatchSet(args.patches, device) if args.patches else None
     val_set = PatchSet(args.val_patches, device) if args.val_patches else None
 
+    # A run that always trains without an input (model b: colour + albedo + normal) is
+    # validated without it.
+    without = tuple(float(p >= 1) for p in (args.no_split, args.no_variance, args.no_depth))
+
     def run_validation():
-        return validate_patches(net, val_set, device) if val_set else validate(net, val_files, device)
+        if val_set:
+            return validate_patches(net, val_set, device)
+        return validate(net, val_files, device, without)
 
     train_files, val_files = list_files(args.dataset)
     n_train = len(patch_set) if patch_set else len(train_files)

@@ -59,9 +59,13 @@ struct CnnOptions {
     ProgressCallback progress;
 };
 
-/// kpcn.mcdnw in the models directory: $MCDN_MODELS when set, else the one installed with
-/// the library (share/mcdenoise/models: nn::model_file).
-std::string default_cnn_weights();
+/// The weights cnn() runs without CnnOptions::weights, in the models directory ($MCDN_MODELS
+/// when set, else the one installed with the library, share/mcdenoise/models:
+/// nn::model_file): for a frame (`aovs`) with neither the colour's variance nor the
+/// diffuse/specular split, kpcn_can.mcdnw, the network trained on colour, albedo and normal
+/// alone (most renderers' output; its depth is zero, a depth pass is not read), where it is
+/// installed; kpcn.mcdnw otherwise, and without `aovs`.
+std::string default_cnn_weights(const AovSet* aovs = nullptr);
 
 /// How far a pixel of cnn()'s result reaches into its input: the networks' receptive field,
 /// their kernels included (-1 when the weights cannot be read).

@@ -5,6 +5,7 @@
 
 #include "chain/chain_steps.h"
 #include "mcdn/chain.h"
+#include "mcdn/cnn.h"
 #include "mcdn/oidn.h"
 #include "mcdn/stages.h"
 
@@ -91,6 +92,12 @@ bool plan_denoise(DenoisePlan& plan, const ImageSpec& merged, const AovSpec& spe
             plan.why += albedo ? " (no normal)" : " (no albedo: the colour-only model)";
         return true;
     }
+    // Which of our networks (mcdn/cnn.h): the colour + albedo + normal one on a frame with
+    // neither the colour's variance nor the light split.
+    const std::string cnn_weights = default_cnn_weights(&aovs);
+    plan.why += "; our weights " + cnn_weights;
+    if (Strutil::ends_with(cnn_weights, "kpcn_can.mcdnw"))
+        plan.why += " (the model for colour, albedo and normal alone: a depth pass is not read)";
     for (Role r : { Role::Albedo, Role::Normal, Role::Depth })
         if (!aovs.has(r))
             plan.zero_filled.push_back(role_name(r));

@@ -173,6 +173,7 @@ double cnn_held_bytes(const Settings& settings, int threads)
 bool cnn_can_run(const AovSet& aovs, std::string& how)
 {
     how = has_features(aovs) ? "with the features there are" : "no features: the CNN reads zeros";
+    how += "; weights " + default_cnn_weights(&aovs);
     return true;
 }
 
@@ -188,7 +189,9 @@ StageInfo cnn_stage()
     s.frame_buffers = 1.2;  // the result and the converged map
     s.held_bytes = cnn_held_bytes;
     s.help = "Kernel-predicting CNN denoiser (KPCN): diffuse/specular split, our trained weights "
-             "(models/kpcn.mcdnw; weights=FILE), tiled (tile=384). Extra AOVs take their share "
+             "(models/kpcn.mcdnw; on a render with neither a colour variance nor the light "
+             "split, models/kpcn_can.mcdnw, trained on colour, albedo and normal alone; "
+             "weights=FILE), tiled (tile=384). Extra AOVs take their share "
              "of the beauty's denoised light through its kernels (extras=0: keep them). A pixel "
              "holding one sample worth a hundred of its neighbours (a caustic through glass, a "
              "firefly) is taken out of the network's input and its excess removed, by --nfor's "

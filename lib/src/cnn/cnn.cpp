@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <mutex>
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imagebufalgo.h>
 
 #include "cnn/cnn_steps.h"
@@ -310,7 +311,7 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
         return false;
     }
     kpcn::OutputFrame extras_frame(made_extras.initialized() ? made_extras : dst);
-    const std::string path = options.weights.empty() ? default_cnn_weights() : options.weights;
+    const std::string path = options.weights.empty() ? default_cnn_weights(&aovs) : options.weights;
     const int image_channels = extras.empty() ? 3 : 3 * (2 + int(extras.size()));
     Workers worker;
     worker.list.push_back(kpcn::take_worker(path, image_channels, error));
@@ -323,8 +324,10 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
     // §5.1: the depth range is the one input statistic of the whole frame; everything else
     // (§4.3's split, the 34 input channels, eq. 4) is made per network tile from its window.
     // A band of a larger frame carries the frame's (core/frame_facts.h).
+    // A model trained without depth gets none (a zero range: zero depth).
     FrameFacts facts;
-    const kpcn::DepthRange depth = frame_facts(facts, src.spec()) && facts.has_depth
+    const kpcn::DepthRange depth = !worker.list[0]->model.reads_depth ? kpcn::DepthRange {}
+                                   : frame_facts(facts, src.spec()) && facts.has_depth
                                        ? kpcn::DepthRange { facts.depth_lo, facts.depth_span }
                                        : kpcn::depth_range(src, aovs);
     const bool split = kpcn::has_split(aovs);
@@ -360,8 +363,13 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
 
 }  // namespace
 
-std::string default_cnn_weights()
+std::string default_cnn_weights(const AovSet* aovs)
 {
+    if (aovs && !aovs->has(Role::ColorVariance) && !kpcn::has_split(*aovs)) {
+        const std::string can = nn::model_file("kpcn_can.mcdnw");
+        if (OIIO::Filesystem::exists(can))
+            return can;
+    }
     return nn::model_file("kpcn.mcdnw");
 }
 

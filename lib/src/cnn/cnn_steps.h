@@ -137,6 +137,9 @@ bool tile_inputs(const ImageBuf& src, const AovSet& aovs, const DepthRange& dept
 /// The two branch networks of a weights file ("diffuse.*", "specular.*" tensors).
 struct Model {
     nn::Net diffuse { "kpcn.diffuse" }, specular { "kpcn.specular" };
+    /// False where the file's metadata says `"reads_depth": false` (a model trained with its
+    /// depth always zero: the colour + albedo + normal model): the op gives it zero depth.
+    bool reads_depth = true;
 };
 /// Builds both networks with the widths found in the file and loads them; errors name the
 /// file and the tensor. `image_channels`: channels the kernels filter (3, more with extras).

@@ -71,6 +71,7 @@ bool load_model(Model& model, const std::string& path, std::string& error, int i
             path, kInputLayout, tag);
         return false;
     }
+    model.reads_depth = weights.metadata.find("\"reads_depth\": false") == std::string::npos;
     for (const char* branch : { "diffuse", "specular" }) {
         const std::string p = std::string(branch) + ".";
         const int w1 = dim_of(weights, p + "enc1.weight", 0);
