@@ -58,8 +58,14 @@ import data  # noqa: E402
 import model as kpcn  # noqa: E402
 
 CACHE = os.environ.get("MCDN_CACHE", os.path.expanduser("~/.cache/mcdenoise"))
-LEVELS = {"n2n": (4, 16, 64), "full": (4, 16, 64, 256)}
-VAL_LEVELS = (16, 64)
+# The n2n set's crops hold renders at 4, 16 and 64 spp and a 128-spp target, all of
+# independent seeds. SWAPPED is one more level at no render cost: the target as the input
+# (128 spp, its variance and features) and the three renders' sample-weighted mean as its
+# target (84 spp, independent of it): a network that reads no variance (model b) sees no
+# render cleaner than 64 spp without it, and smooths 256-spp renders as if they were 64.
+SWAPPED = 128
+LEVELS = {"n2n": (4, 16, 64, SWAPPED), "full": (4, 16, 64, 256)}
+VAL_LEVELS = (16, 64, SWAPPED)
 RADIANCE = ("color", "diffuse", "specular")
 VARIANCES = ("color_var", "diffuse_var", "specular_var")
 # Held out of training, whole families (issue 47): validation picks the run's settings,
@@ -90,7 +96,9 @@ def list_files(dataset="n2n"):
         split = split_of(dataset, crop)
         for spp in LEVELS[dataset]:
             prefix = os.path.join(crop, name)
-            if not os.path.exists("%s_%04dspp_var.exr" % (prefix, spp)):
+            needed = ["%s_%04dspp_var.exr" % (prefix, level) for level in LEVELS[dataset]
+                      if level != SWAPPED] if spp == SWAPPED else ["%s_%04dspp_var.exr" % (prefix, spp)]
+            if not all(os.path.exists(path) for path in needed):
                 continue
             if split == "train":
                 train.append((prefix, spp))
@@ -108,10 +116,25 @@ def load(prefix, spp):
     key = (prefix, spp)
     if key in _cache:
         return _cache[key]
-    raw = {k: torch.from_numpy(v) for k, v in data.load_render(prefix, spp).items()}
+    if spp == SWAPPED:
+        # The target as the input; the renders' sample-weighted mean, and its variance of the
+        # mean, as the target.
+        raw = data.load_render(prefix + "_ref.exr")
+        levels = [level for level in LEVELS["n2n"] if level != SWAPPED]
+        total = float(sum(levels))
+        ref = [sum(level / total * r for level, r in
+                   zip(levels, parts)) for parts in
+               zip(*[data.load_reference("%s_%04dspp.exr" % (prefix, level)) for level in levels])]
+        ref_var = sum((level / total) ** 2 * data.load_reference_variance("%s_%04dspp_var.exr" % (prefix, level))
+                      for level in levels)
+    else:
+        raw = data.load_render(prefix, spp)
+        ref = data.load_reference(prefix + "_ref.exr")
+        ref_var = data.load_reference_variance(prefix + "_ref_var.exr")
+    raw = {k: torch.from_numpy(v) for k, v in raw.items()}
     raw["depth"], raw["depth_var"] = kpcn.scale_depth(raw["depth"], raw["depth_var"])
-    ref = [torch.from_numpy(np.ascontiguousarray(r)) for r in data.load_reference(prefix + "_ref.exr")]
-    ref_var = torch.from_numpy(np.ascontiguousarray(data.load_reference_variance(prefix + "_ref_var.exr")))
+    ref = [torch.from_numpy(np.ascontiguousarray(r, dtype=np.float32)) for r in ref]
+    ref_var = torch.from_numpy(np.ascontiguousarray(ref_var, dtype=np.float32))
     # §5.1 patch PDF: noisy (relative colour variance) and detailed (normal gradients) regions.
     rel_var = (raw["color_var"] / (raw["color"] ** 2 + 1e-2)).mean(0)
     gx = torch.zeros_like(raw["normal"])
