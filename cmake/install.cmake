@@ -29,7 +29,8 @@ install(TARGETS mcdenoise EXPORT mcdenoiseTargets
         LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
 install(DIRECTORY ${CMAKE_SOURCE_DIR}/lib/include/mcdn DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}
         FILES_MATCHING PATTERN "*.h")
-install(FILES ${CMAKE_SOURCE_DIR}/models/kpcn.mcdnw ${CMAKE_SOURCE_DIR}/models/mix.mcdnw
+install(FILES ${CMAKE_SOURCE_DIR}/models/kpcn.mcdnw ${CMAKE_SOURCE_DIR}/models/kpcn_can.mcdnw
+              ${CMAKE_SOURCE_DIR}/models/mix.mcdnw
               ${CMAKE_SOURCE_DIR}/models/mix_cnn.mcdnw ${CMAKE_SOURCE_DIR}/models/mix_oidn.mcdnw
         DESTINATION ${CMAKE_INSTALL_DATADIR}/mcdenoise/models)
 install(FILES ${CMAKE_SOURCE_DIR}/ocio/config.ocio

@@ -74,7 +74,8 @@ class InstalledTree(unittest.TestCase):
 
     def test_installs_every_part(self):
         for part in ["bin/mcdntool", "include/mcdn/cnn.h", "include/mcdn/version.h",
-                     "share/mcdenoise/models/kpcn.mcdnw", "share/mcdenoise/models/mix.mcdnw",
+                     "share/mcdenoise/models/kpcn.mcdnw", "share/mcdenoise/models/kpcn_can.mcdnw",
+                     "share/mcdenoise/models/mix.mcdnw",
                      "share/mcdenoise/models/mix_cnn.mcdnw", "share/mcdenoise/models/mix_oidn.mcdnw",
                      "share/mcdenoise/ocio/config.ocio"]:
             self.assertTrue(os.path.isfile(os.path.join(self.prefix, part)), part)
