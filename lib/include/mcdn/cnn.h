@@ -66,6 +66,8 @@ struct CnnOptions {
 /// alone (most renderers' output; its depth is zero, a depth pass is not read), where it is
 /// installed; kpcn.mcdnw otherwise, and without `aovs`.
 std::string default_cnn_weights(const AovSet* aovs = nullptr);
+/// The colour + albedo + normal model's file name in the models directory.
+constexpr const char* kColourAlbedoNormalWeights = "kpcn_can.mcdnw";
 
 /// How far a pixel of cnn()'s result reaches into its input: the networks' receptive field,
 /// their kernels included (-1 when the weights cannot be read).

@@ -96,7 +96,7 @@ bool plan_denoise(DenoisePlan& plan, const ImageSpec& merged, const AovSpec& spe
     // neither the colour's variance nor the light split.
     const std::string cnn_weights = default_cnn_weights(&aovs);
     plan.why += "; our weights " + cnn_weights;
-    if (Strutil::ends_with(cnn_weights, "kpcn_can.mcdnw"))
+    if (Strutil::ends_with(cnn_weights, kColourAlbedoNormalWeights))
         plan.why += " (the model for colour, albedo and normal alone: a depth pass is not read)";
     for (Role r : { Role::Albedo, Role::Normal, Role::Depth })
         if (!aovs.has(r))

@@ -366,7 +366,7 @@ bool cnn_in_working_space(ImageBuf& dst, const ImageBuf& src, const CnnOptions& 
 std::string default_cnn_weights(const AovSet* aovs)
 {
     if (aovs && !aovs->has(Role::ColorVariance) && !kpcn::has_split(*aovs)) {
-        const std::string can = nn::model_file("kpcn_can.mcdnw");
+        const std::string can = nn::model_file(kColourAlbedoNormalWeights);
         if (OIIO::Filesystem::exists(can))
             return can;
     }
