@@ -22,13 +22,21 @@ ADDED_SPECULAR = ["Emit", "Env"]
 
 
 def read_exr(path):
-    """{channel name: [H, W] float32}."""
+    """{channel name: [H, W] float32}: the file as it is now (ImageInput, not ImageBuf: the
+    image cache would hand back what an earlier read of the same path saw, and bench/families
+    rewrites one output file per chain)."""
     import OpenImageIO as oiio  # here: a GPU machine training from the patch set has none
-    buf = oiio.ImageBuf(path)
-    pixels = buf.get_pixels(oiio.FLOAT)
-    if pixels is None or buf.has_error:
-        raise RuntimeError("%s: %s" % (path, buf.geterror()))
-    names = buf.spec().channelnames
+    image = oiio.ImageInput.open(path)
+    if image is None:
+        raise RuntimeError("%s: %s" % (path, oiio.geterror()))
+    try:
+        pixels = image.read_image(oiio.FLOAT)
+        if pixels is None:
+            raise RuntimeError("%s: %s" % (path, image.geterror()))
+        names = image.spec().channelnames
+    finally:
+        image.close()
+    pixels = pixels.reshape(pixels.shape[0], pixels.shape[1], -1)
     return {n: np.ascontiguousarray(pixels[:, :, i]) for i, n in enumerate(names)}
 
 
