@@ -249,14 +249,10 @@ bool Session::read_neighbours(int radius, std::vector<std::shared_ptr<ImageBuf>>
                 return false;
             }
             int fixed = 0;
-            mcdn::InputChecks checks;
-            if ((input_fix
-                 && !fix_non_finite(*frame, *input_fix, input_fix_name, nthreads, fixed, error))
-                || !mcdn::resolve_aovs(aovs, aov_spec, frame->spec(), error)
-                || !checks.check(*frame, aovs, error))
+            if (!mcdn::resolve_aovs(aovs, aov_spec, frame->spec(), error)
+                || !repair_and_check(*frame, aovs, fixed, error))
                 return false;
             if (verbose) {
-                report_repaired_halves(checks.repaired_tiles());
                 if (!mcdn::frames_have_measured_variance(aovs))
                     say_once("mcdntool: cross-frame: no colour variance or halves: the frames "
                              "are weighed by how well they agree with each other\n");
@@ -264,6 +260,19 @@ bool Session::read_neighbours(int radius, std::vector<std::shared_ptr<ImageBuf>>
             frames.push_back(std::move(frame));
         }
     }
+    return true;
+}
+
+bool Session::repair_and_check(ImageBuf& image, const mcdn::AovSet& aovs, int& fixed,
+                               std::string& error) const
+{
+    mcdn::InputChecks checks;
+    fixed = 0;
+    if ((input_fix && !fix_non_finite(image, *input_fix, input_fix_name, nthreads, fixed, error))
+        || !checks.check(image, aovs, error))
+        return false;
+    if (verbose)
+        report_repaired_halves(checks.repaired_tiles());
     return true;
 }
 
@@ -276,14 +285,8 @@ bool Session::load_inputs(std::string& error)
     if (!open_rows(rows, error)
         || !rows.read(merged, rows.spec().y, rows.spec().y + rows.spec().height, error))
         return false;
-    mcdn::InputChecks checks;
-    input_fixed = 0;
-    if ((input_fix
-         && !fix_non_finite(merged, *input_fix, input_fix_name, nthreads, input_fixed, error))
-        || !checks.check(merged, m_aovs, error))
+    if (!repair_and_check(merged, m_aovs, input_fixed, error))
         return false;
-    if (verbose)
-        report_repaired_halves(checks.repaired_tiles());
     m_image = std::move(merged);
     m_loaded = true;
     return true;

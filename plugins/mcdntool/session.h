@@ -109,6 +109,11 @@ private:
         mcdn::StageReach reach;
     };
     bool load_inputs(std::string& error);
+    /// What every read frame goes through, this one and each cross-frame neighbour (its AOVs
+    /// resolved): --fixnan right after the inputs, then mcdn::InputChecks; -v names the
+    /// repaired half-buffer tiles. `fixed`: the pixels --fixnan repaired.
+    bool repair_and_check(OIIO::ImageBuf& image, const mcdn::AovSet& aovs, int& fixed,
+                          std::string& error) const;
     /// Keeps the feature channels of the chain's input when `stages` hold a prefilter.
     void capture_input_features(const std::vector<Queued>& stages);
     bool m_loaded = false;
