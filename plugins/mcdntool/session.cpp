@@ -189,8 +189,10 @@ void report_fallback(const OIIO::ImageSpec& result, const std::string& stage)
     // A later stage keeps choose's attribute: said once, by choose (or for the bands).
     if ((stage.empty() || stage == "choose") && result.find_attribute(mcdn::kChooseShareAttribute))
         std::cerr << format("mcdntool: choose: the second denoiser's weight (with=) averages "
-                            "{:.0f}% over the frame (the rest is the one's before --sure)\n",
-                            100.0f * result.get_float_attribute(mcdn::kChooseShareAttribute));
+                            "{:.0f}% over the frame (the rest is the one's before --sure), "
+                            "weighed by {}\n",
+                            100.0f * result.get_float_attribute(mcdn::kChooseShareAttribute),
+                            result.get_string_attribute(mcdn::kChooseEstimateAttribute, "SURE"));
     if (const int tiles = result.get_int_attribute(mcdn::kSureWorseCountAttribute, 0); tiles > 0)
         std::cerr << format("mcdntool: sure: SURE says the denoiser made {} tile(s) of {}x{} "
                             "pixels worse than the render (kept; --sure:fallback=1 makes them "

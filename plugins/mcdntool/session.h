@@ -57,6 +57,8 @@ public:
     /// A --prefilter changes the features; -o writes the input's own unless a stage asked
     /// for features-out=1.
     bool prefilters = false, features_out = false;
+    /// The last --sure's denoiser, which a Mixer after it may run (StageContext::denoiser).
+    mcdn::Denoiser estimated_denoiser;
 
     /// Reads and checks the inputs if not done yet, then runs any queued denoisers:
     /// afterwards image() is the current result.

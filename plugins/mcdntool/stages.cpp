@@ -116,6 +116,7 @@ bool run_estimator(Session& s, const Command& c, std::string& error)
     if (!s.take_denoiser_chain(context.denoiser, context.denoiser_radius, render, error)
         || !stage.make(made, settings, context, error))
         return false;
+    s.estimated_denoiser = context.denoiser;
     return s.apply_to(
         stage.name, render,
         [&](ImageBuf& dst, const ImageBuf& src, int) { return made.run(dst, src); }, error);
@@ -127,8 +128,9 @@ bool run_mixer(Session& s, const Command& c, std::string& error)
     int frames;
     mcdn::Settings settings;
     mcdn::MadeStage made;
-    if (!settings_of(c, frames, settings, error)
-        || !stage.make(made, settings, context_of(s), error))
+    mcdn::StageContext context = context_of(s);
+    context.denoiser = s.estimated_denoiser;
+    if (!settings_of(c, frames, settings, error) || !stage.make(made, settings, context, error))
         return false;
     return s.apply(
         stage.name, [&](ImageBuf& dst, const ImageBuf& src, int) { return made.run(dst, src); },

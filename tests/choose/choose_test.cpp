@@ -3,6 +3,7 @@
 
 #include <OpenImageIO/imagebufalgo.h>
 
+#include "choose/half_render.h"
 #include "mcdn/denoise.h"
 #include "synthetic.h"
 
@@ -175,6 +176,108 @@ TEST(Choose, SameBitsForAnyThreadsAndInPlace)
     ImageBuf again;
     ASSERT_TRUE(choose(again, a_before, box_denoiser(4), options, {}, 2));
     EXPECT_EQ(OIIO::ImageBufAlgo::compare(one, again, 0, 0).nfail, 0u);  // a_before untouched
+}
+
+// A box blur of the colour (channels 0-2), for renders with or without halves.
+Denoiser colour_box(int radius)
+{
+    return [radius](ImageBuf& dst, const ImageBuf& src) {
+        const int size = 2 * radius + 1;
+        const ImageBuf blurred =
+            OIIO::ImageBufAlgo::convolve(OIIO::ImageBufAlgo::channels(src, 3, { 0, 1, 2 }),
+                                         OIIO::ImageBufAlgo::make_kernel("box", size, size));
+        ImageBuf out;
+        out.copy(src, OIIO::TypeDesc::FLOAT);
+        OIIO::ImageBufAlgo::paste(out, 0, 0, 0, 0, blurred);
+        dst = std::move(out);  // dst may be src
+        return true;
+    };
+}
+
+// The halves' rule (ChooseEstimate::Halves): each denoiser on each half, the other half the
+// target. Where a is the truth, b's least-squares weight is noise about 0 and never
+// significant; where b is, about 1.
+TEST(Choose, HalvesKeepEachDenoiserWhereItsErrorIsLower)
+{
+    const ImageBuf render = noisy_render(kSize, kSize, checker, 0.01f, 7);
+    const ImageBuf a = after_sure(render, half_oracle(true));
+    int before_runs = 0, other_runs = 0;
+    const Denoiser left = half_oracle(true), right = half_oracle(false);
+    ChooseOptions options;
+    options.aovs = generic_spec();
+    options.output_weight = true;
+    options.estimate = ChooseEstimate::Halves;
+    options.before = [&](ImageBuf& dst, const ImageBuf& src) {
+        ++before_runs;
+        EXPECT_LT(src.spec().channelindex("A.R"), 0);  // a render of its own: no halves
+        EXPECT_LT(src.spec().channelindex("noisy.R"), 0);
+        return left(dst, src);
+    };
+    const Denoiser other = [&](ImageBuf& dst, const ImageBuf& src) {
+        ++other_runs;
+        return right(dst, src);
+    };
+    ImageBuf out;
+    ASSERT_TRUE(choose(out, a, other, options)) << out.geterror();
+    EXPECT_EQ(before_runs, 2);  // half A, half B
+    EXPECT_EQ(other_runs, 4);   // the halves, its result and one probe
+    EXPECT_EQ(out.spec().get_string_attribute(kChooseEstimateAttribute), "halves");
+    const int weight = out.spec().channelindex("choose.weight");
+    const ROI left_side(0, kSize / 2 - 13, 0, kSize), right_side(kSize / 2 + 13, kSize, 0, kSize);
+    EXPECT_LT(OIIO::ImageBufAlgo::computePixelStats(out, left_side).avg[weight], 0.05);
+    EXPECT_GT(OIIO::ImageBufAlgo::computePixelStats(out, right_side).avg[weight], 0.9);
+    EXPECT_LT(mse(out, right_side), 0.1 * mse(a, right_side));
+    // Without the denoiser before, SURE weighs, and says why.
+    options.before = {};
+    ASSERT_TRUE(choose(out, a, other, options)) << out.geterror();
+    EXPECT_EQ(out.spec().get_string_attribute(kChooseEstimateAttribute),
+              "SURE (no denoiser before it was given)");
+}
+
+TEST(Choose, HalvesSameBitsForAnyThreadsAndInPlace)
+{
+    const ImageBuf render = noisy_render(kSize, kSize, checker, 0.02f, 11);
+    ImageBuf a = after_sure(render, colour_box(1));
+    ChooseOptions options;
+    options.aovs = generic_spec();
+    options.estimate = ChooseEstimate::Halves;
+    options.before = colour_box(1);
+    options.output_weight = true;
+    ImageBuf one, two;
+    ASSERT_TRUE(choose(one, a, colour_box(3), options, {}, 1)) << one.geterror();
+    ASSERT_TRUE(choose(two, a, colour_box(3), options, {}, 2)) << two.geterror();
+    EXPECT_EQ(OIIO::ImageBufAlgo::compare(one, two, 0, 0).nfail, 0u);
+    // No worse than the better of the two blurs (the narrow keeps the checker's edges, the
+    // wide is smoother inside its squares).
+    const ROI all(0, kSize, 0, kSize);
+    ImageBuf b;
+    ASSERT_TRUE(colour_box(3)(b, render));
+    EXPECT_LE(mse(one, all), 1.02 * std::min(mse(a, all), mse(b, all)));
+    ASSERT_TRUE(choose(a, a, colour_box(3), options, {}, 2)) << a.geterror();
+    EXPECT_EQ(OIIO::ImageBufAlgo::compare(one, a, 0, 0).nfail, 0u);
+}
+
+// A half of the render as a render of its own: its colour is the half's, its variance
+// twice the render's (half the samples), and no half or sure channel is left.
+TEST(Choose, HalfRenderIsOneHalfWithItsOwnVariance)
+{
+    const ImageBuf render = noisy_render(16, 16, checker, 0.01f, 5);
+    const ImageBuf a = after_sure(render, colour_box(1));
+    AovSet aovs;
+    std::string error;
+    ASSERT_TRUE(resolve_aovs(aovs, generic_spec(), a.spec(), error)) << error;
+    ImageBuf half;
+    ASSERT_TRUE(half_render(half, a, aovs, Face::HalfB, 2, error)) << error;
+    EXPECT_EQ(half.spec().channelnames, (std::vector<std::string> { "R", "G", "B", "variance.R",
+                                                                    "variance.G", "variance.B" }));
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_EQ(half.getchannel(3, 4, 0, c), render.getchannel(3, 4, 0, 9 + c));
+        EXPECT_FLOAT_EQ(half.getchannel(3, 4, 0, 3 + c), 0.02f);
+    }
+    const ImageBuf no_halves = OIIO::ImageBufAlgo::channels(render, 6, { 0, 1, 2, 3, 4, 5 });
+    ASSERT_TRUE(resolve_aovs(aovs, generic_spec(), no_halves.spec(), error)) << error;
+    EXPECT_FALSE(half_render(half, no_halves, aovs, Face::HalfA, 1, error));
+    EXPECT_NE(error.find("half buffers"), std::string::npos) << error;
 }
 
 TEST(Choose, WithoutSureOrHalvesItSaysWhatIsMissing)

@@ -198,6 +198,11 @@ private:
     std::vector<Extra> m_extras;
 };
 
+/// The feature channels (albedo, normal, depth, visibility: every face) of a resolved set:
+/// what a chain with a prefilter puts back into its output from its input unless a stage
+/// asked for features-out, and those whose constancy a frame's facts record.
+std::vector<std::string> feature_channel_names(const AovSet& aovs, const ImageSpec& spec);
+
 /// Blender's view layers in a merged buffer's channels: each "<layer>" with an un-prefixed
 /// "<layer>.Combined.R", in channel order (the cycles preset takes the first unless
 /// AovSpec::layer names one).

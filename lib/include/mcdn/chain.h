@@ -50,7 +50,8 @@ struct ChainOptions {
 /// What a chain's result says on its spec of the safety nets (the tiles each left as the
 /// render: mcdn/nfor.h, mcdn/sure.h) and of choose's share (mcdn/choose.h), over a frame
 /// made in bands: add() each band's result spec, set() the frame's. Counts are summed (a
-/// tile of two bands' halos counts twice), the share is the mean over the bands' pixels.
+/// tile of two bands' halos counts twice), the share is the mean over the bands' pixels,
+/// choose's estimate the last band's (every band's is the same).
 /// run_chain's gathered result carries them so; a front end with a BandSink keeps its own.
 class BandCounts {
 public:
@@ -61,6 +62,7 @@ public:
 private:
     int64_t tiles_[3] = {};  // nfor's fallback, sure's fallback, sure's worse tiles
     double share_sum_ = 0, share_pixels_ = 0;
+    std::string estimate_;
 };
 
 /// $MCDN_BAND_PIXELS, when set, as `options`' bands, exactly (band_halos 0; 0: the whole
@@ -76,10 +78,6 @@ using BandSink = std::function<bool(const ImageBuf& band, const ROI& own, std::s
 /// on an unknown stage or a mix without a sure before it.
 bool parse_chain(std::vector<std::string>& stages, const std::string& text, std::string& error);
 
-/// The feature channels (albedo, normal, depth, visibility: every face) of a resolved set:
-/// what a chain with a prefilter puts back into its output from its input unless a stage
-/// asked for features-out.
-std::vector<std::string> feature_channel_names(const AovSet& aovs, const ImageSpec& spec);
 /// Copies the named channels of `input` into the same-named channels of dst; false with
 /// `error` when either lacks one.
 bool copy_channels_by_name(ImageBuf& dst, const ImageBuf& input,

@@ -1,4 +1,5 @@
-// Choosing between two denoisers by their SURE: Progressive Denoising §3.2 observes that
+// Choosing between two denoisers by their error estimates, SURE (ChooseEstimate::Sure, the
+// first rule) or the halves' (Halves, below). Progressive Denoising §3.2 observes that
 // SURE's per-pixel estimate is too noisy to decide alone but that its local averages follow
 // the true error, and "could form the basis of a decision"; NFOR §5.3 weighs its candidates
 // by error estimates filtered over a window, and Zheng et al. (PD §2.2) combine denoisers by
@@ -22,6 +23,28 @@
 // w div_b (w held fixed: it follows windows of hundreds of pixels), so that a mix after it
 // (PD §4) reads the chosen image's own estimate.
 //
+// Where the render has half buffers and choose is handed the denoiser that made a
+// (ChooseEstimate::Halves: --denoise's NFOR beside the CNN), the weight comes from the
+// halves instead of SURE: NFOR §5.3's two-buffer estimate, for any two denoisers. Each runs
+// on half A and on half B as renders of their own (choose/half_render.h: a_A is a's
+// denoiser on A, b_A the other's), and the other half is a target whose noise is
+// independent of what was denoised. With d_H = b_H - a_H and s = ybar^2 + 0.01 + Var:
+//
+//   N(p) = sum over the window and R, G, B of [d_A (B - a_A) + d_B (A - a_B)] / s
+//   D(p) = the same sum of (d_A^2 + d_B^2) / s
+//   S(p) = sqrt(the same sum of (d_A^2 + d_B^2) 2 Var / s^2)    N's standard error (a
+//                                                               half's variance is 2 Var)
+//   w0   = N / D clamped to [0, 1] where N > kChooseSignificance S, else 0
+//
+// N / D is the blend weight of b that minimizes the window's estimated error of the halves'
+// results; b weighs only where the halves show that it lowers the error by more than their
+// noise could. Nothing in it assumes Gaussian noise or a small probe, where SURE of the
+// colour was from below 0 to 10x each denoiser's error over a frame (docs/accuracy.md).
+// Measured on 41 inputs (bench/choose_rules, the op against SURE's share): geometric mean
+// over the better of the CNN and NFOR 0.91 against 0.99, worst 1.11 against 1.35. Cost: a's
+// and the other denoiser's runs on each half, besides the other's SURE (its divergence is
+// the result's, for the mix).
+//
 // a is the image src holds (a denoiser's result after sure: its colour, sure.*, noisy.*);
 // b is `other` run by choose itself on the render that sure recorded (noisy.*), with its own
 // SURE (K probes, mcdn/sure.h). --denoise runs it after --cnn --sure with NFOR (prefilter,
@@ -36,8 +59,20 @@
 
 namespace mcdn {
 
+/// Which estimate weighs the two denoisers (above).
+enum class ChooseEstimate { Sure, Halves };
+
+/// The halves' rule weighs b where N is above this many standard errors of it.
+constexpr double kChooseSignificance = 2.0;
+
 struct ChooseOptions {
     AovSpec aovs;
+    /// Halves needs `before` and the colour's half buffers; where the half renders' AOVs do
+    /// not resolve (an --aov override names a half), SURE weighs, and
+    /// kChooseEstimateAttribute says why.
+    ChooseEstimate estimate = ChooseEstimate::Sure;
+    /// The denoiser that made a (the chain's before --sure), which Halves runs on each half.
+    Denoiser before;
     /// The window's radius: 8 sums SURE over 17×17 pixels (PD Fig. 3: single pixels decide
     /// nothing; NFOR §5.3 filters its error maps over a 19×19 window).
     int window_radius = 8;
@@ -74,6 +109,9 @@ constexpr float kChooseNetworksMaxNoise = 0.003f;
 /// Float attribute of choose's output: the mean of w over the frame (how much of the
 /// result is `other`'s).
 constexpr const char* kChooseShareAttribute = "mcdn:choose_share";
+/// String attribute of choose's output: the estimate that weighed ("halves", "SURE", or
+/// "SURE (...)" saying why not the halves).
+constexpr const char* kChooseEstimateAttribute = "mcdn:choose_estimate";
 
 /// dst = src with the colour, its RGB extras and sure.*, sure.divergence.*, sure.residual.*
 /// replaced by the choice above between src's denoised image (a) and other's (b), which

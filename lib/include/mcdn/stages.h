@@ -41,7 +41,8 @@ struct StageContext {
     std::vector<const ImageBuf*> previous_frames, next_frames;
     /// An Estimator's denoiser: the Denoisers before it as one (compose_in_place), how far
     /// they reach (chain_radius) and whether they may run in the probed input itself
-    /// (SureOptions::denoiser_in_place).
+    /// (SureOptions::denoiser_in_place). A Mixer's: the last Estimator's denoiser (choose
+    /// runs it on the halves), empty where none came before.
     Denoiser denoiser;
     int denoiser_radius = -1;
     bool denoiser_in_place = false;

@@ -208,6 +208,16 @@ Role face_of(Role base, Face face)
     return Role(int(base) + int(face));
 }
 
+std::vector<std::string> feature_channel_names(const AovSet& aovs, const ImageSpec& spec)
+{
+    std::vector<std::string> names;
+    for (Role base : { Role::Albedo, Role::Normal, Role::Depth, Role::Visibility })
+        for (Face face : { Face::Mean, Face::Variance, Face::HalfA, Face::HalfB })
+            for (int c : aovs.channels(face_of(base, face)))
+                names.push_back(spec.channel_name(c));
+    return names;
+}
+
 const char* input_kind_name(InputKind kind)
 {
     switch (kind) {

@@ -122,16 +122,6 @@ bool parse_chain(std::vector<std::string>& stages, const std::string& text, std:
     return true;
 }
 
-std::vector<std::string> feature_channel_names(const AovSet& aovs, const ImageSpec& spec)
-{
-    std::vector<std::string> names;
-    for (Role base : { Role::Albedo, Role::Normal, Role::Depth, Role::Visibility })
-        for (Face face : { Face::Mean, Face::Variance, Face::HalfA, Face::HalfB })
-            for (int c : aovs.channels(face_of(base, face)))
-                names.push_back(spec.channel_name(c));
-    return names;
-}
-
 bool copy_channels_by_name(ImageBuf& dst, const ImageBuf& input,
                            const std::vector<std::string>& names, std::string& error)
 {
@@ -363,6 +353,7 @@ bool run_stages(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOp
     const ImageBuf* current = &src;
     std::vector<std::pair<std::string, Denoiser>> pending;  // denoisers since the last sure/mix
     std::vector<StageReach> pending_reach;
+    Denoiser estimated;  // the last Estimator's denoiser, a Mixer's (StageContext::denoiser)
     for (const std::string& name : o.stages) {
         const StageInfo& stage = *find_stage(name);
         MadeStage made;
@@ -392,8 +383,11 @@ bool run_stages(ImageBuf& dst, const ImageBuf& src, ImageBuf* own, const ChainOp
             context.denoiser_in_place =
                 pending.size() == 1 && find_stage(pending[0].first)->probes_in_place;
             context.denoiser = compose_in_place(std::move(pending));
+            estimated = context.denoiser;
             pending.clear();
             pending_reach.clear();
+        } else if (stage.kind == StageKind::Mixer) {
+            context.denoiser = estimated;
         }
         bool ok = make_stage(made, name, o, context, error, nthreads);
         if (!ok) {

@@ -334,6 +334,8 @@ void BandCounts::add(const ImageSpec& band)
         share_sum_ += band.get_float_attribute(kChooseShareAttribute) * pixels;
         share_pixels_ += pixels;
     }
+    if (band.find_attribute(kChooseEstimateAttribute))
+        estimate_ = band.get_string_attribute(kChooseEstimateAttribute);
 }
 
 void BandCounts::set(ImageSpec& frame) const
@@ -346,6 +348,9 @@ void BandCounts::set(ImageSpec& frame) const
     frame.erase_attribute(kChooseShareAttribute);
     if (share_pixels_ > 0)
         frame.attribute(kChooseShareAttribute, float(share_sum_ / share_pixels_));
+    frame.erase_attribute(kChooseEstimateAttribute);
+    if (!estimate_.empty())
+        frame.attribute(kChooseEstimateAttribute, estimate_);
 }
 
 void set_bands_from_environment(ChainOptions& options)

@@ -74,7 +74,8 @@ bool plan_denoise(DenoisePlan& plan, const ImageSpec& merged, const AovSpec& spe
         } else if (halves) {
             plan.stages.insert(plan.stages.begin() + 2, "choose");
             plan.why +=
-                " and half buffers (NFOR beside it, weighed per pixel by SURE; choose=0: not)";
+                " and half buffers (NFOR beside it, weighed per pixel by the halves' error estimate; "
+                "choose=0: not)";
         }
     } else {
         plan.stages = { denoiser };

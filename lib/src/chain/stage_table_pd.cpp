@@ -132,6 +132,13 @@ struct ChooseSettings {
     std::string with = "nfor";
 };
 
+// estimate=halves|sure; default halves beside NFOR (measured there: mcdn/choose.h), SURE
+// beside a network (kChooseNetworksMaxNoise was measured with it).
+ChooseEstimate default_estimate(const std::string& with)
+{
+    return with == "nfor" ? ChooseEstimate::Halves : ChooseEstimate::Sure;
+}
+
 bool choose_settings(ChooseSettings& c, const Settings& s, std::string& error)
 {
     SettingsReader reader(s, "choose", error);
@@ -146,7 +153,13 @@ bool choose_settings(ChooseSettings& c, const Settings& s, std::string& error)
         });
     // NFOR beside the CNN everywhere; a network beside OIDN where SURE can tell them apart.
     c.o.max_noise = c.with == "nfor" ? 0.0f : kChooseNetworksMaxNoise;
+    c.o.estimate = default_estimate(c.with);
     return reader.number("noise", c.o.max_noise)
+        .custom("estimate", "must be halves or sure",
+                [&](const std::string& v) {
+                    c.o.estimate = v == "halves" ? ChooseEstimate::Halves : ChooseEstimate::Sure;
+                    return v == "halves" || v == "sure";
+                })
         .custom("noise", "must be at least 0",
                 [&](const std::string&) { return c.o.max_noise >= 0; })
         .ok();
@@ -187,13 +200,18 @@ bool make_other(Denoiser& denoiser, ChooseSettings& c, const StageContext& conte
     return true;
 }
 
-// Its denoiser's reach (as choose runs it), then its windows'.
-StageReach choose_reach(const ChooseSettings& c)
+// Its denoiser's reach (as choose runs it; with the halves, the farther of it and the one
+// before, `before`, at its defaults), then its windows'.
+StageReach choose_reach(const ChooseSettings& c, const std::string& before)
 {
-    const int other =
-        c.with == "nfor"
-            ? chain_radius({ stage_reach(PrefilterOptions()), stage_reach(NforOptions()) })
-            : chain_radius({ find_stage(c.with)->reach(with_settings(c), "") });
+    int other = c.with == "nfor"
+                    ? chain_radius({ stage_reach(PrefilterOptions()), stage_reach(NforOptions()) })
+                    : chain_radius({ find_stage(c.with)->reach(with_settings(c), "") });
+    const StageInfo* stage = find_stage(before);
+    if (c.o.estimate == ChooseEstimate::Halves && stage && stage->reach) {
+        const int r = chain_radius({ stage->reach({}, "") });
+        other = r < 0 ? -1 : std::max(other, r);
+    }
     if (other < 0)
         return {};
     const int r = other + receptive_radius(c.o);
@@ -209,9 +227,10 @@ bool make_choose(MadeStage& made, const Settings& settings, const StageContext& 
         return false;
     c.o.aovs = context.aovs;
     c.o.progress = context.progress;
+    c.o.before = context.denoiser;
     if (!make_other(other, c, context, error))
         return false;
-    made.reach = choose_reach(c);
+    made.reach = choose_reach(c, "");  // read for Denoisers only; bands read StageInfo::reach
     made.run = [o = c.o, other, roi = context.roi, n = context.nthreads](ImageBuf& dst,
                                                                          const ImageBuf& src) {
         return choose(dst, src, other, o, roi, n);
@@ -224,7 +243,7 @@ StageInfo choose_stage()
     StageInfo s;
     s.name = "choose";
     s.kind = StageKind::Mixer;
-    s.keys = { "window", "blend", "probes", "extras", "weight-aov", "with", "noise" };
+    s.keys = { "window", "blend", "probes", "extras", "weight-aov", "with", "noise", "estimate" };
     // What any of its denoisers reads (the table's flags are not per setting, but for the
     // halves): NFOR the halves and constant features, the CNN the light split and depth
     // range, OIDN the exposure.
@@ -247,10 +266,14 @@ StageInfo choose_stage()
         return with && with->held_bytes ? with->held_bytes(with_settings(c), threads) : 0.0;
     };
     s.help = "After a denoiser and --sure (--cnn --sure, --oidn --sure): runs a second "
-             "denoiser and its SURE on the render, and weighs the two per pixel by their SURE "
-             "summed over the window around it, relative to the value and the render's "
-             "variance (each its share of the inverse errors: PD §3.2, NFOR §5.3), the weight "
-             "smoothed; light AOVs take the same weights, so they still add up. --mix after it "
+             "denoiser and its SURE on the render, and weighs the two per pixel by their "
+             "errors over the window around it, relative to the value and the render's "
+             "variance. estimate=halves (with=nfor's default): both denoisers run on each half "
+             "buffer, the other half the target (NFOR §5.3's estimate), the least-squares "
+             "blend of the two where it lowers the error by more than 2 standard errors; "
+             "estimate=sure (with=cnn or oidn): each its share of the inverse SUREs (PD §3.2). "
+             "The weight is smoothed; light AOVs take the same weights, so they still add up. "
+             "--mix after it "
              "mixes the result with the render. with=nfor (--prefilter --nfor: the halves), "
              "cnn or oidn (at their defaults), the second denoiser; noise=0.003 (with=cnn or "
              "oidn; with=nfor: 0, everywhere): the second weighs only where the render's "
@@ -267,15 +290,15 @@ StageInfo choose_stage()
         return choose_settings(c, settings, error);
     };
     s.make = make_choose;
-    s.reach = [](const Settings& settings, const std::string&) {
+    s.reach = [](const Settings& settings, const std::string& before) {
         ChooseSettings c;
         std::string error;
-        return choose_settings(c, settings, error) ? choose_reach(c) : StageReach();
+        return choose_settings(c, settings, error) ? choose_reach(c, before) : StageReach();
     };
     // As with=nfor, its default, runs.
     s.can_run = [](const AovSet& aovs, std::string& how) {
         const bool ok = has_halves(aovs) && aovs.has(Role::ColorVariance);
-        how = ok ? "after --sure: NFOR on the halves, weighed per pixel by SURE"
+        how = ok ? "after --sure: NFOR on the halves, weighed per pixel by the halves' estimate"
                  : "needs the colour's half buffers and variance";
         return ok;
     };

@@ -1,5 +1,6 @@
-// Choosing between two denoisers by their SURE (mcdn/choose.h): the render rebuilt from
-// sure's record, the other denoiser and its SURE on it, the weight map, the blend.
+// Choosing between two denoisers by their error estimates (mcdn/choose.h): both on the
+// halves (the halves' rule), the render rebuilt from sure's record, the other denoiser and
+// its SURE on it, the weight map, the blend.
 #include "mcdn/choose.h"
 
 #include <algorithm>
@@ -7,11 +8,13 @@
 
 #include <OpenImageIO/strutil.h>
 
+#include "choose/half_render.h"
 #include "core/channels.h"
 #include "core/op_prepare.h"
 #include "core/planar.h"
 #include "core/progress.h"
 #include "core/trace.h"
+#include "mcdn/color.h"
 #include "ops/window_sums.h"
 #include "skip/converged_tiles.h"
 #include "sure/sure_steps.h"
@@ -192,6 +195,119 @@ Plane choice_weight(const Kept& a, const ImageBuf& frame, const ImageBuf& other,
                                 options.blend_radius, true);
 }
 
+// What the halves' rule reads (mcdn/choose.h), per colour channel: d_H = b_H - a_H and
+// the other half's residual r_H = (the other half) - a_H, for H = A, B.
+struct HalvesRuns {
+    Plane d[2][3], r[2][3];
+};
+
+// The half renders' AOVs resolve (an --aov override may name a half, which they lack);
+// else `why`.
+bool halves_resolve(const ImageBuf& src, const AovSet& aovs, const ChooseOptions& options,
+                    std::string& why)
+{
+    ImageSpec half = src.spec();
+    half.channelnames.clear();
+    for (int c = 0; c < src.spec().nchannels; ++c)
+        if (std::find(aovs.channels(Role::ColorA).begin(), aovs.channels(Role::ColorA).end(), c)
+                == aovs.channels(Role::ColorA).end()
+            && std::find(aovs.channels(Role::ColorB).begin(), aovs.channels(Role::ColorB).end(), c)
+                   == aovs.channels(Role::ColorB).end())
+            half.channelnames.push_back(src.spec().channelnames[size_t(c)]);
+    half.nchannels = int(half.channelnames.size());
+    AovSet resolved;
+    return resolve_aovs(resolved, options.aovs, half, why);
+}
+
+// a's denoiser and the other on each half of the render src holds (choose/half_render.h).
+bool run_on_halves(HalvesRuns& out, const ImageBuf& src, const AovSet& aovs, const Denoiser& other,
+                   const ChooseChannels& ch, const ChooseOptions& options, int nthreads,
+                   std::string& error)
+{
+    const FrameFacts facts = render_facts(src, aovs, ch.x);
+    Plane half[2][3];
+    for (int k = 0; k < 3; ++k)
+        read_planes(src,
+                    { { aovs.channels(Role::ColorA)[size_t(k)], &half[0][k] },
+                      { aovs.channels(Role::ColorB)[size_t(k)], &half[1][k] } },
+                    {}, nthreads);
+    for (int h = 0; h < 2; ++h) {
+        ImageBuf render, a;
+        if (!half_render(render, src, aovs, h == 0 ? Face::HalfA : Face::HalfB, nthreads, error))
+            return false;
+        set_frame_facts(render.specmod(), facts);
+        const char* name = h == 0 ? "half A" : "half B";
+        std::vector<int> color(3);
+        for (int k = 0; k < 3; ++k)
+            color[size_t(k)] = render.spec().channelindex(aovs.names(Role::Color)[size_t(k)]);
+        if (!options.before(a, render)) {
+            error = format("the denoiser before it, on {}: {}", name, a.geterror());
+            return false;
+        }
+        // The other runs in the half render itself: a frame less.
+        if (!other(render, render)) {
+            error = format("the other denoiser, on {}: {}", name, render.geterror());
+            return false;
+        }
+        for (int k = 0; k < 3; ++k) {
+            Plane ya, yb;
+            read_planes(a, { { color[size_t(k)], &ya } }, {}, nthreads);
+            read_planes(render, { { color[size_t(k)], &yb } }, {}, nthreads);
+            Plane& d = out.d[h][k] = yb;
+            Plane& r = out.r[h][k] = half[1 - h][k];
+            for (size_t i = 0; i < d.size(); ++i) {
+                d.px[i] -= ya.px[i];
+                r.px[i] -= ya.px[i];
+            }
+        }
+    }
+    return true;
+}
+
+// w of the halves' rule (mcdn/choose.h), smoothed; s from a, b and the render's variance
+// in `frame`.
+Plane halves_weight(const HalvesRuns& halves, const Kept& a, const ImageBuf& frame,
+                    const ImageBuf& other, const ChooseChannels& ch, const Plane& trusted,
+                    const ChooseOptions& options, int nthreads)
+{
+    const int width = trusted.width, height = trusted.height;
+    Plane num(width, height), den(width, height), noise(width, height);
+    for (int k = 0; k < 3; ++k) {
+        Plane yb, variance;
+        read_planes(frame, { { ch.variance[k], &variance, true } }, {}, nthreads);
+        read_planes(other, { { ch.b.y[k], &yb } }, {}, nthreads);
+        for (size_t i = 0; i < num.size(); ++i) {
+            const float mean = 0.5f * (a.y[k].px[i] + yb.px[i]);
+            const double s = double(mean) * mean + kRelativeOffset + variance.px[i];
+            double n = 0, d = 0;
+            for (int h = 0; h < 2; ++h) {
+                const double dh = halves.d[h][k].px[i];
+                n += dh * halves.r[h][k].px[i];
+                d += dh * dh;
+            }
+            const double v = d * 2.0 * variance.px[i] / (s * s);
+            if (std::isfinite(n / s) && std::isfinite(d / s) && std::isfinite(v)) {
+                num.px[i] += float(n / s);
+                den.px[i] += float(d / s);
+                noise.px[i] += float(v);
+            }
+        }
+    }
+    const std::vector<double> window(size_t(2 * options.window_radius + 1), 1.0);
+    const Plane sum_n = separable_window_sum(num, window, options.window_radius),
+                sum_d = separable_window_sum(den, window, options.window_radius),
+                sum_v = separable_window_sum(noise, window, options.window_radius);
+    Plane w0(width, height);
+    for (size_t i = 0; i < w0.size(); ++i) {
+        const double n = sum_n.px[i], d = sum_d.px[i];
+        const bool significant =
+            n > kChooseSignificance * std::sqrt(std::max(double(sum_v.px[i]), 0.0)) && d > 0;
+        w0.px[i] = significant ? trusted.px[i] * float(std::clamp(n / d, 0.0, 1.0)) : 0.0f;
+    }
+    return separable_window_sum(w0, std::vector<double>(size_t(2 * options.blend_radius + 1), 1.0),
+                                options.blend_radius, true);
+}
+
 // dst's colour, extras and SURE channels: a + w (b - a), b read from `other` (which may be
 // dst itself: each plane is read before it is written); the residual against x (noisy.*
 // in dst) exactly; SURE from the residual, the blended divergence and the variance
@@ -242,15 +358,11 @@ int receptive_radius(const ChooseOptions& options)
     return options.window_radius + options.blend_radius;
 }
 
-bool choose(ImageBuf& dst, const ImageBuf& src, const Denoiser& other, const ChooseOptions& options,
-            ROI roi, int nthreads)
+namespace {
+
+bool choose_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser& other,
+                             const ChooseOptions& options, ROI roi, int nthreads)
 {
-    if (!check_op_threads(dst, nthreads, "choose"))
-        return false;
-    if (options.window_radius < 0 || options.blend_radius < 0) {
-        dst.errorfmt("choose: window and blend radii must be at least 0");
-        return false;
-    }
     StageTrace trace("choose");
     AovSet aovs;
     std::string error;
@@ -282,18 +394,32 @@ bool choose(ImageBuf& dst, const ImageBuf& src, const Denoiser& other, const Cho
                         src.spec().channelindex(sure_channels::noisy_extra(extra.names[k]));
                     noisy >= 0)
                     ch.recorded_extras.emplace_back(noisy, extra.channels[k]);
-    // Two steps: b with its SURE (K + 1 runs of other), then the choice and the blend.
-    ProgressCounter progress(options.progress, "choose", 2);
+    // Which estimate weighs (ChooseOptions::estimate), and where not the halves, why.
+    std::string estimate = "SURE", why;
+    if (options.estimate == ChooseEstimate::Halves) {
+        if (!options.before)
+            why = "no denoiser before it was given";
+        else if (!aovs.has(Role::ColorA) || !aovs.has(Role::ColorB))
+            why = "the render has no half buffers";
+        else if (!halves_resolve(src, aovs, options, why))
+            why = "the half renders' AOVs: " + why;
+        estimate = why.empty() ? "halves" : "SURE (" + why + ")";
+    }
+    const bool use_halves = estimate == "halves";
+    // Two steps: b with its SURE (K + 1 runs of other), then the choice and the blend; the
+    // halves' runs before them.
+    ProgressCounter progress(options.progress, "choose", use_halves ? 3 : 2);
     const Plane trusted = trusted_windows(src, ch, options, nthreads);
     if (std::find(trusted.px.begin(), trusted.px.end(), 1.0f) == trusted.px.end()) {
         // b weighs nowhere: the result is src's, without running other.
         if (&dst != &src && !prepare_op(dst, src, options.aovs, aovs, "choose", nthreads))
             return false;
         dst.specmod().attribute(kChooseShareAttribute, 0.0f);
+        dst.specmod().attribute(kChooseEstimateAttribute, estimate);
         if (options.output_weight)
             write_plane(dst, add_channels(dst, { "choose.weight" })[0], trusted, dst.roi());
         trace.mark("the other denoiser: not run (max_noise)");
-        if (!progress.advance() || !progress.advance()) {
+        if (!progress.advance() || !progress.advance() || (use_halves && !progress.advance())) {
             dst.errorfmt("{}", progress.error());
             return false;
         }
@@ -303,6 +429,19 @@ bool choose(ImageBuf& dst, const ImageBuf& src, const Denoiser& other, const Cho
     // a frame in memory (as in a chain: no frame-sized copy), else in a copy of src. The other
     // denoiser probed there by its SURE (in place too where it can: SureOptions) makes b.
     const Kept a = keep_candidate(src, ch, nthreads);
+    // The halves' runs while src is as it came (it may be dst).
+    HalvesRuns halves;
+    if (use_halves) {
+        if (!run_on_halves(halves, src, aovs, other, ch, options, nthreads, error)) {
+            dst.errorfmt("choose: {}", error);
+            return false;
+        }
+        trace.mark("both denoisers on the halves");
+        if (!progress.advance()) {
+            dst.errorfmt("{}", progress.error());
+            return false;
+        }
+    }
     const ImageSpec spec = src.spec();  // the result's: b's run leaves its own
     const bool in_place = &dst == &src && float_frame_pixels(src);
     ImageBuf copy;
@@ -359,7 +498,9 @@ bool choose(ImageBuf& dst, const ImageBuf& src, const Denoiser& other, const Cho
     result.specmod() = spec;
     for (const auto& [noisy, channel] : ch.recorded_extras)
         ch.extras.emplace_back(channel, b_frame.spec().channelindex(spec.channel_name(channel)));
-    const Plane w = choice_weight(a, result, b_frame, ch, trusted, options, nthreads);
+    const Plane w = use_halves
+                        ? halves_weight(halves, a, result, b_frame, ch, trusted, options, nthreads)
+                        : choice_weight(a, result, b_frame, ch, trusted, options, nthreads);
     blend(result, b_frame, a, ch, w, nthreads);
     b = ImageBuf();
     dst = std::move(result);
@@ -368,6 +509,7 @@ bool choose(ImageBuf& dst, const ImageBuf& src, const Denoiser& other, const Cho
         share += t;
     dst.specmod().attribute(kChooseShareAttribute,
                             float(share / double(std::max<size_t>(1, w.size()))));
+    dst.specmod().attribute(kChooseEstimateAttribute, estimate);
     if (options.output_weight) {
         const std::vector<int> channel = add_channels(dst, { "choose.weight" });
         write_plane(dst, channel[0], w, dst.roi());
@@ -378,6 +520,26 @@ bool choose(ImageBuf& dst, const ImageBuf& src, const Denoiser& other, const Cho
         return false;
     }
     return true;
+}
+
+}  // namespace
+
+bool choose(ImageBuf& dst, const ImageBuf& src, const Denoiser& other, const ChooseOptions& options,
+            ROI roi, int nthreads)
+{
+    if (!check_op_threads(dst, nthreads, "choose"))
+        return false;
+    if (options.window_radius < 0 || options.blend_radius < 0) {
+        dst.errorfmt("choose: window and blend radii must be at least 0");
+        return false;
+    }
+    // In the working space, as sure and the denoisers run (mcdn/color.h): the light passes
+    // as light, which is what sure recorded of them and what the half renders hand the
+    // denoisers, whether a chain converted the frame once or this op converts a copy.
+    return run_in_working_space(
+        dst, src, options.aovs, "choose", [&](ImageBuf& d, const ImageBuf& s) {
+            return choose_in_working_space(d, s, other, options, roi, nthreads);
+        });
 }
 
 ImageBuf choose(const ImageBuf& src, const Denoiser& other, const ChooseOptions& options, ROI roi,
