@@ -73,6 +73,9 @@ struct ChooseOptions {
     ChooseEstimate estimate = ChooseEstimate::Sure;
     /// The denoiser that made a (the chain's before --sure), which Halves runs on each half.
     Denoiser before;
+    /// `other` as Halves runs it on each half, where only its colour is read: the stage hands
+    /// it with extras=0 (no light pass regressed). Empty: `other`.
+    Denoiser other_on_halves;
     /// The window's radius: 8 sums SURE over 17×17 pixels (PD Fig. 3: single pixels decide
     /// nothing; NFOR §5.3 filters its error maps over a 19×19 window).
     int window_radius = 8;

@@ -165,10 +165,11 @@ bool choose_settings(ChooseSettings& c, const Settings& s, std::string& error)
         .ok();
 }
 
-// The settings choose hands the denoiser it runs: its extras as choose's.
-Settings with_settings(const ChooseSettings& c)
+// The settings choose hands the denoiser it runs: its extras as choose's (on the halves
+// none: only their colour is read).
+Settings with_settings(const ChooseSettings& c, bool on_halves = false)
 {
-    return { { "extras", c.o.denoise_extras ? "1" : "0" } };
+    return { { "extras", c.o.denoise_extras && !on_halves ? "1" : "0" } };
 }
 
 // The denoiser choose runs as it runs it; how far it reaches and what it reads into c.o.
@@ -180,23 +181,29 @@ bool make_other(Denoiser& denoiser, ChooseSettings& c, const StageContext& conte
     quiet.previous_frames.clear();
     quiet.next_frames.clear();
     if (c.with != "nfor") {
-        MadeStage made;
-        if (!find_stage(c.with)->make(made, with_settings(c), quiet, error))
+        MadeStage made, on_halves;
+        if (!find_stage(c.with)->make(made, with_settings(c), quiet, error)
+            || !find_stage(c.with)->make(on_halves, with_settings(c, true), quiet, error))
             return false;
         c.o.other_radius = chain_radius({ made.reach });
         // SURE's only denoiser on choose's own copy of the render: it may run in that copy.
         c.o.sure.denoiser_in_place = find_stage(c.with)->probes_in_place;
         denoiser = std::move(made.run);
+        c.o.other_on_halves = std::move(on_halves.run);
         return true;
     }
     c.o.other_needs_halves = true;
-    MadeStage prefilter, nfor;
+    MadeStage prefilter, nfor, prefilter_halves, nfor_halves;
     if (!make_prefilter(prefilter, {}, quiet, error)
-        || !make_nfor(nfor, with_settings(c), quiet, error))
+        || !make_nfor(nfor, with_settings(c), quiet, error)
+        || !make_prefilter(prefilter_halves, {}, quiet, error)
+        || !make_nfor(nfor_halves, with_settings(c, true), quiet, error))
         return false;
     c.o.other_radius = chain_radius({ prefilter.reach, nfor.reach });
     denoiser = compose_in_place(
         { { "prefilter", std::move(prefilter.run) }, { "nfor", std::move(nfor.run) } });
+    c.o.other_on_halves = compose_in_place({ { "prefilter", std::move(prefilter_halves.run) },
+                                             { "nfor", std::move(nfor_halves.run) } });
     return true;
 }
 

@@ -245,7 +245,8 @@ bool run_on_halves(HalvesRuns& out, const ImageBuf& src, const AovSet& aovs, con
             return false;
         }
         // The other runs in the half render itself: a frame less.
-        if (!other(render, render)) {
+        const Denoiser& other_here = options.other_on_halves ? options.other_on_halves : other;
+        if (!other_here(render, render)) {
             error = format("the other denoiser, on {}: {}", name, render.geterror());
             return false;
         }
