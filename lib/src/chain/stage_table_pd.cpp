@@ -193,17 +193,16 @@ bool make_other(Denoiser& denoiser, ChooseSettings& c, const StageContext& conte
         return true;
     }
     c.o.other_needs_halves = true;
-    MadeStage prefilter, nfor, prefilter_halves, nfor_halves;
+    MadeStage prefilter, nfor, nfor_halves;
     if (!make_prefilter(prefilter, {}, quiet, error)
         || !make_nfor(nfor, with_settings(c), quiet, error)
-        || !make_prefilter(prefilter_halves, {}, quiet, error)
         || !make_nfor(nfor_halves, with_settings(c, true), quiet, error))
         return false;
     c.o.other_radius = chain_radius({ prefilter.reach, nfor.reach });
+    c.o.other_on_halves = compose_in_place(
+        { { "prefilter", prefilter.run }, { "nfor", std::move(nfor_halves.run) } });
     denoiser = compose_in_place(
         { { "prefilter", std::move(prefilter.run) }, { "nfor", std::move(nfor.run) } });
-    c.o.other_on_halves = compose_in_place({ { "prefilter", std::move(prefilter_halves.run) },
-                                             { "nfor", std::move(nfor_halves.run) } });
     return true;
 }
 

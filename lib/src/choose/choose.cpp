@@ -206,17 +206,10 @@ struct HalvesRuns {
 bool halves_resolve(const ImageBuf& src, const AovSet& aovs, const ChooseOptions& options,
                     std::string& why)
 {
-    ImageSpec half = src.spec();
-    half.channelnames.clear();
-    for (int c = 0; c < src.spec().nchannels; ++c)
-        if (std::find(aovs.channels(Role::ColorA).begin(), aovs.channels(Role::ColorA).end(), c)
-                == aovs.channels(Role::ColorA).end()
-            && std::find(aovs.channels(Role::ColorB).begin(), aovs.channels(Role::ColorB).end(), c)
-                   == aovs.channels(Role::ColorB).end())
-            half.channelnames.push_back(src.spec().channelnames[size_t(c)]);
-    half.nchannels = int(half.channelnames.size());
+    HalfLayout half;
     AovSet resolved;
-    return resolve_aovs(resolved, options.aovs, half, why);
+    return half_layout(half, src.spec(), aovs, Face::HalfA, why)
+           && resolve_aovs(resolved, options.aovs, half.spec, why);
 }
 
 // a's denoiser and the other on each half of the render src holds (choose/half_render.h).
@@ -396,7 +389,7 @@ bool choose_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser&
                     noisy >= 0)
                     ch.recorded_extras.emplace_back(noisy, extra.channels[k]);
     // Which estimate weighs (ChooseOptions::estimate), and where not the halves, why.
-    std::string estimate = "SURE", why;
+    std::string why;
     if (options.estimate == ChooseEstimate::Halves) {
         if (!options.before)
             why = "no denoiser before it was given";
@@ -404,9 +397,11 @@ bool choose_in_working_space(ImageBuf& dst, const ImageBuf& src, const Denoiser&
             why = "the render has no half buffers";
         else if (!halves_resolve(src, aovs, options, why))
             why = "the half renders' AOVs: " + why;
-        estimate = why.empty() ? "halves" : "SURE (" + why + ")";
     }
-    const bool use_halves = estimate == "halves";
+    const bool use_halves = options.estimate == ChooseEstimate::Halves && why.empty();
+    const std::string estimate = use_halves    ? "halves"
+                                 : why.empty() ? "SURE"
+                                               : "SURE (" + why + ")";
     // Two steps: b with its SURE (K + 1 runs of other), then the choice and the blend; the
     // halves' runs before them.
     ProgressCounter progress(options.progress, "choose", use_halves ? 3 : 2);

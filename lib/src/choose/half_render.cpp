@@ -11,10 +11,9 @@
 
 namespace mcdn {
 
-bool half_render(OIIO::ImageBuf& dst, const OIIO::ImageBuf& src, const AovSet& aovs, Face face,
-                 int nthreads, std::string& error)
+bool half_layout(HalfLayout& layout, const ImageSpec& in, const AovSet& aovs, Face face,
+                 std::string& error)
 {
-    const ImageSpec& in = src.spec();
     const std::vector<int>& color_half = aovs.channels(face_of(Role::Color, face));
     if (color_half.size() != 3 || !aovs.has(face_of(Role::Color, Face::HalfA))
         || !aovs.has(face_of(Role::Color, Face::HalfB))) {
@@ -68,11 +67,13 @@ bool half_render(OIIO::ImageBuf& dst, const OIIO::ImageBuf& src, const AovSet& a
         if (const int v = in.channelindex(input_kind_prefix(InputKind::Variance) + name); v >= 0)
             factor[size_t(v)] = 2.0f;
     }
-    ImageSpec spec = in;
+    ImageSpec& spec = layout.spec;
+    std::vector<std::pair<int, float>>& taken = layout.taken;
+    spec = in;
     spec.set_format(OIIO::TypeDesc::FLOAT);
     spec.channelformats.clear();
     spec.channelnames.clear();
-    std::vector<std::pair<int, float>> taken;
+    taken.clear();
     spec.alpha_channel = spec.z_channel = -1;
     for (int c = 0; c < in.nchannels; ++c)
         if (from[size_t(c)] >= 0) {
@@ -85,6 +86,18 @@ bool half_render(OIIO::ImageBuf& dst, const OIIO::ImageBuf& src, const AovSet& a
         }
     spec.nchannels = int(taken.size());
     spec.erase_attribute(kInputsAttribute);
+    return true;
+}
+
+bool half_render(OIIO::ImageBuf& dst, const OIIO::ImageBuf& src, const AovSet& aovs, Face face,
+                 int nthreads, std::string& error)
+{
+    HalfLayout layout;
+    if (!half_layout(layout, src.spec(), aovs, face, error))
+        return false;
+    const ImageSpec& in = src.spec();
+    const ImageSpec& spec = layout.spec;
+    const std::vector<std::pair<int, float>>& taken = layout.taken;
     if (!allocate_frame(dst, spec, false)) {
         error = "out of memory for a half of the render";
         return false;

@@ -3,6 +3,8 @@
 #pragma once
 
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <OpenImageIO/imagebuf.h>
 
@@ -22,6 +24,16 @@ namespace mcdn {
 /// path). False with `error` where src has no halves of the colour.
 bool half_render(OIIO::ImageBuf& dst, const OIIO::ImageBuf& src, const AovSet& aovs, Face face,
                  int nthreads, std::string& error);
+
+/// What half_render makes of a render of spec `in`: dst's spec, and for each of its channels
+/// the channel of src it comes from with its factor (2 for a variance). False with `error`
+/// where `in` has no halves of the colour.
+struct HalfLayout {
+    ImageSpec spec;
+    std::vector<std::pair<int, float>> taken;
+};
+bool half_layout(HalfLayout& layout, const ImageSpec& in, const AovSet& aovs, Face face,
+                 std::string& error);
 
 /// The facts (core/frame_facts.h) of the render src holds, which its half renders carry so
 /// that the denoisers on them read the same numbers whether the frame runs whole or in a
