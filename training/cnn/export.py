@@ -36,26 +36,20 @@ FIXTURE_RENDER = os.path.join(ROOT, "tests", "data", "generated", "0000_interior
 CUT = (30, 29)  # rows, columns of the cut fixture (not multiples of 4)
 
 
-def meta_widths(net):
-    return [net.diffuse.enc1.out_channels, net.diffuse.enc2a.out_channels,
-            net.diffuse.bottleneck_a.out_channels]
-
-
 def metadata(net, extra=None):
-    w1 = net.diffuse.enc1.out_channels
     meta = {"network": "kpcn", "input_layout": kpcn.INPUT_LAYOUT,
-            "widths": [w1, net.diffuse.enc2a.out_channels, net.diffuse.bottleneck_a.out_channels],
+            "widths": list(net.diffuse.widths),
             "kernel": kpcn.KERNEL, "iterations": net.diffuse.iterations,
             "albedo_epsilon": kpcn.ALBEDO_EPSILON,
             "gflop_1080p_both_branches": round(
-                kpcn.flops_per_pixel(tuple(meta_widths(net))) * 1920 * 1080 * 2 / 1e9, 1)}
+                kpcn.flops_per_pixel(net.diffuse.widths) * 1920 * 1080 * 2 / 1e9, 1)}
     meta.update(extra or {})
     return meta
 
 
 def make_fixture():
     torch.manual_seed(6)
-    net = kpcn.KPCN(widths=(8, 8, 8))
+    net = kpcn.KPCN(widths=(8, 8, 8, 8))  # 4 levels: the C++ reads any depth
     with torch.no_grad():
         for branch in (net.diffuse, net.specular):
             branch.kernels.weight.normal_(std=0.5)  # peaky, varied kernels: a demanding test
@@ -65,7 +59,7 @@ def make_fixture():
                     m.bias.normal_(std=0.05)
     os.makedirs(os.path.join(ROOT, "tests", "data", "cnn"), exist_ok=True)
     meta = metadata(net, {"purpose": "test fixture (random weights)"})
-    meta["widths"] = [8, 8, 8]
+    meta["widths"] = [8, 8, 8, 8]
     meta.pop("gflop_1080p_both_branches")
     write_weights(os.path.join(ROOT, "tests", "data", "cnn", "kpcn_tiny.mcdnw"), net.state_dict(), meta)
     raw = {k: torch.from_numpy(v) for k, v in data.load_render(FIXTURE_RENDER, 16).items()}
@@ -100,8 +94,7 @@ def main():
         state = json.load(f)
     with np.load(os.path.join(run, "model_%s.npz" % args.which)) as f:
         state_dict = {k: torch.from_numpy(f[k]) for k in f.files}
-    widths = tuple(int(state_dict["diffuse.%s.weight" % n].shape[0])
-                   for n in ("enc1", "enc2a", "bottleneck_a"))
+    widths = kpcn.widths_of(state_dict)
     net = kpcn.KPCN(widths)
     net.load_state_dict(state_dict)
     curve = state["curve"]

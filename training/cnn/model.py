@@ -38,7 +38,7 @@ ALBEDO_EPSILON = 0.00316  # §4.3
 INPUT_LIMIT = 1e3
 KERNEL = 5                # each reconstruction step: a 5x5 softmax kernel (eq. 9)
 ITERATIONS = 5            # 5 steps of 5x5 reach 21x21, the paper's k = 21
-WIDTHS = (16, 32, 48)     # UNet widths at full, 1/2 and 1/4 resolution
+WIDTHS = (16, 32, 48)     # UNet widths at full, 1/2 and 1/4 resolution (one per level)
 
 
 def _gradients(planes):
@@ -98,22 +98,42 @@ def branch_inputs(raw):
     return out
 
 
+def layer_names(levels):
+    """The convolutions of a branch with `levels` UNet levels, in order: (name, level), level
+    0 at full resolution. 3 levels are enc1; enc2a, enc2b; bottleneck_a, bottleneck_b; dec2;
+    dec1 (the names of every model exported before deeper ones existed); each level more
+    adds enc<l>a/b above the bottleneck and dec<l> below it."""
+    names = [("enc1", 0)]
+    for level in range(1, levels - 1):
+        names += [("enc%da" % (level + 1), level), ("enc%db" % (level + 1), level)]
+    names += [("bottleneck_a", levels - 1), ("bottleneck_b", levels - 1)]
+    names += [("dec%d" % (level + 1), level) for level in range(levels - 2, -1, -1)]
+    return names
+
+
 class Branch(nn.Module):
-    """One KPCN branch: a 3-level UNet (WIDTHS) whose 1x1 head predicts ITERATIONS softmax
+    """One KPCN branch: a UNet of len(WIDTHS) levels (widths[l] channels at 1/2^l of the
+    resolution, two 3x3 convolutions a level, one at full resolution, max-pooling down,
+    nearest upsampling and concatenation up) whose 1x1 head predicts ITERATIONS softmax
     kernels of KERNEL x KERNEL per pixel, applied one after the other to the image."""
 
     def __init__(self, widths=WIDTHS, iterations=ITERATIONS, kernel=KERNEL):
         super().__init__()
-        w1, w2, w3 = widths
-        self.iterations, self.kernel = iterations, kernel
-        self.enc1 = nn.Conv2d(INPUT_CHANNELS, w1, 3, padding=1)
-        self.enc2a = nn.Conv2d(w1, w2, 3, padding=1)
-        self.enc2b = nn.Conv2d(w2, w2, 3, padding=1)
-        self.bottleneck_a = nn.Conv2d(w2, w3, 3, padding=1)
-        self.bottleneck_b = nn.Conv2d(w3, w3, 3, padding=1)
-        self.dec2 = nn.Conv2d(w3 + w2, w2, 3, padding=1)
-        self.dec1 = nn.Conv2d(w2 + w1, w1, 3, padding=1)
-        self.kernels = nn.Conv2d(w1, iterations * kernel * kernel, 1)
+        if len(widths) < 3:
+            raise ValueError("a branch needs 3 or more UNet levels, got widths %s" % (widths,))
+        self.widths, self.iterations, self.kernel = tuple(widths), iterations, kernel
+        levels = len(widths)
+        for name, level in layer_names(levels):
+            if name == "enc1":
+                cin = INPUT_CHANNELS
+            elif name.startswith("dec"):
+                cin = widths[level + 1] + widths[level]
+            elif name.endswith("a"):
+                cin = widths[level - 1]
+            else:
+                cin = widths[level]
+            setattr(self, name, nn.Conv2d(cin, widths[level], 3, padding=1))
+        self.kernels = nn.Conv2d(widths[0], iterations * kernel * kernel, 1)
         for m in self.modules():
             if isinstance(m, nn.Conv2d):
                 nn.init.xavier_uniform_(m.weight)  # §5.2
@@ -122,16 +142,55 @@ class Branch(nn.Module):
 
     def forward(self, features, image):
         up = lambda t: F.interpolate(t, scale_factor=2, mode="nearest")  # noqa: E731
-        e1 = F.relu(self.enc1(features))
-        e2 = F.relu(self.enc2b(F.relu(self.enc2a(F.max_pool2d(e1, 2)))))
-        b = F.relu(self.bottleneck_b(F.relu(self.bottleneck_a(F.max_pool2d(e2, 2)))))
-        d2 = F.relu(self.dec2(torch.cat([up(b), e2], 1)))
-        d1 = F.relu(self.dec1(torch.cat([up(d2), e1], 1)))
-        logits = self.kernels(d1)
+        conv = lambda name, t: F.relu(getattr(self, name)(t))  # noqa: E731
+        levels = len(self.widths)
+        skips = [conv("enc1", features)]
+        for level in range(1, levels - 1):
+            t = conv("enc%da" % (level + 1), F.max_pool2d(skips[-1], 2))
+            skips.append(conv("enc%db" % (level + 1), t))
+        d = conv("bottleneck_b", conv("bottleneck_a", F.max_pool2d(skips[-1], 2)))
+        for level in range(levels - 2, -1, -1):
+            d = conv("dec%d" % (level + 1), torch.cat([up(d), skips[level]], 1))
+        logits = self.kernels(d)
         taps = self.kernel * self.kernel
         for i in range(self.iterations):
             image = apply_kernel(logits[:, i * taps:(i + 1) * taps], image, self.kernel)
         return image
+
+
+def widths_of(state_dict, prefix="diffuse."):
+    """The UNet widths of a state dict (exported model or run), from its tensors' shapes."""
+    levels = 3
+    while prefix + "enc%da.weight" % levels in state_dict:
+        levels += 1
+    return tuple(int(state_dict[prefix + name + ".weight"].shape[0])
+                 for name, level in layer_names(levels) if name in (
+                     ["enc1"] + ["enc%da" % (l + 1) for l in range(1, levels - 1)] + ["bottleneck_a"]))
+
+
+def deepen(state_dict, widths):
+    """A state dict of len(widths) levels from one of fewer, computing the same function:
+    the old bottleneck becomes the encoder of its level, the new decoders pass that level's
+    skip through unchanged (identity on its channels, zero on the level below's), the new
+    levels start from `fresh`'s random weights. widths must extend the old widths."""
+    old = widths_of(state_dict)
+    if tuple(widths[:len(old)]) != old or len(widths) <= len(old):
+        raise ValueError("cannot deepen widths %s to %s" % (old, tuple(widths)))
+    fresh = KPCN(widths).state_dict()
+    out = dict(fresh)
+    rename = {"bottleneck_a": "enc%da" % len(old), "bottleneck_b": "enc%db" % len(old)}
+    for key, value in state_dict.items():
+        branch, name, kind = key.split(".")
+        out["%s.%s.%s" % (branch, rename.get(name, name), kind)] = value
+    for branch in ("diffuse", "specular"):
+        for level in range(len(old) - 1, len(widths) - 1):
+            w = torch.zeros_like(fresh["%s.dec%d.weight" % (branch, level + 1)])
+            below = widths[level + 1]
+            for c in range(widths[level]):
+                w[c, below + c, 1, 1] = 1.0
+            out["%s.dec%d.weight" % (branch, level + 1)] = w
+            out["%s.dec%d.bias" % (branch, level + 1)] = torch.zeros(widths[level])
+    return out
 
 
 class KPCN(nn.Module):
@@ -142,7 +201,7 @@ class KPCN(nn.Module):
 
     def forward(self, raw):
         """Returns the denoised (diffuse, specular, colour); the input sizes must be
-        multiples of 4 (two poolings)."""
+        multiples of alignment(widths)."""
         inputs = branch_inputs(raw)
         irradiance = self.diffuse(*inputs["diffuse"])
         log_specular = self.specular(*inputs["specular"])
@@ -153,24 +212,30 @@ class KPCN(nn.Module):
 
 def flops_per_pixel(widths=WIDTHS, iterations=ITERATIONS, kernel=KERNEL):
     """Multiply-adds x 2 of one branch per full-resolution pixel."""
-    w1, w2, w3 = widths
-    full = INPUT_CHANNELS * w1 * 9 + (w2 + w1) * w1 * 9 + w1 * iterations * kernel * kernel
-    half = w1 * w2 * 9 + w2 * w2 * 9 + (w3 + w2) * w2 * 9
-    quarter = w2 * w3 * 9 + w3 * w3 * 9
-    apply = iterations * kernel * kernel * 3
-    return 2 * (full + half / 4 + quarter / 16 + apply)
+    macs = widths[0] * iterations * kernel * kernel + iterations * kernel * kernel * 3
+    shapes = {k: v.shape for k, v in Branch(widths, iterations, kernel).state_dict().items()}
+    for name, level in layer_names(len(widths)):
+        cout, cin, kh, kw = shapes[name + ".weight"]
+        macs += cout * cin * kh * kw / 4 ** level
+    return 2 * macs
+
+
+def alignment(widths):
+    """What the input sizes must be multiples of: 2 to the number of poolings."""
+    return 2 ** (len(widths) - 1)
 
 
 def denoise(net, raw):
     """The whole op on one image, as lib/src/cnn computes it: raw planes [C, H, W] of any
     size (depth unscaled) -> denoised colour [3, H, W]. The inputs are computed at the image's
-    size, then extended to a multiple of 4 by repeating the last row and column
+    size, then extended to a multiple of alignment() by repeating the last row and column
     (nn::run_tiled), and the outputs cropped back."""
     raw = dict(raw)
     raw["depth"], raw["depth_var"] = scale_depth(raw["depth"], raw["depth_var"])
     batch = {k: v[None] for k, v in raw.items()}
     h, w = raw["color"].shape[1:]
-    pad = (0, (-w) % 4, 0, (-h) % 4)
+    a = alignment(net.diffuse.widths)
+    pad = (0, (-w) % a, 0, (-h) % a)
     inputs = branch_inputs(batch)
     out = {}
     with torch.no_grad():

@@ -299,7 +299,8 @@ def validate(net, files, device, without=(0.0, 0.0, 0.0)):
         for prefix, spp in files:
             raw, ref, ref_var, _ = load(prefix, spp)
             h, w = raw["color"].shape[1:]
-            h4, w4 = h // 4 * 4, w // 4 * 4
+            a = kpcn.alignment(net.diffuse.widths)
+            h4, w4 = h // a * a, w // a * a
             batch = {k: v[None, :, :h4, :w4].to(device) for k, v in raw.items()}
             if any(without):
                 refs = [r[None, :, :h4, :w4].to(device) for r in ref]
@@ -351,9 +352,11 @@ def main():
                     "instead of the validation crops")
     ap.add_argument("--loss", choices=sorted(LOSSES), help="default: n2n, l1log for --dataset full")
     ap.add_argument("--init", help="start from these weights (an exported .mcdnw or a run's "
-                    ".npz) instead of random ones: a fine-tune (their widths are used)")
+                    ".npz) instead of random ones: a fine-tune (their widths are used; a --widths "
+                    "that extends them by levels deepens the network: model.deepen)")
     ap.add_argument("--widths", default=",".join(str(w) for w in kpcn.WIDTHS),
-                    help="UNet widths at full, 1/2, 1/4 resolution (default %(default)s)")
+                    help="UNet widths at full, 1/2, 1/4, ... resolution, one per level "
+                    "(default %(default)s)")
     ap.add_argument("--no-split", type=float, default=0.25,
                     help="fraction of samples shown without the diffuse/specular split")
     ap.add_argument("--no-variance", type=float, default=0.25,
@@ -393,7 +396,11 @@ def main():
     init = None
     if args.init and ck is None:
         init = load_weights(args.init)
-        widths = tuple(int(init["diffuse.%s.weight" % n].shape[0]) for n in ("enc1", "enc2a", "bottleneck_a"))
+        init_widths = kpcn.widths_of(init)
+        if len(widths) > len(init_widths) and widths[:len(init_widths)] == init_widths:
+            init = kpcn.deepen(init, widths)
+            print("deepened %s to %s levels %s" % (init_widths, len(widths), widths), flush=True)
+        widths = kpcn.widths_of(init)
     state["args"]["widths_used"] = list(widths)
     net = kpcn.KPCN(widths).to(device)
     if init is not None:
@@ -459,6 +466,13 @@ def main():
     start = time.time()
     elapsed0 = state["elapsed"]
     running = []
+    if init is not None and state["step"] == 0:
+        # Where a fine-tune starts: the first point of its curve is the initial weights'.
+        v, vn = run_validation()
+        note_validation(v)
+        state["curve"].append([0, 0.0, float("nan"), v, vn,
+                               len(patch_set) if patch_set else len(train_files)])
+        print("  validation at the start relMSE %.5f (noisy %.5f)" % (v, vn), flush=True)
     while not stop["now"]:
         if args.steps and state["step"] >= args.steps:
             break

@@ -144,8 +144,9 @@ struct Model {
 /// Builds both networks with the widths found in the file and loads them; errors name the
 /// file and the tensor. `image_channels`: channels the kernels filter (3, more with extras).
 bool load_model(Model& model, const std::string& path, std::string& error, int image_channels = 3);
-/// One branch's network (exposed for the benchmark's FLOP count and the tests).
-nn::Net build_branch(const std::string& prefix, int width1, int width2, int width3, int iterations,
+/// One branch's network: a UNet of widths.size() ≥ 3 levels, widths[l] channels at 1/2^l of
+/// the resolution (exposed for the benchmark's FLOP count and the tests).
+nn::Net build_branch(const std::string& prefix, const std::vector<int>& widths, int iterations,
                      int image_channels = 3);
 
 }  // namespace kpcn

@@ -1,30 +1,42 @@
-// The KPCN branch network (training/cnn/model.py Branch), op for op: a 3-level UNet on the
-// 34 input channels whose 1×1 head predicts `iterations` softmax kernels of 5×5 per pixel
-// (KPCN §4.2 eq. 9), applied one after the other to the image (5 steps of 5×5 reach the
-// paper's 21×21 footprint).
+// The KPCN branch network (training/cnn/model.py Branch), op for op: a UNet on the 34 input
+// channels — two 3×3 convolutions a level (one at full resolution), max pooling down, nearest
+// upsampling and concatenation up — whose 1×1 head predicts `iterations` softmax kernels of
+// 5×5 per pixel (KPCN §4.2 eq. 9), applied one after the other to the image (5 steps of 5×5
+// reach the paper's 21×21 footprint). Tensor names as model.py's layer_names: 3 levels are
+// enc1, enc2a/b, bottleneck_a/b, dec2, dec1; each level more adds enc<l>a/b and dec<l>.
 #include <OpenImageIO/strutil.h>
+
+#include <algorithm>
 
 #include "cnn/cnn_steps.h"
 
 namespace mcdn {
 namespace kpcn {
 
-nn::Net build_branch(const std::string& prefix, int w1, int w2, int w3, int iterations,
+nn::Net build_branch(const std::string& prefix, const std::vector<int>& widths, int iterations,
                      int image_channels)
 {
     using nn::Value;
+    using OIIO::Strutil::fmt::format;
     nn::Net net("kpcn." + prefix);
     const std::string p = prefix + ".";
+    const int levels = int(widths.size());
     Value features = net.input("features", kInputChannels);
     Value image = net.input("image", image_channels);
-    Value e1 = net.conv(features, p + "enc1", w1, 3);
-    Value e2 = net.conv(net.conv(net.max_pool2(e1), p + "enc2a", w2, 3), p + "enc2b", w2, 3);
-    Value b =
-        net.conv(net.conv(net.max_pool2(e2), p + "bottleneck_a", w3, 3), p + "bottleneck_b", w3, 3);
-    Value d2 = net.conv(net.concat({ net.upsample2(b), e2 }), p + "dec2", w2, 3);
-    Value d1 = net.conv(net.concat({ net.upsample2(d2), e1 }), p + "dec1", w1, 3);
+    std::vector<Value> skips { net.conv(features, p + "enc1", widths[0], 3) };
+    for (int level = 1; level + 1 < levels; ++level) {
+        const std::string name = format("{}enc{}", p, level + 1);
+        skips.push_back(
+            net.conv(net.conv(net.max_pool2(skips.back()), name + "a", widths[level], 3),
+                     name + "b", widths[level], 3));
+    }
+    Value d = net.conv(net.conv(net.max_pool2(skips.back()), p + "bottleneck_a", widths.back(), 3),
+                       p + "bottleneck_b", widths.back(), 3);
+    for (int level = levels - 2; level >= 0; --level)
+        d = net.conv(net.concat({ net.upsample2(d), skips[size_t(level)] }),
+                     format("{}dec{}", p, level + 1), widths[size_t(level)], 3);
     const int taps = kKernel * kKernel;
-    Value logits = net.conv(d1, p + "kernels", iterations * taps, 1, nn::Activation::none);
+    Value logits = net.conv(d, p + "kernels", iterations * taps, 1, nn::Activation::none);
     for (int i = 0; i < iterations; ++i)
         image = net.apply_kernel(net.slice(logits, i * taps, taps), image, kKernel);
     net.output("denoised", image);
@@ -74,12 +86,20 @@ bool load_model(Model& model, const std::string& path, std::string& error, int i
     model.reads_depth = weights.metadata.find("\"reads_depth\": false") == std::string::npos;
     for (const char* branch : { "diffuse", "specular" }) {
         const std::string p = std::string(branch) + ".";
-        const int w1 = dim_of(weights, p + "enc1.weight", 0);
-        const int w2 = dim_of(weights, p + "enc2a.weight", 0);
-        const int w3 = dim_of(weights, p + "bottleneck_a.weight", 0);
+        // The widths by level: enc1, enc2a, enc3a, ... as far as they go, then the bottleneck.
+        std::vector<int> widths { dim_of(weights, p + "enc1.weight", 0) };
+        for (int level = 2;; ++level) {
+            const int w =
+                dim_of(weights, OIIO::Strutil::fmt::format("{}enc{}a.weight", p, level), 0);
+            if (w <= 0)
+                break;
+            widths.push_back(w);
+        }
+        widths.push_back(dim_of(weights, p + "bottleneck_a.weight", 0));
         const int head = dim_of(weights, p + "kernels.weight", 0);
         const int taps = kKernel * kKernel;
-        if (w1 <= 0 || w2 <= 0 || w3 <= 0 || head <= 0 || head % taps) {
+        if (widths.size() < 3 || *std::min_element(widths.begin(), widths.end()) <= 0 || head <= 0
+            || head % taps) {
             error = OIIO::Strutil::fmt::format(
                 "cnn: '{}': tensors {}enc1/enc2a/bottleneck_a/kernels.weight missing or "
                 "malformed (kernels.weight needs a multiple of {} outputs)",
@@ -87,7 +107,7 @@ bool load_model(Model& model, const std::string& path, std::string& error, int i
             return false;
         }
         nn::Net& net = std::string(branch) == "diffuse" ? model.diffuse : model.specular;
-        net = build_branch(branch, w1, w2, w3, head / taps, image_channels);
+        net = build_branch(branch, widths, head / taps, image_channels);
         if (!net.load(subset(weights, p), error)) {
             error = "cnn: " + error;  // names the file, the tensor and both shapes
             return false;
