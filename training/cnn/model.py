@@ -193,6 +193,58 @@ def deepen(state_dict, widths):
     return out
 
 
+def _input_blocks(name, level, widths):
+    """Where each input channel block of layer `name` comes from: a list of block widths in
+    input order (a decoder reads [the level below, its own level's skip])."""
+    if name == "enc1":
+        return [INPUT_CHANNELS]
+    if name == "kernels":
+        return [widths[0]]
+    if name.startswith("dec"):
+        return [widths[level + 1], widths[level]]
+    return [widths[level - 1] if name.endswith("a") else widths[level]]
+
+
+def widen(state_dict, widths):
+    """A state dict of the same depth with wider levels (each width at least the old one),
+    computing the same function: every old weight keeps its place, a new channel's input
+    weights are fresh (random), and every weight that reads a new channel is zero, so the new
+    channels change nothing until training moves those weights off zero."""
+    old = widths_of(state_dict)
+    if len(widths) != len(old) or any(w < o for w, o in zip(widths, old)):
+        raise ValueError("cannot widen widths %s to %s" % (old, tuple(widths)))
+    out = dict(KPCN(widths).state_dict())
+    layers = layer_names(len(widths)) + [("kernels", 0)]
+    for branch in ("diffuse", "specular"):
+        for name, level in layers:
+            key = "%s.%s." % (branch, name)
+            w_old, b_old = state_dict[key + "weight"], state_dict[key + "bias"]
+            w = out[key + "weight"].clone()
+            cout = w_old.shape[0]
+            w[:cout] = 0  # old outputs read nothing new ...
+            src = dst = 0
+            for o_block, n_block in zip(_input_blocks(name, level, old), _input_blocks(name, level, widths)):
+                w[:cout, dst:dst + o_block] = w_old[:, src:src + o_block]  # ... but what they read
+                src, dst = src + o_block, dst + n_block
+            b = torch.zeros_like(out[key + "bias"])
+            b[:cout] = b_old
+            out[key + "weight"], out[key + "bias"] = w, b
+            # The layers that read this one's new channels read them with zero weights: set
+            # above for every old output row; the new rows are fresh and read everything.
+    return out
+
+
+def grow(state_dict, widths):
+    """deepen, then widen: a state dict of `widths` from one of fewer or narrower levels,
+    computing the same function."""
+    old = widths_of(state_dict)
+    if len(widths) > len(old):
+        state_dict = deepen(state_dict, tuple(old) + tuple(widths[len(old):]))
+    if tuple(widths_of(state_dict)) != tuple(widths):
+        state_dict = widen(state_dict, widths)
+    return state_dict
+
+
 class KPCN(nn.Module):
     def __init__(self, widths=WIDTHS):
         super().__init__()
@@ -203,7 +255,12 @@ class KPCN(nn.Module):
         """Returns the denoised (diffuse, specular, colour); the input sizes must be
         multiples of alignment(widths)."""
         inputs = branch_inputs(raw)
-        irradiance = self.diffuse(*inputs["diffuse"])
+        if torch.count_nonzero(raw["diffuse"]) == 0:
+            # No split anywhere in the batch (model b's training): the diffuse branch would
+            # filter zeros into zeros; skipping it is exact and halves the step.
+            irradiance = torch.zeros_like(inputs["diffuse"][1])
+        else:
+            irradiance = self.diffuse(*inputs["diffuse"])
         log_specular = self.specular(*inputs["specular"])
         diffuse = (torch.relu(raw["demod"]) + ALBEDO_EPSILON) * irradiance  # eq. 4
         specular = torch.expm1(log_specular)

@@ -353,7 +353,7 @@ def main():
     ap.add_argument("--loss", choices=sorted(LOSSES), help="default: n2n, l1log for --dataset full")
     ap.add_argument("--init", help="start from these weights (an exported .mcdnw or a run's "
                     ".npz) instead of random ones: a fine-tune (their widths are used; a --widths "
-                    "that extends them by levels deepens the network: model.deepen)")
+                    "with more or wider levels grows the network first: model.grow)")
     ap.add_argument("--widths", default=",".join(str(w) for w in kpcn.WIDTHS),
                     help="UNet widths at full, 1/2, 1/4, ... resolution, one per level "
                     "(default %(default)s)")
@@ -397,9 +397,10 @@ def main():
     if args.init and ck is None:
         init = load_weights(args.init)
         init_widths = kpcn.widths_of(init)
-        if len(widths) > len(init_widths) and widths[:len(init_widths)] == init_widths:
-            init = kpcn.deepen(init, widths)
-            print("deepened %s to %s levels %s" % (init_widths, len(widths), widths), flush=True)
+        if widths != init_widths and len(widths) >= len(init_widths) and all(
+                w >= o for w, o in zip(widths, init_widths)):
+            init = kpcn.grow(init, widths)
+            print("grew %s to %s (the same function to start)" % (init_widths, widths), flush=True)
         widths = kpcn.widths_of(init)
     state["args"]["widths_used"] = list(widths)
     net = kpcn.KPCN(widths).to(device)
