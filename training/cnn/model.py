@@ -111,6 +111,18 @@ def layer_names(levels):
     return names
 
 
+def _input_blocks(name, level, widths):
+    """Where each input channel block of layer `name` comes from: a list of block widths in
+    input order (a decoder reads [the level below, its own level's skip])."""
+    if name == "enc1":
+        return [INPUT_CHANNELS]
+    if name == "kernels":
+        return [widths[0]]
+    if name.startswith("dec"):
+        return [widths[level + 1], widths[level]]
+    return [widths[level - 1] if name.endswith("a") else widths[level]]
+
+
 class Branch(nn.Module):
     """One KPCN branch: a UNet of len(WIDTHS) levels (widths[l] channels at 1/2^l of the
     resolution, two 3x3 convolutions a level, one at full resolution, max-pooling down,
@@ -124,14 +136,7 @@ class Branch(nn.Module):
         self.widths, self.iterations, self.kernel = tuple(widths), iterations, kernel
         levels = len(widths)
         for name, level in layer_names(levels):
-            if name == "enc1":
-                cin = INPUT_CHANNELS
-            elif name.startswith("dec"):
-                cin = widths[level + 1] + widths[level]
-            elif name.endswith("a"):
-                cin = widths[level - 1]
-            else:
-                cin = widths[level]
+            cin = sum(_input_blocks(name, level, widths))
             setattr(self, name, nn.Conv2d(cin, widths[level], 3, padding=1))
         self.kernels = nn.Conv2d(widths[0], iterations * kernel * kernel, 1)
         for m in self.modules():
@@ -160,19 +165,18 @@ class Branch(nn.Module):
 
 def widths_of(state_dict, prefix="diffuse."):
     """The UNet widths of a state dict (exported model or run), from its tensors' shapes."""
-    levels = 3
-    while prefix + "enc%da.weight" % levels in state_dict:
-        levels += 1
-    return tuple(int(state_dict[prefix + name + ".weight"].shape[0])
-                 for name, level in layer_names(levels) if name in (
-                     ["enc1"] + ["enc%da" % (l + 1) for l in range(1, levels - 1)] + ["bottleneck_a"]))
+    names = ["enc1"]
+    while prefix + "enc%da.weight" % (len(names) + 1) in state_dict:
+        names.append("enc%da" % (len(names) + 1))
+    names.append("bottleneck_a")
+    return tuple(int(state_dict[prefix + name + ".weight"].shape[0]) for name in names)
 
 
 def deepen(state_dict, widths):
     """A state dict of len(widths) levels from one of fewer, computing the same function:
     the old bottleneck becomes the encoder of its level, the new decoders pass that level's
     skip through unchanged (identity on its channels, zero on the level below's), the new
-    levels start from `fresh`'s random weights. widths must extend the old widths."""
+    levels start from random weights. widths must extend the old widths."""
     old = widths_of(state_dict)
     if tuple(widths[:len(old)]) != old or len(widths) <= len(old):
         raise ValueError("cannot deepen widths %s to %s" % (old, tuple(widths)))
@@ -191,18 +195,6 @@ def deepen(state_dict, widths):
             out["%s.dec%d.weight" % (branch, level + 1)] = w
             out["%s.dec%d.bias" % (branch, level + 1)] = torch.zeros(widths[level])
     return out
-
-
-def _input_blocks(name, level, widths):
-    """Where each input channel block of layer `name` comes from: a list of block widths in
-    input order (a decoder reads [the level below, its own level's skip])."""
-    if name == "enc1":
-        return [INPUT_CHANNELS]
-    if name == "kernels":
-        return [widths[0]]
-    if name.startswith("dec"):
-        return [widths[level + 1], widths[level]]
-    return [widths[level - 1] if name.endswith("a") else widths[level]]
 
 
 def widen(state_dict, widths):
@@ -229,8 +221,6 @@ def widen(state_dict, widths):
             b = torch.zeros_like(out[key + "bias"])
             b[:cout] = b_old
             out[key + "weight"], out[key + "bias"] = w, b
-            # The layers that read this one's new channels read them with zero weights: set
-            # above for every old output row; the new rows are fresh and read everything.
     return out
 
 
@@ -270,10 +260,8 @@ class KPCN(nn.Module):
 def flops_per_pixel(widths=WIDTHS, iterations=ITERATIONS, kernel=KERNEL):
     """Multiply-adds x 2 of one branch per full-resolution pixel."""
     macs = widths[0] * iterations * kernel * kernel + iterations * kernel * kernel * 3
-    shapes = {k: v.shape for k, v in Branch(widths, iterations, kernel).state_dict().items()}
     for name, level in layer_names(len(widths)):
-        cout, cin, kh, kw = shapes[name + ".weight"]
-        macs += cout * cin * kh * kw / 4 ** level
+        macs += widths[level] * sum(_input_blocks(name, level, widths)) * 9 / 4 ** level
     return 2 * macs
 
 
